@@ -1,0 +1,114 @@
+"""optdesign: state-estimator gains designed by optimization.
+
+Observers and Kalman filters that are well conditioned, with poles where you want them;
+the inverse Kalman question (which Q >= 0 gives these poles?), Riccati solvers, Kalman
+filter robustness, and constraint studies.  NLPs are solved with CasADi/IPOPT, SDPs with
+cvxpy (Clarabel, SCS); every answer is verified independently.
+
+Public names are imported lazily, so ``import optdesign`` is cheap and the optional
+backends are loaded only when a design needs them.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from .errors import (
+    BackendUnavailableError,
+    DimensionError,
+    EmptyRegionError,
+    InfeasibleError,
+    NotConjugateClosedError,
+    NotFiniteError,
+    NotObservableError,
+    NotPositiveDefiniteError,
+    NotPositiveSemidefiniteError,
+    NotSymmetricError,
+    OptDesignError,
+    ProblemNotFoundError,
+    RiccatiError,
+    SolverError,
+    ValidationError,
+)
+from .model.plant import Plant
+from .results import Check, SolverStats, Status, Verification
+
+__version__ = "0.1.0"
+
+# public name -> module that defines it (imported on first access)
+_LAZY: dict[str, str] = {
+    # foundation
+    "kalman": "optdesign.design.kalman",
+    "KalmanFilter": "optdesign.design.kalman",
+    # inverse Kalman (seed 000)
+    "kalman_for_poles": "optdesign.design.inverse_kalman",
+    "InverseKalmanResult": "optdesign.design.inverse_kalman",
+    "is_kalman_optimal": "optdesign.design.inverse_kalman",
+    "KalmanOptimalityResult": "optdesign.design.inverse_kalman",
+    # well-conditioned observers (seed 001)
+    "well_conditioned_observer": "optdesign.design.well_conditioned",
+    "well_conditioned_kalman": "optdesign.design.well_conditioned",
+    "ObserverDesign": "optdesign.design.well_conditioned",
+    # time-varying Kalman gain (seed 004)
+    "riccati_de": "optdesign.design.riccati_de",
+    "RiccatiTrajectory": "optdesign.design.riccati_de",
+    # generalized observers (seed 003)
+    "generalized_observer": "optdesign.design.generalized",
+    "GeneralizedObserver": "optdesign.design.generalized",
+    "noise_rejecting_observer": "optdesign.design.generalized",
+    "simulate_observer": "optdesign.design.generalized",
+    # robustness (seed 002)
+    "return_difference": "optdesign.analysis.robustness",
+    "circle_condition": "optdesign.analysis.robustness",
+    "filter_margins": "optdesign.analysis.robustness",
+    "output_delay_kalman": "optdesign.design.output_delay",
+}
+
+_SUBMODULES = ("metrics", "regions", "riccati", "problems", "noise", "classical", "studies",
+               "analysis", "model", "formulate", "solvers", "design")
+
+__all__ = [
+    "Plant",
+    "Status",
+    "Check",
+    "Verification",
+    "SolverStats",
+    "OptDesignError",
+    "ValidationError",
+    "DimensionError",
+    "NotFiniteError",
+    "NotSymmetricError",
+    "NotPositiveDefiniteError",
+    "NotPositiveSemidefiniteError",
+    "NotObservableError",
+    "NotConjugateClosedError",
+    "EmptyRegionError",
+    "InfeasibleError",
+    "SolverError",
+    "BackendUnavailableError",
+    "RiccatiError",
+    "ProblemNotFoundError",
+    *_LAZY,
+]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        module = importlib.import_module(_LAZY[name])
+        value = getattr(module, name)
+        globals()[name] = value
+        return value
+    if name in _SUBMODULES:
+        module = importlib.import_module(f"optdesign.{name}")
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module 'optdesign' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(__all__) | set(_SUBMODULES) | set(globals()))
+
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .design.kalman import KalmanFilter, kalman  # noqa: F401

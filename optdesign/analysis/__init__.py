@@ -1,0 +1,1 @@
+"""Analysis layer: pure functions of matrices (metrics, observability, return difference, margins)."""

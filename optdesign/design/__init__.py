@@ -1,0 +1,1 @@
+"""Design layer: the public verbs (validate -> formulate -> solve -> verify -> result)."""

@@ -1,0 +1,135 @@
+"""Exception hierarchy of optdesign.
+
+Every exception raised on purpose by optdesign derives from :class:`OptDesignError`
+*and* from the builtin a caller would naturally catch (``ValueError`` for bad input,
+``numpy.linalg.LinAlgError`` for a Riccati failure, ``RuntimeError`` for a solver
+failure, ``ImportError`` for a missing optional backend).  So ``except ValueError``
+keeps working, and ``except optdesign.OptDesignError`` catches everything of ours.
+
+Messages name the offending matrix and the expected versus found shape or property,
+following ``scipy.linalg._solvers``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "OptDesignError",
+    "ValidationError",
+    "DimensionError",
+    "NotFiniteError",
+    "NotSymmetricError",
+    "NotPositiveDefiniteError",
+    "NotPositiveSemidefiniteError",
+    "NotObservableError",
+    "NotConjugateClosedError",
+    "EmptyRegionError",
+    "InfeasibleError",
+    "SolverError",
+    "BackendUnavailableError",
+    "RiccatiError",
+    "ProblemNotFoundError",
+]
+
+
+class OptDesignError(Exception):
+    """Root of every exception raised deliberately by optdesign."""
+
+
+class ValidationError(OptDesignError, ValueError):
+    """An input is malformed (wrong shape, non-finite, wrong property)."""
+
+
+class DimensionError(ValidationError):
+    """A matrix or vector has the wrong shape (message: expected vs found)."""
+
+
+class NotFiniteError(ValidationError):
+    """A matrix contains NaN or Inf."""
+
+
+class NotSymmetricError(ValidationError):
+    """A matrix that must be symmetric (Q, R, P0) is not."""
+
+
+class NotPositiveDefiniteError(ValidationError):
+    """A matrix that must be positive definite (R) is not."""
+
+
+class NotPositiveSemidefiniteError(ValidationError):
+    """A matrix that must be positive semidefinite (Q) is not."""
+
+
+class NotObservableError(ValidationError):
+    """The pair (C, A) is not observable (or not detectable where that suffices).
+
+    Attributes
+    ----------
+    modes : ndarray of complex
+        The unobservable eigenvalues of A found by the PBH test.
+    """
+
+    def __init__(self, message: str, modes=None):
+        super().__init__(message)
+        self.modes = np.asarray([] if modes is None else modes, dtype=complex)
+
+
+class NotConjugateClosedError(ValidationError):
+    """A set of poles for a real system is not closed under complex conjugation."""
+
+
+class EmptyRegionError(ValidationError):
+    """A pole region (typically an intersection) has an empty interior."""
+
+
+class InfeasibleError(OptDesignError, ValueError):
+    """A design question has no solution.
+
+    Design verbs normally *return* an infeasible result with a certificate; this
+    exception is raised only where the caller asked for an exception
+    (e.g. ``result.raise_for_status()``).
+
+    Attributes
+    ----------
+    certificate : object or None
+        Evidence of infeasibility (e.g. a frequency at which an inequality fails).
+    """
+
+    def __init__(self, message: str, certificate=None):
+        super().__init__(message)
+        self.certificate = certificate
+
+
+class SolverError(OptDesignError, RuntimeError):
+    """A numerical backend failed.  The message names the backend and its native status.
+
+    Attributes
+    ----------
+    backend : str
+    native_status : str
+    """
+
+    def __init__(self, message: str, backend: str = "", native_status: str = ""):
+        super().__init__(message)
+        self.backend = backend
+        self.native_status = native_status
+
+
+class BackendUnavailableError(OptDesignError, ImportError):
+    """An optional backend (python-control, dask, matplotlib, a cvxpy solver) is not installed."""
+
+
+class RiccatiError(OptDesignError, np.linalg.LinAlgError):
+    """A Riccati equation has no stabilizing solution or could not be solved accurately.
+
+    The message says which: eigenvalues on the imaginary axis / unit circle, a singular
+    X1 block of the invariant-subspace basis, or an excessive residual.
+    """
+
+
+class ProblemNotFoundError(OptDesignError, KeyError):
+    """No problem of that name in the problem library."""
+
+    def __str__(self) -> str:  # KeyError quotes its message; keep it readable
+        return str(self.args[0]) if self.args else ""

@@ -1,0 +1,295 @@
+"""The plant whose state is to be estimated."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validate import as_matrix, as_positive_float, as_square, check_pd, check_psd
+from ..errors import BackendUnavailableError, NotObservableError, ValidationError
+
+__all__ = ["Plant"]
+
+
+def _readonly(X: NDArray | None) -> NDArray | None:
+    if X is not None:
+        X.setflags(write=False)
+    return X
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Plant:
+    r"""A linear time-invariant plant seen by a state estimator.
+
+    Continuous time (``dt=None``)::
+
+        x' = A x + B u + G w,    y = C x + v,    E[w w'] = Q,  E[v v'] = R
+
+    Discrete time (``dt > 0``)::
+
+        x[k+1] = A x[k] + B u[k] + G w[k],    y[k] = C x[k] + v[k]
+
+    The state-space process-noise covariance is ``G Q G'`` (the seeds' ``Q' = D Q D'``).
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+        State matrix.
+    C : (p, n) array_like
+        Output matrix.  A 1-D array of length n is read as one output row.
+    G : (n, m) array_like, optional
+        Process-noise input matrix.  Default: the identity (m = n).
+    Q : (m, m) array_like, optional
+        Process-noise covariance, symmetric positive semidefinite.  Needed for Kalman design.
+    R : (p, p) array_like, optional
+        Measurement-noise covariance, symmetric positive definite.  Needed for Kalman design.
+    dt : float, optional
+        Sampling period; ``None`` (default) for continuous time.
+    name : str, optional
+        A label used in messages and reports.
+    B : (n, nu) array_like, optional
+        Control input matrix, used only for simulation.
+
+    Raises
+    ------
+    DimensionError
+        A is not square or a shape does not match.
+    NotFiniteError
+        A matrix contains NaN or Inf.
+    NotSymmetricError, NotPositiveSemidefiniteError, NotPositiveDefiniteError
+        Q not symmetric PSD, R not symmetric PD.
+    ValidationError
+        dt not a positive number.
+
+    Notes
+    -----
+    Instances are immutable: the arrays are read-only and :meth:`replace` returns a new,
+    re-validated plant.
+
+    Examples
+    --------
+    >>> from optdesign import Plant
+    >>> plant = Plant([[0, 1], [-6, -5]], [[1, 0]], Q=[[1, 0], [0, 1]], R=[[1]])
+    >>> plant.n, plant.p, plant.is_discrete
+    (2, 1, False)
+    """
+
+    A: NDArray[np.float64]
+    C: NDArray[np.float64]
+    G: NDArray[np.float64] | None = None
+    Q: NDArray[np.float64] | None = None
+    R: NDArray[np.float64] | None = None
+    dt: float | None = None
+    name: str | None = None
+    B: NDArray[np.float64] | None = None
+
+    def __post_init__(self) -> None:
+        A = as_square("A", self.A)
+        n = A.shape[0]
+        if n == 0:
+            raise ValidationError("A must have at least one state; found shape (0, 0)")
+        C = as_matrix("C", self.C, (None, n)) if np.ndim(self.C) != 1 else as_matrix("C", self.C, (1, n))
+        p = C.shape[0]
+        if p == 0:
+            raise ValidationError("C must have at least one output row; found shape (0, n)")
+        if self.G is None:
+            m = n if self.Q is None else np.atleast_2d(np.asarray(self.Q)).shape[0]
+            if m != n:
+                raise ValidationError(
+                    f"G is required when Q is not n x n: Q is {m} x {m}, A is {n} x {n}"
+                )
+            G = np.eye(n)
+        else:
+            G = as_matrix("G", self.G, (n, None))
+            m = G.shape[1]
+        Q = None if self.Q is None else check_psd("Q", as_square("Q", self.Q, m))
+        R = None if self.R is None else check_pd("R", as_square("R", self.R, p))
+        dt = None if self.dt is None else as_positive_float("dt", self.dt)
+        B = None if self.B is None else as_matrix("B", self.B, (n, None))
+        if self.name is not None and not isinstance(self.name, str):
+            raise ValidationError(f"name must be a string; found {type(self.name).__name__}")
+        for k, v in dict(A=A, C=C, G=G, Q=Q, R=R, dt=dt, B=B).items():
+            object.__setattr__(self, k, _readonly(v) if isinstance(v, np.ndarray) else v)
+
+    # ------------------------------------------------------------------ shape
+    @property
+    def n(self) -> int:
+        """Number of states."""
+        return self.A.shape[0]
+
+    @property
+    def p(self) -> int:
+        """Number of measured outputs."""
+        return self.C.shape[0]
+
+    @property
+    def m(self) -> int:
+        """Number of process-noise inputs (columns of G)."""
+        return self.G.shape[1]
+
+    @property
+    def is_discrete(self) -> bool:
+        """True when the plant is sampled (``dt`` is set)."""
+        return self.dt is not None
+
+    @property
+    def has_noise_model(self) -> bool:
+        """True when both Q and R are given (a Kalman filter can be designed)."""
+        return self.Q is not None and self.R is not None
+
+    def process_noise(self) -> NDArray[np.float64]:
+        """The state-space process-noise covariance ``G Q G'``, shape (n, n).
+
+        Raises
+        ------
+        ValidationError
+            If Q was not given.
+        """
+        self.require_noise_model(need_R=False)
+        W = self.G @ self.Q @ self.G.T
+        return 0.5 * (W + W.T)
+
+    def require_noise_model(self, need_R: bool = True) -> None:
+        """Raise a ValidationError naming what is missing for a Kalman design."""
+        missing = [k for k in (("Q", "R") if need_R else ("Q",)) if getattr(self, k) is None]
+        if missing:
+            label = f" {self.name!r}" if self.name else ""
+            raise ValidationError(
+                f"plant{label} has no {' and no '.join(missing)}: a Kalman filter needs the "
+                f"process-noise covariance Q and the measurement-noise covariance R"
+            )
+
+    # ----------------------------------------------------------- observability
+    def observability_matrix(self) -> NDArray[np.float64]:
+        """``[C; CA; ...; CA^(n-1)]``, shape (n p, n)."""
+        blocks = [self.C]
+        for _ in range(self.n - 1):
+            blocks.append(blocks[-1] @ self.A)
+        return np.vstack(blocks)
+
+    def unobservable_modes(self, tol: float | None = None) -> NDArray[np.complex128]:
+        """Eigenvalues of A that the output does not see (PBH test).
+
+        For every distinct eigenvalue ``lam`` of A, the nullity of ``[lam I - A; C]`` (by SVD,
+        singular values below ``tol * max(1, ||A||, ||C||)``) counts how many copies of
+        ``lam`` are unobservable.
+
+        Parameters
+        ----------
+        tol : float, optional
+            Relative rank tolerance; default ``1e-9 * n``, generous enough for repeated
+            eigenvalues computed to about sqrt(eps).
+
+        Returns
+        -------
+        (k,) ndarray of complex
+            The unobservable eigenvalues (empty when (C, A) is observable).
+        """
+        n = self.n
+        tol = 1e-9 * n if tol is None else float(tol)
+        scale = max(1.0, np.linalg.norm(self.A, 2), np.linalg.norm(self.C, 2))
+        eigs = np.linalg.eigvals(self.A)
+        # cluster numerically equal eigenvalues (defective ones are only ~ eps^(1/k) apart)
+        clusters: list[list[complex]] = []
+        ctol = max(1e-6, np.sqrt(np.finfo(float).eps)) * scale
+        for lam in eigs:
+            for cl in clusters:
+                if abs(lam - np.mean(cl)) <= ctol:
+                    cl.append(lam)
+                    break
+            else:
+                clusters.append([lam])
+        out: list[complex] = []
+        for cl in clusters:
+            lam = complex(np.mean(cl))
+            M = np.vstack([lam * np.eye(n) - self.A, self.C.astype(complex)])
+            s = np.linalg.svd(M, compute_uv=False)
+            nullity = int(np.sum(s < tol * scale))
+            out.extend([lam] * min(nullity, len(cl)))
+        return np.asarray(out, dtype=complex)
+
+    def is_observable(self, tol: float | None = None) -> bool:
+        """True when (C, A) is observable (no unobservable mode)."""
+        return self.unobservable_modes(tol).size == 0
+
+    def is_detectable(self, tol: float | None = None) -> bool:
+        """True when every unobservable mode is stable (Re < 0, or |z| < 1 in discrete time)."""
+        modes = self.unobservable_modes(tol)
+        return bool(np.all(np.abs(modes) < 1.0) if self.is_discrete else np.all(modes.real < 0.0))
+
+    def require_observable(self, *, detectable_ok: bool = False, what: str = "this design") -> None:
+        """Raise :class:`NotObservableError` naming the unobservable modes.
+
+        Parameters
+        ----------
+        detectable_ok : bool
+            Accept unobservable modes that are stable.
+        what : str
+            Phrase naming the design, used in the message.
+        """
+        modes = self.unobservable_modes()
+        if detectable_ok:
+            stable = np.abs(modes) < 1.0 if self.is_discrete else modes.real < 0.0
+            modes = modes[~stable]
+        if modes.size:
+            label = f" of plant {self.name!r}" if self.name else ""
+            kind = "undetectable" if detectable_ok else "unobservable"
+            shown = ", ".join(f"{complex(z):.6g}".strip("()") for z in modes)
+            raise NotObservableError(
+                f"(C, A){label} is {kind}, so {what} is impossible: {kind} mode(s) {shown} "
+                f"(PBH test: rank [lambda I - A; C] < n)",
+                modes=modes,
+            )
+
+    # ------------------------------------------------------------ conversion
+    def replace(self, **changes: Any) -> "Plant":
+        """A new plant with some fields replaced (re-validated)."""
+        kw = {f.name: getattr(self, f.name) for f in fields(self)}
+        kw.update(changes)
+        return Plant(**kw)
+
+    @classmethod
+    def from_control(cls, sys, *, G=None, Q=None, R=None, name: str | None = None) -> "Plant":
+        """Build a plant from a python-control ``StateSpace`` (python-control is optional).
+
+        ``sys.B`` becomes the control input B; ``sys.dt`` of 0 or None means continuous time.
+
+        Raises
+        ------
+        BackendUnavailableError
+            python-control is not installed.
+        ValidationError
+            ``sys`` is not a StateSpace, or it is discrete with an unspecified sampling time.
+        """
+        try:
+            import control
+        except ImportError as exc:  # pragma: no cover - exercised only without python-control
+            raise BackendUnavailableError(
+                "Plant.from_control needs python-control: pip install control"
+            ) from exc
+        if not isinstance(sys, control.StateSpace):
+            raise ValidationError(f"sys must be a control.StateSpace; found {type(sys).__name__}")
+        dt = sys.dt
+        if dt is True:
+            raise ValidationError("sys is discrete with unspecified sampling time (dt=True); give a number")
+        dt = None if (dt is None or dt == 0) else float(dt)
+        return cls(np.asarray(sys.A), np.asarray(sys.C), G=G, Q=Q, R=R, dt=dt,
+                   name=name if name is not None else (getattr(sys, "name", None) or None),
+                   B=np.asarray(sys.B) if np.asarray(sys.B).size else None)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data representation (nested lists), e.g. for JSON output."""
+        out: dict[str, Any] = {"name": self.name, "dt": self.dt}
+        for k in ("A", "C", "G", "Q", "R", "B"):
+            v = getattr(self, k)
+            out[k] = None if v is None else v.tolist()
+        return out
+
+    def __repr__(self) -> str:
+        label = f"{self.name!r}, " if self.name else ""
+        time = f"dt={self.dt:g}" if self.is_discrete else "continuous"
+        noise = "Q,R given" if self.has_noise_model else "no noise model"
+        return f"Plant({label}n={self.n}, p={self.p}, m={self.m}, {time}, {noise})"

@@ -1,0 +1,1 @@
+"""Studies layer: sweeps and Pareto fronts over design parameters."""
