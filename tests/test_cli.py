@@ -1,0 +1,65 @@
+"""The ``optdesign`` command: outputs, JSON, and one-line errors with exit code 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from optdesign.cli import DEFAULT_PROBLEM, main
+
+
+def test_list(capsys):
+    assert main(["list"]) == 0
+    out = capsys.readouterr().out
+    assert DEFAULT_PROBLEM in out and "carex_1.1" in out and "problems" in out
+
+
+def test_list_filters_and_json(capsys):
+    assert main(["list", "--kind", "riccati_care", "--json"]) == 0
+    rows = json.loads(capsys.readouterr().out)
+    assert rows and all(r["kind"] == "riccati_care" for r in rows)
+
+
+def test_show(capsys):
+    assert main(["show", DEFAULT_PROBLEM]) == 0
+    out = capsys.readouterr().out
+    assert "citation" in out and "A =" in out
+    assert main(["show", DEFAULT_PROBLEM, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["name"] == DEFAULT_PROBLEM
+
+
+def test_kalman_default_problem(capsys):
+    assert main(["kalman"]) == 0
+    out = capsys.readouterr().out
+    assert DEFAULT_PROBLEM in out and "poles" in out.lower()
+
+
+def test_kalman_json(capsys):
+    assert main(["kalman", DEFAULT_PROBLEM, "--json", "--method", "hamiltonian"]) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d["success"] is True and d["residual"] < 1e-10 and len(d["L"]) == 2
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["show", "no_such_problem"], "no problem named 'no_such_problem'"),
+        (["kalman", "no_such_problem"], "no problem named"),
+        (["kalman", DEFAULT_PROBLEM, "--method", "magic"], "invalid choice: 'magic'"),
+        (["frobnicate"], "invalid choice: 'frobnicate'"),
+        (["list", "--kind", "no_such_kind"], "no problem matches kind='no_such_kind'"),
+    ],
+)
+def test_errors_are_one_line_exit_2(argv, match, capsys):
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert match in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_console_script_entry_point():
+    out = subprocess.run([sys.executable, "-m", "optdesign", "show", "nope"], capture_output=True, text=True)
+    assert out.returncode == 2 and out.stderr.startswith("optdesign: error:") and "Traceback" not in out.stderr

@@ -1,0 +1,195 @@
+"""Plant: validation at construction, immutability, observability (PBH), conversions."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import optdesign
+from optdesign import Plant
+from optdesign.errors import (
+    DimensionError,
+    NotFiniteError,
+    NotObservableError,
+    NotPositiveDefiniteError,
+    NotPositiveSemidefiniteError,
+    NotSymmetricError,
+    OptDesignError,
+    ValidationError,
+)
+
+A2 = [[0.0, 1.0], [-6.0, -5.0]]
+C2 = [[1.0, 0.0]]
+
+
+def test_basic_properties():
+    p = Plant(A2, C2, Q=np.eye(2), R=[[1.0]], name="ex1")
+    assert (p.n, p.p, p.m) == (2, 1, 2)
+    assert not p.is_discrete and p.has_noise_model
+    np.testing.assert_array_equal(p.G, np.eye(2))
+    np.testing.assert_allclose(p.process_noise(), np.eye(2))
+    assert "ex1" in repr(p) and "continuous" in repr(p)
+
+
+def test_one_dimensional_C_is_a_row():
+    p = Plant(A2, [1.0, 0.0])
+    assert p.C.shape == (1, 2)
+
+
+def test_G_and_Q_shapes():
+    p = Plant(A2, C2, G=[[0.0], [1.0]], Q=[[2.0]], R=[[1.0]])
+    assert p.m == 1
+    np.testing.assert_allclose(p.process_noise(), [[0, 0], [0, 2]])
+
+
+def test_frozen_and_readonly():
+    p = Plant(A2, C2)
+    with pytest.raises(AttributeError):
+        p.A = np.eye(2)  # type: ignore[misc]
+    with pytest.raises(ValueError, match="read-only"):
+        p.A[0, 0] = 5.0
+
+
+def test_input_is_copied():
+    A = np.array(A2)
+    p = Plant(A, C2)
+    A[0, 0] = 99.0
+    assert p.A[0, 0] == 0.0
+
+
+def test_replace_revalidates():
+    p = Plant(A2, C2, Q=np.eye(2), R=[[1.0]])
+    q = p.replace(dt=0.1)
+    assert q.is_discrete and q.dt == 0.1 and not p.is_discrete
+    with pytest.raises(NotPositiveDefiniteError, match="R must be positive definite"):
+        p.replace(R=[[0.0]])
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        (dict(A=[[1.0, 2.0, 3.0]], C=[[1.0]]), DimensionError, r"A must be square; found shape \(1, 3\)"),
+        (dict(A=np.zeros((2, 2, 2)), C=[[1.0, 0.0]]), DimensionError, "A must be 2-D"),
+        (dict(A=A2, C=[[1.0, 0.0, 0.0]]), DimensionError, r"C has the wrong shape: expected \(\?, 2\), found \(1, 3\)"),
+        (dict(A=[[np.nan, 1.0], [0.0, 0.0]], C=C2), NotFiniteError, "A must be finite; found nan at index"),
+        (dict(A=A2, C=[[np.inf, 0.0]]), NotFiniteError, "C must be finite"),
+        (dict(A=A2, C=C2, G=[[1.0], [0.0], [0.0]]), DimensionError, r"G has the wrong shape: expected \(2, \?\)"),
+        (dict(A=A2, C=C2, Q=[[1.0, 2.0], [0.0, 1.0]]), NotSymmetricError, "Q must be symmetric"),
+        (dict(A=A2, C=C2, Q=[[1.0, 0.0], [0.0, -1.0]]), NotPositiveSemidefiniteError,
+         "Q must be positive semidefinite; found smallest eigenvalue -1"),
+        (dict(A=A2, C=C2, Q=np.eye(3)), ValidationError, "G is required when Q is not n x n"),
+        (dict(A=A2, C=C2, G=[[1.0], [0.0]], Q=np.eye(2)), DimensionError, r"Q has the wrong shape: expected \(1, 1\)"),
+        (dict(A=A2, C=C2, R=[[-1.0]]), NotPositiveDefiniteError, "R must be positive definite"),
+        (dict(A=A2, C=C2, R=np.eye(2)), DimensionError, r"R has the wrong shape: expected \(1, 1\)"),
+        (dict(A=A2, C=C2, dt=0.0), ValidationError, "dt must be finite and > 0"),
+        (dict(A=A2, C=C2, dt=-1.0), ValidationError, "dt must be finite and > 0"),
+        (dict(A=A2, C=C2, dt="fast"), ValidationError, "dt must be a real number"),
+        (dict(A=[[1j, 0.0], [0.0, 1.0]], C=C2), ValidationError, "A must be real"),
+        (dict(A=[[1.0, 2.0], [3.0]], C=C2), ValidationError, "A could not be converted|A must be a numeric"),
+        (dict(A=np.zeros((0, 0)), C=np.zeros((1, 0))), ValidationError, "at least one state"),
+        (dict(A=A2, C=np.zeros((0, 2))), ValidationError, "at least one output"),
+        (dict(A=A2, C=C2, B=[[1.0, 0.0, 0.0]]), DimensionError, r"B has the wrong shape"),
+        (dict(A=A2, C=C2, name=3), ValidationError, "name must be a string"),
+    ],
+)
+def test_validation_errors(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        Plant(**kwargs)
+
+
+def test_errors_are_builtins_and_rooted():
+    with pytest.raises(ValueError):
+        Plant([[1.0, 2.0]], [[1.0]])
+    with pytest.raises(OptDesignError):
+        Plant([[1.0, 2.0]], [[1.0]])
+    assert issubclass(optdesign.RiccatiError, np.linalg.LinAlgError)
+    assert issubclass(optdesign.SolverError, RuntimeError)
+    assert issubclass(optdesign.BackendUnavailableError, ImportError)
+    assert issubclass(optdesign.ProblemNotFoundError, KeyError)
+
+
+def test_observability_matrix():
+    p = Plant(A2, C2)
+    np.testing.assert_allclose(p.observability_matrix(), [[1, 0], [0, 1]])
+    assert p.is_observable() and p.unobservable_modes().size == 0
+
+
+def test_unobservable_modes_named():
+    p = Plant([[-1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, -3.0]], [[1.0, 0.0, 1.0]])
+    modes = p.unobservable_modes()
+    np.testing.assert_allclose(modes, [2.0])
+    assert not p.is_observable() and not p.is_detectable()
+    with pytest.raises(NotObservableError, match=r"unobservable mode\(s\) 2\+0j") as info:
+        p.require_observable()
+    np.testing.assert_allclose(info.value.modes, [2.0])
+
+
+def test_detectable_but_unobservable():
+    p = Plant([[-1.0, 0.0], [0.0, 2.0]], [[0.0, 1.0]])
+    np.testing.assert_allclose(p.unobservable_modes(), [-1.0])
+    assert p.is_detectable()
+    p.require_observable(detectable_ok=True)  # no error
+    with pytest.raises(NotObservableError, match="unobservable"):
+        p.require_observable()
+
+
+def test_discrete_detectability_uses_unit_circle():
+    p = Plant([[0.5, 0.0], [0.0, 1.5]], [[0.0, 1.0]], dt=0.1)
+    assert p.is_detectable()
+    q = Plant([[0.5, 0.0], [0.0, 1.5]], [[1.0, 0.0]], dt=0.1)
+    assert not q.is_detectable()
+    with pytest.raises(NotObservableError, match="undetectable mode"):
+        q.require_observable(detectable_ok=True)
+
+
+def test_repeated_eigenvalue_pbh():
+    # two Jordan-free copies of eigenvalue -1 seen by one output: one copy is unobservable
+    p = Plant(-np.eye(2), [[1.0, 1.0]])
+    np.testing.assert_allclose(p.unobservable_modes(), [-1.0])
+    # a Jordan block is observable from its last state... from the first row of C = e1'
+    j = Plant([[-1.0, 1.0], [0.0, -1.0]], [[1.0, 0.0]])
+    assert j.is_observable()
+
+
+def test_complex_unobservable_pair():
+    A = np.zeros((4, 4))
+    A[:2, :2] = [[0.0, 2.0], [-2.0, 0.0]]
+    A[2:, 2:] = [[-1.0, 1.0], [-1.0, -1.0]]
+    p = Plant(A, [[0.0, 0.0, 1.0, 0.0]])
+    modes = np.sort_complex(p.unobservable_modes())
+    np.testing.assert_allclose(modes, [-2j, 2j], atol=1e-12)
+
+
+def test_pbh_agrees_with_rank_on_random_plants(rng):
+    for _ in range(50):
+        n, p = rng.integers(2, 7), rng.integers(1, 3)
+        A = rng.standard_normal((n, n))
+        C = rng.standard_normal((p, n))
+        plant = Plant(A, C)
+        assert plant.is_observable() == (np.linalg.matrix_rank(plant.observability_matrix()) == n)
+
+
+def test_require_noise_model_message():
+    with pytest.raises(ValidationError, match="has no Q and no R"):
+        Plant(A2, C2, name="x").require_noise_model()
+    with pytest.raises(ValidationError, match="has no Q"):
+        Plant(A2, C2).process_noise()
+
+
+def test_from_control_round_trip():
+    import control  # optional at run time; part of the [test] extra
+    sys = control.ss(A2, [[0.0], [1.0]], C2, 0)
+    p = Plant.from_control(sys, Q=np.eye(2), R=[[1.0]])
+    np.testing.assert_allclose(p.A, A2)
+    assert p.B.shape == (2, 1) and not p.is_discrete
+    sysd = control.ss(A2, [[0.0], [1.0]], C2, 0, dt=0.1)
+    assert Plant.from_control(sysd).dt == 0.1
+    with pytest.raises(ValidationError, match="unspecified sampling time"):
+        Plant.from_control(control.ss(A2, [[0.0], [1.0]], C2, 0, dt=True))
+    with pytest.raises(ValidationError, match="must be a control.StateSpace"):
+        Plant.from_control("not a system")
+
+
+def test_to_dict():
+    d = Plant(A2, C2, R=[[1.0]], dt=0.5, name="z").to_dict()
+    assert d["A"] == A2 and d["dt"] == 0.5 and d["Q"] is None and d["name"] == "z"

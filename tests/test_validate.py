@@ -1,0 +1,122 @@
+"""Shared input validation helpers and the result/status types."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from optdesign._validate import as_matrix, as_poles, as_positive_float, as_vector, check_pd, check_psd
+from optdesign.errors import (
+    DimensionError,
+    InfeasibleError,
+    NotConjugateClosedError,
+    NotFiniteError,
+    NotPositiveDefiniteError,
+    NotPositiveSemidefiniteError,
+    NotSymmetricError,
+    SolverError,
+    ValidationError,
+)
+from optdesign.results import Check, ResultMixin, SolverStats, Status, Verification
+
+
+def test_as_matrix_scalar_and_vector():
+    assert as_matrix("R", 2.0).shape == (1, 1)
+    assert as_matrix("L", [1.0, 2.0], (None, 1)).shape == (2, 1)
+    assert as_matrix("C", [1.0, 2.0], (1, None)).shape == (1, 2)
+    with pytest.raises(DimensionError, match="X must be 2-D"):
+        as_matrix("X", [1.0, 2.0])
+    with pytest.raises(ValidationError, match="X must be numeric"):
+        as_matrix("X", [["a", "b"]])
+    z = as_matrix("Z", [[1 + 1j]], allow_complex=True)
+    assert np.iscomplexobj(z)
+    with pytest.raises(NotFiniteError, match=r"X must be finite; found inf at index \(0, 1\)"):
+        as_matrix("X", [[0.0, np.inf]])
+
+
+def test_as_vector():
+    np.testing.assert_array_equal(as_vector("x", 3.0), [3.0])
+    with pytest.raises(DimensionError, match="x has the wrong length: expected 3, found 2"):
+        as_vector("x", [1.0, 2.0], 3)
+    with pytest.raises(NotFiniteError, match="x must be finite"):
+        as_vector("x", [np.nan])
+    with pytest.raises(ValidationError, match="x must be real"):
+        as_vector("x", [1j])
+
+
+def test_psd_pd_checks():
+    check_psd("Q", np.zeros((2, 2)))
+    with pytest.raises(NotSymmetricError, match=r"Q must be symmetric; found max \|Q - Q'\|"):
+        check_psd("Q", np.array([[1.0, 1.0], [0.0, 1.0]]))
+    with pytest.raises(NotPositiveSemidefiniteError, match="smallest eigenvalue -2"):
+        check_psd("Q", np.diag([1.0, -2.0]))
+    with pytest.raises(NotPositiveDefiniteError, match="R must be positive definite; found smallest eigenvalue 0"):
+        check_pd("R", np.diag([1.0, 0.0]))
+    # tiny asymmetry from round-off is accepted and symmetrized
+    X = np.array([[2.0, 1.0 + 1e-16], [1.0, 2.0]])
+    np.testing.assert_array_equal(check_pd("X", X), check_pd("X", X).T)
+
+
+def test_as_positive_float():
+    assert as_positive_float("dt", "0.5") == 0.5
+    assert as_positive_float("t", 0, allow_zero=True) == 0.0
+    with pytest.raises(ValidationError, match="dt must be finite and > 0; found nan"):
+        as_positive_float("dt", float("nan"))
+
+
+def test_as_poles_orders_and_pairs():
+    p = as_poles("poles", [-1 - 2j, -3.0, -1 + 2j, -0.5])
+    np.testing.assert_allclose(p, [-3.0, -0.5, -1 + 2j, -1 - 2j])
+    assert p.dtype == complex
+
+
+def test_as_poles_conjugate_closure():
+    with pytest.raises(NotConjugateClosedError, match=r"\(-1\+2j\) has no partner"):
+        as_poles("poles", [-1 + 2j, -3.0])
+    with pytest.raises(NotConjugateClosedError, match="has no partner"):
+        as_poles("poles", [-1 + 2j, -1 - 2.5j])
+    with pytest.raises(NotConjugateClosedError, match="has no partner"):
+        as_poles("poles", [-1 - 2j, -2.0])
+    with pytest.raises(DimensionError, match="poles has the wrong length: expected 3, found 2"):
+        as_poles("poles", [-1.0, -2.0], 3)
+    # multiplicity counts: two copies of the upper member need two partners
+    with pytest.raises(NotConjugateClosedError):
+        as_poles("poles", [-1 + 1j, -1 + 1j, -1 - 1j, -2.0])
+
+
+def test_status_and_checks():
+    assert Status.OPTIMAL.is_solved and Status.SOLVED.is_solved and not Status.INFEASIBLE.is_solved
+    assert str(Status.ITERATION_LIMIT) == "iteration_limit"
+    c = Check.at_most("pole_error", 1e-12, 1e-9)
+    assert c.passed and "ok" in str(c)
+    assert not Check.at_most("x", float("nan"), 1.0).passed
+    assert not Check.at_least("margin", -1.0, 0.0).passed
+    v = Verification.of([c, Check.at_least("margin", 0.5, 0.0)])
+    assert v.passed and "pole_error" in v and v["margin"].value == 0.5
+    with pytest.raises(KeyError, match="no check named"):
+        v["nope"]
+    assert not Verification().passed  # no evidence is not a pass
+
+
+def test_result_mixin_success_requires_verification():
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True)
+    class R(ResultMixin):
+        status: Status
+        message: str
+        verification: Verification
+        solver_stats: SolverStats = SolverStats("ipopt", "Solve_Succeeded")
+        certificate: object = None
+
+    ok = R(Status.OPTIMAL, "fine", Verification.of([Check.at_most("e", 0.0, 1.0)]))
+    assert ok.success and ok.raise_for_status() is ok
+    bad = R(Status.OPTIMAL, "solver said optimal", Verification.of([Check.at_most("pole_error", 1.0, 1e-9)]))
+    assert not bad.success
+    with pytest.raises(SolverError, match="failed checks: .*pole_error") as info:
+        bad.raise_for_status()
+    assert info.value.backend == "ipopt" and info.value.native_status == "Solve_Succeeded"
+    inf = R(Status.INFEASIBLE, "target infeasible", Verification(), certificate={"omega": 3.0})
+    with pytest.raises(InfeasibleError, match="target infeasible") as info2:
+        inf.raise_for_status()
+    assert info2.value.certificate == {"omega": 3.0}
