@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
-import pytest
+# Small dense matrices: multithreaded BLAS only adds overhead (and contention on 2 cores).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
 
 #: Set OPTDESIGN_FULL=1 to run the slow studies in full (CI runs them reduced).
 FULL = os.environ.get("OPTDESIGN_FULL", "") not in ("", "0")

@@ -193,3 +193,35 @@ def test_from_control_round_trip():
 def test_to_dict():
     d = Plant(A2, C2, R=[[1.0]], dt=0.5, name="z").to_dict()
     assert d["A"] == A2 and d["dt"] == 0.5 and d["Q"] is None and d["name"] == "z"
+
+
+def test_unobservable_modes_on_constructed_unobservable_plants(rng):
+    # x = [x1; x2] with x2 invisible: A = [[A11, 0], [A21, A22]], C = [C1, 0], then a random similarity
+    for _ in range(100):
+        n = int(rng.integers(2, 8))
+        k = int(rng.integers(1, n))
+        A = np.zeros((n, n))
+        A[:k, :k] = rng.standard_normal((k, k))
+        A[k:, :] = rng.standard_normal((n - k, n))
+        p = int(rng.integers(1, 3))
+        C = np.hstack([rng.standard_normal((p, k)), np.zeros((p, n - k))])
+        T = rng.standard_normal((n, n))
+        plant = Plant(np.linalg.solve(T, A @ T), C @ T)
+        got = np.sort_complex(plant.unobservable_modes())
+        want = np.sort_complex(np.linalg.eigvals(A[k:, k:]))
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-6)
+
+
+def test_unobservable_modes_badly_scaled_plant():
+    # CAREX 2.9 in filter form: ||A|| ~ 2e7, 55 states; observable (absolute thresholds flagged ~40 modes)
+    from optdesign import problems
+
+    plant = problems.load("carex_2.9-kf").plant
+    assert np.linalg.norm(plant.A) > 1e7
+    assert plant.unobservable_modes().size == 0
+
+
+def test_unobservable_when_C_is_zero():
+    p = Plant([[-1.0, 0.0], [0.0, 2.0]], [[0.0, 0.0]])
+    np.testing.assert_allclose(np.sort(p.unobservable_modes().real), [-1.0, 2.0])

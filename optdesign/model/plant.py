@@ -171,45 +171,61 @@ class Plant:
         return np.vstack(blocks)
 
     def unobservable_modes(self, tol: float | None = None) -> NDArray[np.complex128]:
-        """Eigenvalues of A that the output does not see (PBH test).
+        """Eigenvalues of A that the output does not see.
 
-        For every distinct eigenvalue ``lam`` of A, the nullity of ``[lam I - A; C]`` (by SVD,
-        singular values below ``tol * max(1, ||A||, ||C||)``) counts how many copies of
-        ``lam`` are unobservable.
+        Computed by the orthogonal observability staircase (the dual of the controllability
+        staircase of Van Dooren 1981 / SLICOT TB01UD) on the diagonally balanced pair
+        ``(D^-1 A D, C D)``: the unobservable eigenvalues are those of the trailing block that
+        the staircase cannot reach.  Equivalent to the PBH test (``rank [lam I - A; C] < n``),
+        but it needs no eigenvalue clustering, so repeated eigenvalues and badly scaled plants
+        (e.g. CAREX 2.9, ||A|| ~ 1e7) are handled.
 
         Parameters
         ----------
         tol : float, optional
-            Relative rank tolerance; default ``1e-9 * n``, generous enough for repeated
-            eigenvalues computed to about sqrt(eps).
+            Relative rank tolerance of the staircase SVDs (default ``1000 n eps``), relative to
+            ||A|| after balancing.
 
         Returns
         -------
         (k,) ndarray of complex
             The unobservable eigenvalues (empty when (C, A) is observable).
+
+        References
+        ----------
+        P. Van Dooren, "The generalized eigenstructure problem in linear system theory",
+        IEEE TAC 26(1), 1981.
         """
+        from scipy.linalg import matrix_balance
+
         n = self.n
-        tol = 1e-9 * n if tol is None else float(tol)
-        scale = max(1.0, np.linalg.norm(self.A, 2), np.linalg.norm(self.C, 2))
-        eigs = np.linalg.eigvals(self.A)
-        # cluster numerically equal eigenvalues (defective ones are only ~ eps^(1/k) apart)
-        clusters: list[list[complex]] = []
-        ctol = max(1e-6, np.sqrt(np.finfo(float).eps)) * scale
-        for lam in eigs:
-            for cl in clusters:
-                if abs(lam - np.mean(cl)) <= ctol:
-                    cl.append(lam)
-                    break
-            else:
-                clusters.append([lam])
-        out: list[complex] = []
-        for cl in clusters:
-            lam = complex(np.mean(cl))
-            M = np.vstack([lam * np.eye(n) - self.A, self.C.astype(complex)])
-            s = np.linalg.svd(M, compute_uv=False)
-            nullity = int(np.sum(s < tol * scale))
-            out.extend([lam] * min(nullity, len(cl)))
-        return np.asarray(out, dtype=complex)
+        tol = (1e3 * n * np.finfo(float).eps) if tol is None else float(tol)
+        _, (s, _) = matrix_balance(self.A, permute=False, separate=True)
+        Ab = (self.A * s[None, :]) / s[:, None]  # D^-1 A D
+        Cb = self.C * s[None, :]  # C D
+        na = max(float(np.linalg.norm(Ab, 1)), 1.0)
+        nc = float(np.linalg.norm(Cb, 1))
+        if nc == 0.0:
+            return np.linalg.eigvals(self.A).astype(complex)
+        Cb = Cb * (na / nc)  # output scaling does not change observability
+        atol = tol * na
+        # controllability staircase of the dual pair (A', C')
+        F = Ab.T.copy()
+        block = Cb.T
+        k = 0
+        while True:
+            U, sv, _ = np.linalg.svd(block, full_matrices=True)
+            r = int(np.sum(sv > atol))
+            if r == 0:
+                break
+            if k + r == n:
+                return np.zeros(0, dtype=complex)
+            T = np.eye(n)
+            T[k:, k:] = U
+            F = T.T @ F @ T
+            block = F[k + r:, k:k + r]
+            k += r
+        return np.linalg.eigvals(F[k:, k:]).astype(complex)
 
     def is_observable(self, tol: float | None = None) -> bool:
         """True when (C, A) is observable (no unobservable mode)."""
