@@ -126,7 +126,16 @@ def _index() -> dict[str, str]:
 
 
 def names(tag: str | None = None, kind: str | None = None) -> list[str]:
-    """Names of the problems in the library, optionally filtered by tag or kind."""
+    """Names of the problems in the library, optionally filtered.
+
+    Parameters
+    ----------
+    tag : str, optional
+        Keep problems carrying this tag (e.g. ``"seed000"``, ``"benchmark"``) *or* whose
+        name starts with it (e.g. ``"carex"``).
+    kind : str, optional
+        Keep problems of this kind (e.g. ``"riccati_care"``, ``"pole_placement"``).
+    """
     all_names = sorted(_index())
     if tag is None and kind is None:
         return all_names
