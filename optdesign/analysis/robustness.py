@@ -1,0 +1,924 @@
+r"""Robustness of state estimators: return difference, circle condition, margins.
+
+The loop of a filter
+--------------------
+The observer / Kalman filter ``x_hat' = A x_hat + L nu``, ``nu = y - C x_hat`` is a feedback loop
+around the innovation ``nu``.  Throughout this module **the loop is broken at the filter input**,
+i.e. at the innovation, where the measurement residual enters the gain ``L``.  A perturbation
+``Delta`` (p x p) inserted there gives
+
+    x_hat' = A x_hat + L Delta nu,        error dynamics  A - L Delta C,
+
+and the loop transfer matrix seen from the break point is ``G(s) = C (sI - A)^-1 L`` (p x p).
+This is the dual of the LQ regulator's loop, which is broken at the plant input with
+``A - B Delta K``: transposing one gives the other.  The **return difference** is
+
+    T(s) = I + C (sI - A)^-1 L,            det(sI - A + L Delta C) = det(sI - A) det(I + G(s) Delta),
+
+and ``T(s)^-1 = I - C (sI - A + L C)^-1 L`` is the (output) sensitivity of the filter loop.
+
+Continuous time (seed 002, eqs 16-19).  If ``L = P C' R^-1`` with ``P`` the stabilizing solution of
+``A P + P A' - P C' R^-1 C P + W = 0`` (``W = G Q G'``), then for every s
+
+    T(s) R T(-s)' = R + C (sI - A)^-1 W (-sI - A)^-T C',
+
+so on the imaginary axis ``T(jw) R T(jw)^* >= R`` (the *circle condition*).
+
+Discrete time (predictor filter ``x_hat[k+1] = A x_hat[k] + L (y[k] - C x_hat[k])``, error
+dynamics ``A - L C``, ``L = A P C' V^-1``, ``V = C P C' + R``, ``P`` the DARE solution
+``P = A P A' - A P C' V^-1 C P A' + W``), with ``z = e^{j w dt}``, ``T(z) = I + C (zI - A)^-1 L``:
+
+    T(z) V T(1/z)' = R + C (zI - A)^-1 W (z^-1 I - A)^-T C',
+
+hence on the unit circle ``T V T^* >= R`` -- **not** ``T R T^* >= R``, which can fail for an
+optimal discrete filter.  Derivation: write ``P - A P A' = (zI - A) P (z^-1 I - A') + (zI - A) P A'
++ A P (z^-1 I - A')``, use the DARE ``P - A P A' = W - L V L'``, multiply by ``C (zI - A)^-1`` on the
+left and ``(z^-1 I - A')^-1 C'`` on the right, use ``A P C' = L V`` and add ``R`` to both sides.  If A is
+invertible, ``V`` is determined by ``L`` alone: ``A P C' = L V`` gives ``C P C' = C A^-1 L V`` so
+``V = (I - C A^-1 L)^-1 R = T(0)^-1 R`` (whatever ``W`` is).
+
+Guaranteed margins (what holds simultaneously and what does not)
+----------------------------------------------------------------
+Write ``I + G Delta = [T + (Delta^-1 - I)] Delta``.  With ``Ts = R^-1/2 T R^1/2`` the circle condition
+reads ``sigma_min(Ts(jw)) >= 1``, so ``I + G Delta`` is nonsingular on the whole axis whenever
+``sigma_max(R^-1/2 (Delta^-1 - I) R^1/2) < 1``; a homotopy from ``Delta = I`` (convex set, closed-loop
+eigenvalues continuous and bounded) then shows the perturbed filter stays stable, given that
+``A - L C`` is stable and A has no eigenvalue on the imaginary axis (the hypothesis of seed 002
+Theorem 2; T is undefined there).  This is what the tests verify with closed-loop eigenvalues of
+``A - L Delta C`` for constant complex ``Delta`` (a "phase" perturbation is ``exp(j phi)``).
+For **diagonal R** and **diagonal** ``Delta = diag(delta_i)`` (complex constants) this is
+``max_i |1/delta_i - 1| < 1``, i.e. ``Re delta_i > 1/2`` for every i, **in all channels
+simultaneously**.  In particular
+
+* gain perturbations ``delta_i = k_i`` with every ``k_i`` in ``(1/2, inf)``, simultaneously and
+  independently in all channels;
+* phase perturbations ``delta_i = exp(j phi_i)`` with every ``|phi_i| < 60 deg``, simultaneously
+  (signs may differ between channels);
+* mixed per-channel perturbations ``k_i exp(j phi_i)`` only when ``k_i cos(phi_i) > 1/2``: the
+  gain and phase margins do **not** hold together (a gain of 0.51 *and* a phase of 59 deg in the
+  same channel can destabilize -- see ``tests/test_robustness.py``);
+* non-diagonal (crossfeed) perturbations are covered only through the norm bound
+  ``sigma_max(R^-1/2 (Delta^-1 - I) R^1/2) < 1``; e.g. ``Delta = [[1, x], [0, 1]]`` (eigenvalues at the
+  nominal 1) is guaranteed for ``|x| < sqrt(r_1 / r_2)`` but can destabilize beyond; for the block
+  forms of seed 002 eq (22) this gives ``sigma_max(X) < sqrt(sigma_min(R_1) / sigma_max(R_2))``.
+* For **non-diagonal R** the per-channel statement is lost: only perturbations that commute with
+  ``R^1/2`` -- e.g. the uniform ``Delta = delta I`` -- inherit the margins.
+
+In discrete time ``T V T^* >= R`` gives ``sigma_min(Ts) >= 1/sqrt(lambda_max(R^-1 V))`` =: ``a`` and
+the same argument with radius ``a < 1``: gain margin ``(1/(1+a), 1/(1-a))``, phase margin
+``2 arcsin(a/2)``.
+
+References
+----------
+S. J. Lee, "Frequency-domain properties of Kalman filters for linear systems with delay in
+output" (seed 002), eqs (16)-(24).  R. E. Kalman, "When is a linear control system optimal?"
+(1964).  M. G. Safonov and M. Athans, "Gain and phase margin for multiloop LQG regulators",
+IEEE TAC 22 (1977).  N. A. Lehtomaki, N. R. Sandell, M. Athans, IEEE TAC 26 (1981).
+U. Shaked, "Guaranteed stability margins for the discrete-time linear quadratic optimal
+regulator", IEEE TAC 31 (1986).  P. Seiler, A. Packard, P. Gahinet, "An introduction to disk
+margins", IEEE Control Systems 40 (2020).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validate import as_matrix, as_vector, check_pd
+from ..errors import DimensionError, ValidationError
+from ..model.plant import Plant
+
+__all__ = [
+    "return_difference",
+    "circle_condition",
+    "CircleConditionResult",
+    "filter_margins",
+    "FilterMargins",
+    "frequency_grid",
+    "innovation_covariance",
+    "margins_from_radius",
+    "adaptive_minimize",
+    "circle_search",
+    "worst_case_parts",
+]
+
+_EPS = np.finfo(float).eps
+
+
+# --------------------------------------------------------------------------- helpers
+def _gain(plant: Plant, L: ArrayLike) -> NDArray[np.float64]:
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    return as_matrix("L", L, (plant.n, plant.p))
+
+
+def _points(plant: Plant, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """s = j w (continuous) or z = exp(j w dt) (discrete)."""
+    if plant.is_discrete:
+        return np.exp(1j * omega * plant.dt)
+    return 1j * omega
+
+
+def _resolvent(A: NDArray, B: NDArray, pts: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    """(s I - A)^-1 B for every s in pts, shape (k, n, m).  Raises LinAlgError if singular."""
+    n = A.shape[0]
+    M = pts[:, None, None] * np.eye(n)[None] - A[None]
+    return np.linalg.solve(M, np.broadcast_to(B.astype(complex), (pts.size,) + B.shape))
+
+
+def _transfer(A: NDArray, B: NDArray, C: NDArray, pts: NDArray[np.complex128]) -> NDArray[np.complex128]:
+    return np.einsum("ij,kjl->kil", C, _resolvent(A, B, pts))
+
+
+def _sqrtm_pd(R: NDArray) -> tuple[NDArray, NDArray]:
+    """Symmetric square root of a symmetric PD matrix and its inverse."""
+    w, U = np.linalg.eigh(0.5 * (R + R.T))
+    return (U * np.sqrt(w)) @ U.T, (U / np.sqrt(w)) @ U.T
+
+
+def _is_diagonal(R: NDArray) -> bool:
+    off = R - np.diag(np.diag(R))
+    return bool(np.max(np.abs(off), initial=0.0) <= 1e-12 * np.max(np.abs(np.diag(R))))
+
+
+def _stable(eigs: NDArray, discrete: bool) -> bool:
+    return bool(np.all(np.abs(eigs) < 1.0) if discrete else np.all(eigs.real < 0.0))
+
+
+def _resolve_R(plant: Plant, R: ArrayLike | None, what: str) -> NDArray[np.float64]:
+    if R is None:
+        if plant.R is None:
+            raise ValidationError(
+                f"{what} needs the measurement-noise covariance R: give R=... or a plant with R"
+            )
+        return np.asarray(plant.R, dtype=float)
+    return check_pd("R", as_matrix("R", R, (plant.p, plant.p)))
+
+
+# --------------------------------------------------------------------------- return difference
+def return_difference(plant: Plant, L: ArrayLike, omega: ArrayLike) -> NDArray[np.complex128]:
+    r"""Return difference of the filter loop broken at the filter input (the innovation).
+
+    Continuous time: ``T(jw) = I + C (jw I - A)^-1 L``.
+    Discrete time (predictor filter with error dynamics ``A - L C``): ``T(z) = I + C (zI - A)^-1 L``
+    with ``z = exp(j w dt)``; ``w`` is in rad/s and the Nyquist frequency is ``pi / dt``.
+
+    Parameters
+    ----------
+    plant : Plant
+        Uses A (n, n), C (p, n) and dt.
+    L : (n, p) array_like
+        Filter (observer) gain, ``x_hat' = A x_hat + L (y - C x_hat)``.
+    omega : (k,) array_like of float
+        Frequencies in rad/s (a scalar is accepted).
+
+    Returns
+    -------
+    T : (k, p, p) ndarray of complex
+
+    Raises
+    ------
+    DimensionError
+        L is not (n, p) or omega is not a vector.
+    NotFiniteError
+        L or omega contains NaN or Inf.
+    ValidationError
+        A frequency is a pole of the loop (``jw`` or ``z`` an eigenvalue of A), where T is undefined.
+
+    References
+    ----------
+    Seed 002 (S. J. Lee), eq (16) with ``c1 = 0``.
+    """
+    L = _gain(plant, L)
+    w = as_vector("omega", omega)
+    pts = _points(plant, w)
+    try:
+        X = _resolvent(plant.A, L, pts)
+    except np.linalg.LinAlgError:
+        eig = np.linalg.eigvals(plant.A)
+        d = np.min(np.abs(pts[:, None] - eig[None, :]), axis=1)
+        bad = w[int(np.argmin(d))]
+        raise ValidationError(
+            f"omega = {bad:.6g} rad/s is a pole of the loop C (sI - A)^-1 L (an eigenvalue of A lies "
+            f"{'on the unit circle' if plant.is_discrete else 'on the imaginary axis'} there): T is undefined"
+        ) from None
+    return np.eye(plant.p)[None] + np.einsum("ij,kjl->kil", plant.C, X)
+
+
+# --------------------------------------------------------------------------- frequency grid
+_CLUSTER = np.array([-16.0, -8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8, 16])
+
+
+def frequency_grid(
+    plant: Plant,
+    L: ArrayLike | None = None,
+    *,
+    points_per_decade: int = 30,
+    extra_poles: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """Frequency grid (rad/s) seeded at the open- and closed-loop pole frequencies.
+
+    Continuous time: a log grid from ``1e-3`` times the smallest to ``1e3`` times the largest
+    pole modulus, ``w = 0``, and around every complex pole ``lambda`` a cluster
+    ``|Im lambda| + |Re lambda| * t`` (``|t| <= 16``) that resolves a dip or peak of width
+    ``|Re lambda|`` however lightly damped.  Discrete time: a uniform grid of ``[0, pi/dt]``, a log
+    grid near 0, and clusters ``|arg z| + (1 - |z|) t`` around the poles.
+
+    Parameters
+    ----------
+    plant : Plant
+    L : (n, p) array_like, optional
+        If given, the poles of ``A - L C`` seed the grid too.
+    points_per_decade : int
+        Density of the base log grid.
+    extra_poles : array_like of complex, optional
+        More seeds (e.g. the poles of a perturbed loop).
+
+    Returns
+    -------
+    (k,) ndarray, sorted, nonnegative (within ``[0, pi/dt]`` in discrete time).
+    """
+    poles = [np.linalg.eigvals(plant.A)]
+    if L is not None:
+        Lm = _gain(plant, L)
+        poles.append(np.linalg.eigvals(plant.A - Lm @ plant.C))
+    if extra_poles is not None:
+        poles.append(np.asarray(extra_poles, dtype=complex).ravel())
+    lam = np.concatenate(poles)
+    lam = lam[np.isfinite(lam)]
+    ppd = max(4, int(points_per_decade))
+    if plant.is_discrete:
+        dt = plant.dt
+        theta = [np.linspace(0.0, np.pi, 24 * ppd), np.pi * np.logspace(-6, 0, 6 * ppd)]
+        for z in lam:
+            if abs(z) < 1e-12:
+                continue
+            c = abs(np.angle(z))
+            width = max(abs(1.0 - abs(z)), 1e-9)
+            theta.append(c + width * _CLUSTER)
+        th = np.concatenate(theta)
+        th = th[(th >= 0.0) & (th <= np.pi)]
+        return np.unique(np.concatenate([th, [0.0, np.pi]])) / dt
+    mags = np.abs(lam)
+    mags = mags[mags > 1e-12 * max(1.0, float(np.max(mags, initial=0.0)))]
+    lo, hi = (float(np.min(mags)), float(np.max(mags))) if mags.size else (1.0, 1.0)
+    lo, hi = math.log10(lo) - 3.0, math.log10(hi) + 3.0
+    parts = [np.logspace(lo, hi, int(np.ceil((hi - lo) * ppd)) + 1), [0.0]]
+    for z in lam:
+        if abs(z.imag) > 0:
+            parts.append(abs(z.imag) + max(abs(z.real), 1e-12 * abs(z)) * _CLUSTER)
+        if abs(z) > 0:
+            parts.append([abs(z)])
+    w = np.concatenate(parts)
+    return np.unique(w[w >= 0.0])
+
+
+def _nudge(w: NDArray, pts_of: Callable[[NDArray], NDArray], poles: NDArray, scale: float) -> NDArray:
+    """Move frequencies off the open-loop poles on the stability boundary (T is infinite there)."""
+    if poles.size == 0 or w.size == 0:
+        return w
+    w = w.copy()
+    for _ in range(3):
+        d = np.min(np.abs(pts_of(w)[:, None] - poles[None, :]), axis=1)
+        bad = d < 1e-9 * scale
+        if not np.any(bad):
+            break
+        w[bad] = w[bad] + 1e-7 * scale
+    return w
+
+
+# --------------------------------------------------------------------------- adaptive minimization
+def adaptive_minimize(
+    f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
+    grid: NDArray[np.float64],
+    *,
+    n_refine: int = 8,
+    log: bool = True,
+    xatol: float = 1e-10,
+    values: NDArray[np.float64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Minimize a function of frequency: grid evaluation, then local bounded refinement.
+
+    ``f`` maps a vector of frequencies to a vector of values.  After evaluating the grid, the
+    ``n_refine`` lowest local minima are each refined by bounded Brent minimization
+    (``scipy.optimize.minimize_scalar``) between their grid neighbours, in ``log w`` when
+    ``log`` and the bracket is positive.  ``values`` may give ``f(grid)`` if already known
+    (``grid`` must then be sorted and unique).
+
+    Returns
+    -------
+    omega, values : (k,) ndarrays
+        Every evaluated point (grid and refinement), sorted by frequency.
+    """
+    from scipy.optimize import minimize_scalar
+
+    if values is None:
+        grid = np.unique(np.asarray(grid, dtype=float))
+        vals = np.asarray(f(grid), dtype=float)
+    else:
+        grid = np.asarray(grid, dtype=float)
+        vals = np.asarray(values, dtype=float)
+    k = grid.size
+    left = np.concatenate([[np.inf], vals[:-1]])
+    right = np.concatenate([vals[1:], [np.inf]])
+    cand = np.flatnonzero((vals <= left) & (vals <= right))
+    cand = cand[np.argsort(vals[cand])][:n_refine]
+    xs, ys = [grid], [vals]
+    for i in cand:
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, k - 1)]
+        if not b > a:
+            continue
+        use_log = log and a > 0
+        if use_log:
+            g = lambda x: float(f(np.array([math.exp(x)]))[0])  # noqa: E731
+            lo, hi, tol = math.log(a), math.log(b), xatol
+        else:
+            g = lambda x: float(f(np.array([x]))[0])  # noqa: E731
+            lo, hi, tol = a, b, xatol * max(b, 1e-300)
+        res = minimize_scalar(g, bounds=(lo, hi), method="bounded", options={"xatol": tol, "maxiter": 200})
+        x = math.exp(res.x) if use_log else float(res.x)
+        xs.append(np.array([x]))
+        ys.append(np.array([float(res.fun)]))
+    w = np.concatenate(xs)
+    v = np.concatenate(ys)
+    order = np.argsort(w, kind="stable")
+    return w[order], v[order]
+
+
+# --------------------------------------------------------------------------- circle condition
+def innovation_covariance(
+    plant: Plant, L: ArrayLike, R: ArrayLike | None = None
+) -> tuple[NDArray[np.float64], str]:
+    r"""Innovation covariance ``V = C P C' + R`` implied by a discrete predictor gain.
+
+    If A is invertible, ``V = T(0)^-1 R = (I - C A^-1 L)^-1 R`` -- true for the Kalman predictor gain
+    of *any* process noise W (from ``A P C' = L V``), so the discrete circle condition needs no W.
+    Otherwise, if the plant has Q, ``V = C P_L C' + R`` with ``P_L`` the steady error covariance of the
+    predictor with gain L (``P_L = (A - LC) P_L (A - LC)' + G Q G' + L R L'``), which equals the DARE
+    solution when L is the Kalman gain.
+
+    Returns
+    -------
+    V : (p, p) ndarray
+        Not symmetrized: an asymmetric V shows that L is no Kalman predictor gain for this R.
+    source : str
+        ``"T(0)^-1 R"`` or ``"lyapunov"``.
+
+    Raises
+    ------
+    ValidationError
+        The plant is continuous, or A is singular and the plant has no Q (pass ``V=`` to
+        :func:`circle_condition`), or A - LC is not Schur stable in the Lyapunov fallback.
+    """
+    if not plant.is_discrete:
+        raise ValidationError(
+            "innovation_covariance is for discrete plants (dt given); in continuous time V = R")
+    L = _gain(plant, L)
+    R = _resolve_R(plant, R, "the discrete circle condition")
+    A, C = plant.A, plant.C
+    if np.linalg.cond(A) < 1e8:
+        T0 = np.eye(plant.p) - C @ np.linalg.solve(A, L)
+        return np.linalg.solve(T0, R), "T(0)^-1 R"
+    if plant.Q is None:
+        raise ValidationError(
+            f"A is singular (cond {np.linalg.cond(A):.3g}), so the innovation covariance V = CPC' + R is "
+            "not determined by L: give V=... or a plant with Q"
+        )
+    from scipy.linalg import solve_discrete_lyapunov
+
+    Acl = A - L @ C
+    rho = float(np.max(np.abs(np.linalg.eigvals(Acl))))
+    if rho >= 1.0:
+        raise ValidationError(
+            f"A - L C is not Schur stable (spectral radius {rho:.6g} >= 1): no steady error covariance"
+        )
+    P = solve_discrete_lyapunov(Acl, plant.process_noise() + L @ R @ L.T)
+    return C @ P @ C.T + R, "lyapunov"
+
+
+def _min_eig_values(T: NDArray, V: NDArray, R: NDArray) -> NDArray[np.float64]:
+    X = T @ V[None].astype(complex) @ np.conj(np.swapaxes(T, 1, 2)) - R[None]
+    X = 0.5 * (X + np.conj(np.swapaxes(X, 1, 2)))
+    return np.linalg.eigvalsh(X)[:, 0]
+
+
+@dataclass(frozen=True, eq=False)
+class CircleConditionResult:
+    r"""Outcome of :func:`circle_condition`.
+
+    Attributes
+    ----------
+    min_eigenvalue : float
+        ``min_w lambda_min(T(jw) V T(jw)^* - R)`` over the evaluated frequencies (continuous:
+        ``V = R``).  Negative means the circle condition fails.
+    omega_worst : float
+        Frequency (rad/s) of that minimum.
+    passed : bool
+        ``min_eigenvalue >= -tol`` (and, in discrete time, V symmetric positive definite).
+    omega, values : (k,) ndarrays
+        Every frequency evaluated (grid and local refinement, sorted) and the smallest
+        eigenvalue there.
+    tol : float
+        Absolute tolerance used for ``passed``.
+    R, V : (p, p) ndarrays
+        The weights of the inequality ``T V T^* >= R``.
+    discrete : bool
+    dt : float or None
+    V_source : str
+        ``"R"`` (continuous), ``"given"``, ``"T(0)^-1 R"`` or ``"lyapunov"``.
+    T_worst : (p, p) ndarray of complex
+        Return difference at ``omega_worst``.
+    direction : (p,) ndarray of complex
+        Unit eigenvector of ``T V T^* - R`` for its smallest eigenvalue at ``omega_worst``.
+    perturbation : (p, p) ndarray of complex
+        The smallest perturbation ``Delta`` at the filter input (smallest
+        ``sigma_max(R^-1/2 (Delta^-1 - I) R^1/2) = sigma_min(R^-1/2 T R^1/2)``) that puts a
+        closed-loop eigenvalue of ``A - L Delta C`` at ``j omega_worst`` (``exp(j omega_worst dt)``).
+        When the continuous circle condition fails this lies inside the set the condition would
+        cover, which is what makes it a certificate.
+    message : str
+    """
+
+    min_eigenvalue: float
+    omega_worst: float
+    passed: bool
+    omega: NDArray[np.float64]
+    values: NDArray[np.float64]
+    tol: float
+    R: NDArray[np.float64]
+    V: NDArray[np.float64]
+    discrete: bool
+    dt: float | None
+    V_source: str
+    T_worst: NDArray[np.complex128]
+    direction: NDArray[np.complex128]
+    perturbation: NDArray[np.complex128]
+    message: str = ""
+
+    @property
+    def certificate(self) -> dict[str, Any]:
+        """Plain-data evidence (JSON-friendly): where and by how much the inequality is worst."""
+
+        def c(x):
+            a = np.asarray(x)
+            return {"re": a.real.tolist(), "im": a.imag.tolist()}
+
+        return {
+            "inequality": "T V T^* - R >= 0" if self.discrete else "T R T^* - R >= 0",
+            "passed": self.passed,
+            "min_eigenvalue": self.min_eigenvalue,
+            "omega_worst": self.omega_worst,
+            "point": ("exp(j w dt)" if self.discrete else "j w"),
+            "dt": self.dt,
+            "tol": self.tol,
+            "V_source": self.V_source,
+            "direction": c(self.direction),
+            "T_worst": c(self.T_worst),
+            "destabilizing_perturbation": c(self.perturbation),
+        }
+
+    def summary(self) -> str:
+        verdict = "holds" if self.passed else "FAILS"
+        ineq = "T V T* >= R" if self.discrete else "T R T* >= R"
+        return (
+            f"circle condition {ineq} {verdict}: min eigenvalue {self.min_eigenvalue:.4g} at "
+            f"omega = {self.omega_worst:.6g} rad/s ({self.omega.size} frequencies, tol {self.tol:.2g})"
+            + (f"; {self.message}" if self.message else "")
+        )
+
+    def __repr__(self) -> str:
+        return f"CircleConditionResult({self.summary()})"
+
+
+def worst_case_parts(
+    T_star: NDArray[np.complex128], V: NDArray[np.float64], R: NDArray[np.float64]
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """Eigenvector of ``T V T^* - R`` for its smallest eigenvalue, and the smallest destabilizing
+    perturbation ``Delta`` at that frequency (``sigma_max(R^-1/2 (Delta^-1 - I) R^1/2) =
+    sigma_min(R^-1/2 T R^1/2)``, ``det(T + Delta^-1 - I) = 0``)."""
+    p = T_star.shape[0]
+    X = T_star @ V @ T_star.conj().T - R
+    _, U = np.linalg.eigh(0.5 * (X + X.conj().T))
+    Rh, Rih = _sqrtm_pd(R)
+    Uu, s, Vh = np.linalg.svd(Rih @ T_star @ Rh)
+    E = Rh @ (-s[-1] * np.outer(Uu[:, -1], Vh[-1])) @ Rih      # Vh[-1] = v^*
+    try:
+        Delta = np.linalg.inv(np.eye(p) + E)
+    except np.linalg.LinAlgError:  # pragma: no cover - only if sigma_min == 1 exactly along u
+        Delta = np.full((p, p), np.nan + 0j)
+    return U[:, 0], Delta
+
+
+def circle_search(
+    T_of: Callable[[NDArray[np.float64]], NDArray[np.complex128]],
+    grid: NDArray[np.float64],
+    R: NDArray[np.float64],
+    V: NDArray[np.float64],
+    *,
+    log: bool = True,
+    refine: bool = True,
+    n_refine: int = 8,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Adaptive search of ``min_w lambda_min(T(w) V T(w)^* - R)`` for any return difference ``T_of``.
+
+    Used by :func:`circle_condition` and by the output-delay filter (whose T is not rational).
+    Returns all evaluated frequencies and values, sorted by frequency.
+    """
+    Vs = 0.5 * (V + V.T)
+
+    def f(w: NDArray) -> NDArray:
+        return _min_eig_values(T_of(w), Vs, R)
+
+    if not refine:
+        g = np.unique(grid)
+        return g, f(g)
+    return adaptive_minimize(f, grid, n_refine=n_refine, log=log)
+
+
+def circle_condition(
+    plant: Plant,
+    L: ArrayLike,
+    *,
+    R: ArrayLike | None = None,
+    omega: ArrayLike | None = None,
+    V: ArrayLike | None = None,
+    tol: float | None = None,
+    refine: bool = True,
+) -> CircleConditionResult:
+    r"""Check the Kalman circle condition (return-difference inequality) of a filter gain.
+
+    Continuous time: ``T(jw) R T(jw)^* - R >= 0`` for all w, ``T = I + C (jwI - A)^-1 L``.  Every
+    stationary Kalman filter satisfies it (seed 002, eq 17 with ``c1 = 0``); a gain that violates it
+    is not a Kalman gain for this R and any process noise.
+
+    Discrete time (predictor, error dynamics ``A - L C``, ``z = exp(j w dt)``):
+    ``T(z) V T(z)^* - R >= 0`` on the unit circle with ``V = C P C' + R`` the innovation covariance
+    (derivation in the module docstring).  ``V`` defaults to :func:`innovation_covariance`
+    (``T(0)^-1 R`` when A is invertible, which depends on L only).  ``T R T^* >= R`` itself is *not*
+    implied in discrete time.
+
+    The search is adaptive: :func:`frequency_grid` (log grid plus clusters resolving every open-
+    and closed-loop pole, so a lightly damped dip of width ``|Re lambda|`` is sampled), then bounded
+    scalar minimization around the lowest local minima.  In continuous time ``T -> I`` as
+    ``w -> inf``, so for a Kalman filter the infimum 0 is approached at high frequency; the
+    reported ``omega_worst`` is then near the top of the grid.
+
+    Parameters
+    ----------
+    plant : Plant
+        A (n, n), C (p, n), dt; R is taken from the plant unless given.
+    L : (n, p) array_like
+        Filter gain.
+    R : (p, p) array_like, optional
+        Measurement-noise covariance (symmetric PD); default ``plant.R``.
+    omega : (k,) array_like, optional
+        Frequencies (rad/s) to use as the seed grid instead of :func:`frequency_grid`.
+    V : (p, p) array_like, optional
+        Discrete time only: innovation covariance.
+    tol : float, optional
+        Absolute tolerance for ``passed``; default ``1e-8 * ||R||_2``.
+    refine : bool
+        Refine local minima by bounded scalar minimization (default True).
+
+    Returns
+    -------
+    CircleConditionResult
+
+    Raises
+    ------
+    DimensionError, NotFiniteError
+        L, R, V or omega malformed.
+    NotPositiveDefiniteError
+        R not positive definite.
+    ValidationError
+        No R available; V given for a continuous plant; V cannot be determined (discrete, A singular,
+        no Q).
+
+    References
+    ----------
+    Seed 002 (S. J. Lee), Theorem 1 / eq (17).  U. Shaked (1986) for the discrete-time form.
+    """
+    L = _gain(plant, L)
+    R = _resolve_R(plant, R, "the circle condition")
+    p = plant.p
+    message = ""
+    if plant.is_discrete:
+        if V is None:
+            V, V_source = innovation_covariance(plant, L, R)
+        else:
+            V, V_source = as_matrix("V", V, (p, p)), "given"
+        asym = float(np.max(np.abs(V - V.T)))
+        Vs = 0.5 * (V + V.T)
+        v_ok = asym <= 1e-6 * max(np.linalg.norm(V, 2), _EPS) and np.linalg.eigvalsh(Vs)[0] > 0
+        if not v_ok:
+            message = (
+                f"V ({V_source}) is not symmetric positive definite (asymmetry {asym:.3g}, smallest "
+                f"eigenvalue of its symmetric part {np.linalg.eigvalsh(Vs)[0]:.3g}): L is not a Kalman "
+                "predictor gain for this R"
+            )
+    else:
+        if V is not None:
+            raise ValidationError(
+                "V is only used in discrete time; in continuous time the inequality is T R T* >= R")
+        Vs, V_source, v_ok = R, "R", True
+    tol = 1e-8 * float(np.linalg.norm(R, 2)) if tol is None else float(tol)
+    if not (tol >= 0 and np.isfinite(tol)):
+        raise ValidationError(f"tol must be finite and >= 0; found {tol!r}")
+    grid = frequency_grid(plant, L) if omega is None else np.unique(as_vector("omega", omega))
+    if grid.size == 0:
+        raise DimensionError("omega must contain at least one frequency; found an empty array")
+    eigA = np.linalg.eigvals(plant.A)
+    if plant.is_discrete:
+        boundary = eigA[np.abs(np.abs(eigA) - 1.0) < 1e-9]
+        scale = 1.0 / plant.dt
+    else:
+        boundary = eigA[np.abs(eigA.real) < 1e-9 * max(1.0, float(np.max(np.abs(eigA))))]
+        scale = max(1.0, float(np.max(np.abs(eigA))))
+    pts_of = lambda w: _points(plant, w)  # noqa: E731
+    grid = _nudge(grid, pts_of, boundary, scale)
+
+    def T_of(w: NDArray) -> NDArray:
+        w = _nudge(np.asarray(w, dtype=float), pts_of, boundary, scale)
+        return return_difference(plant, L, w)
+
+    w_all, vals = circle_search(T_of, grid, R, Vs, log=not plant.is_discrete, refine=refine)
+    i = int(np.argmin(vals))
+    w_star = float(w_all[i])
+    T_star = T_of(np.array([w_star]))[0]
+    direction, Delta = worst_case_parts(T_star, Vs, R)
+    min_eig = float(vals[i])
+    passed = bool(min_eig >= -tol) and v_ok
+    if not passed and not message:
+        ineq = "T V T* - R" if plant.is_discrete else "T R T* - R"
+        message = (f"{ineq} has eigenvalue {min_eig:.4g} < -tol at omega = {w_star:.6g} rad/s: "
+                   "L is not a Kalman gain for this R")
+    for a in (w_all, vals):
+        a.setflags(write=False)
+    return CircleConditionResult(
+        min_eigenvalue=min_eig, omega_worst=w_star, passed=passed, omega=w_all, values=vals, tol=tol,
+        R=R, V=np.asarray(V, dtype=float), discrete=plant.is_discrete, dt=plant.dt, V_source=V_source,
+        T_worst=T_star, direction=direction, perturbation=Delta, message=message,
+    )
+
+
+# --------------------------------------------------------------------------- margins
+def margins_from_radius(alpha: float, skew: float = 1.0) -> tuple[tuple[float, float], float]:
+    r"""Gain interval and phase margin (deg) guaranteed by a disk margin ``alpha``.
+
+    ``skew = 1`` (the circle-condition disk): perturbations ``f`` with ``|1/f - 1| < alpha``,
+    gains ``(1/(1+alpha), 1/(1-alpha))`` and phase ``2 arcsin(alpha/2)``; ``alpha = 1`` gives
+    ``(1/2, inf)`` and 60 deg.  ``skew = 0`` (balanced disk): ``f = (1 + d/2)/(1 - d/2)``,
+    ``|d| < alpha``, gains ``((2-alpha)/(2+alpha), (2+alpha)/(2-alpha))``, phase ``2 atan(alpha/2)``.
+    """
+    a = float(alpha)
+    if not a > 0:
+        return (1.0, 1.0), 0.0
+    if skew == 1.0:
+        hi = 1.0 / (1.0 - a) if a < 1.0 else math.inf
+        return (1.0 / (1.0 + a), hi), math.degrees(2.0 * math.asin(min(a, 2.0) / 2.0))
+    if skew == 0.0:
+        hi = (2.0 + a) / (2.0 - a) if a < 2.0 else math.inf
+        lo = (2.0 - a) / (2.0 + a) if a < 2.0 else 0.0
+        return (lo, hi), math.degrees(2.0 * math.atan(a / 2.0))
+    raise ValidationError(f"skew must be 0 (balanced) or 1 (circle); found {skew!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class FilterMargins:
+    r"""Stability margins of a filter loop broken at the filter input (innovation).
+
+    Perturbation model: ``x_hat' = A x_hat + L Delta (y - C x_hat)``, error dynamics
+    ``A - L Delta C`` (discrete: ``x_hat[k+1] = ...``, same matrices).
+
+    Attributes
+    ----------
+    discrete : bool
+    stable : bool
+        Whether the nominal error dynamics ``A - L C`` are stable (margins are NaN otherwise).
+    R_diagonal : bool
+        Whether R is diagonal: the per-channel (and simultaneous-diagonal) guarantees need it.
+    circle : CircleConditionResult
+        The circle condition of L.
+    implied_radius : float
+        Disk radius implied by the circle condition alone: 1 in continuous time, ``1/sqrt(
+        lambda_max(R^-1 V))`` in discrete time, 0 when the condition fails.
+    guaranteed_gain_margin : (float, float)
+        ``(1/(1+a), 1/(1-a))`` with ``a = implied_radius`` (continuous Kalman filter: ``(0.5, inf)``).
+    guaranteed_phase_margin : float
+        ``2 arcsin(a/2)`` in degrees (continuous Kalman filter: 60).
+    guarantee_scope : str
+        Which perturbations these guarantees cover (simultaneous diagonal perturbations when R is
+        diagonal; only uniform ``delta I`` perturbations otherwise).
+    radius : float
+        Actual multiloop circle radius ``min_w sigma_min(R^-1/2 T R^1/2) = 1 / max_w sigma_max(
+        R^-1/2 S R^1/2)``, ``S = T^-1``: every ``Delta`` with ``sigma_max(R^-1/2 (Delta^-1 - I) R^1/2)
+        < radius`` keeps the filter stable (for diagonal R: all diagonal ``Delta`` with
+        ``|1/delta_i - 1| < radius`` simultaneously).  ``>= implied_radius`` for a Kalman filter.
+    gain_margin_lower, gain_margin_upper : (p,) ndarrays
+        Loop-at-a-time gain margins of each channel (others closed at nominal gain 1): the
+        channel gain may range over ``(lower, upper)``.  ``-inf`` / ``inf`` if never destabilizing.
+    phase_margin : (p,) ndarray
+        Loop-at-a-time phase margins (deg); ``inf`` if no pure phase destabilizes.
+    phase_crossover : (p,) ndarray
+        Frequency (rad/s) where the phase margin is attained.
+    disk_margin : (p,) ndarray
+        Loop-at-a-time balanced disk margin ``2 / max_w |S_ii - T_ii|`` (Seiler et al.).
+    circle_disk_margin : (p,) ndarray
+        Loop-at-a-time skew-1 disk margin ``1 / max_w |S_ii|`` (the per-channel circle radius).
+    """
+
+    discrete: bool
+    stable: bool
+    R_diagonal: bool
+    circle: CircleConditionResult
+    implied_radius: float
+    guaranteed_gain_margin: tuple[float, float]
+    guaranteed_phase_margin: float
+    guarantee_scope: str
+    radius: float
+    gain_margin_lower: NDArray[np.float64]
+    gain_margin_upper: NDArray[np.float64]
+    phase_margin: NDArray[np.float64]
+    phase_crossover: NDArray[np.float64]
+    disk_margin: NDArray[np.float64]
+    circle_disk_margin: NDArray[np.float64]
+    notes: tuple[str, ...] = field(default_factory=tuple)
+
+    @property
+    def simultaneous_gain_margin(self) -> tuple[float, float]:
+        """Gain interval guaranteed by ``radius`` (all channels at once if R is diagonal)."""
+        return margins_from_radius(self.radius)[0]
+
+    @property
+    def simultaneous_phase_margin(self) -> float:
+        """Phase margin (deg) guaranteed by ``radius`` (all channels at once if R is diagonal)."""
+        return margins_from_radius(self.radius)[1]
+
+    def summary(self) -> str:
+        lo, hi = self.guaranteed_gain_margin
+        lines = [
+            f"filter loop broken at the filter input ({'discrete' if self.discrete else 'continuous'}, "
+            f"{'stable' if self.stable else 'UNSTABLE'} nominal error dynamics)",
+            self.circle.summary(),
+            f"guaranteed by the circle condition: gain ({lo:.4g}, {hi:.4g}), "
+            f"phase +-{self.guaranteed_phase_margin:.4g} deg -- {self.guarantee_scope}",
+            f"actual multiloop radius {self.radius:.4g}",
+        ]
+        for i in range(self.gain_margin_lower.size):
+            lines.append(
+                f"  channel {i}: gain ({self.gain_margin_lower[i]:.4g}, {self.gain_margin_upper[i]:.4g}), "
+                f"phase {self.phase_margin[i]:.4g} deg at {self.phase_crossover[i]:.4g} rad/s, "
+                f"disk {self.disk_margin[i]:.4g}, circle disk {self.circle_disk_margin[i]:.4g}"
+            )
+        lines.extend(self.notes)
+        return "\n".join(lines)
+
+
+def _crossings(g: Callable[[NDArray], NDArray], grid: NDArray, v: NDArray) -> list[float]:
+    """All roots of a real scalar function of frequency found by sign changes of ``v = g(grid)``."""
+    from scipy.optimize import brentq
+
+    roots = list(grid[v == 0.0])
+    s = np.sign(v)
+    idx = np.flatnonzero(s[:-1] * s[1:] < 0)
+    for i in idx:
+        try:
+            roots.append(brentq(lambda x: float(g(np.array([x]))[0]), grid[i], grid[i + 1], xtol=1e-14,
+                                rtol=1e-13))
+        except ValueError:  # pragma: no cover - sign change guaranteed
+            continue
+    return roots
+
+
+def filter_margins(
+    plant: Plant, L: ArrayLike, *, R: ArrayLike | None = None, omega: ArrayLike | None = None
+) -> FilterMargins:
+    r"""Guaranteed and actual stability margins of a filter, loop broken at the filter input.
+
+    The loop is broken at the innovation ``nu = y - C x_hat`` where it enters the gain: a perturbation
+    ``Delta`` gives error dynamics ``A - L Delta C`` (module docstring).  Reported:
+
+    * the margins *implied by the circle condition* (continuous Kalman filter: gain ``(1/2, inf)``,
+      phase ``+-60 deg``; discrete: the smaller disk ``1/sqrt(lambda_max(R^-1 V))``).  With diagonal
+      R they hold for diagonal perturbations in **all channels simultaneously**, but not for a gain
+      and a phase change together beyond ``k cos(phi) > 1/2`` nor for crossfeed beyond the norm
+      bound; with non-diagonal R only for uniform perturbations ``delta I``;
+    * the actual multiloop radius ``min_w sigma_min(R^-1/2 T R^1/2)``;
+    * per channel (loop-at-a-time, the other channels closed): gain margins, phase margin, balanced
+      and skew-1 disk margins, from ``M = C (sI - A + L C)^-1 L``: a perturbation ``delta`` in channel
+      i puts a closed-loop eigenvalue at ``s`` iff ``1 + (delta - 1) M_ii(s) = 0``.  Crossings are
+      located on :func:`frequency_grid` by sign changes of ``Im M_ii`` and ``Re M_ii - 1/2`` and
+      refined with Brent's method.
+
+    Parameters
+    ----------
+    plant : Plant
+    L : (n, p) array_like
+    R : (p, p) array_like, optional
+        Default ``plant.R``.
+    omega : array_like, optional
+        Seed grid (rad/s) instead of :func:`frequency_grid`.
+
+    Returns
+    -------
+    FilterMargins
+
+    Raises
+    ------
+    DimensionError, NotFiniteError, NotPositiveDefiniteError, ValidationError
+        As :func:`circle_condition`.
+
+    References
+    ----------
+    Seed 002 (S. J. Lee), Theorem 2, eqs (20)-(24); Lehtomaki, Sandell & Athans (1981); Seiler,
+    Packard & Gahinet (2020).
+    """
+    L = _gain(plant, L)
+    R = _resolve_R(plant, R, "filter_margins")
+    circ = circle_condition(plant, L, R=R, omega=omega)
+    p, disc = plant.p, plant.is_discrete
+    R_diag = _is_diagonal(R)
+    notes: list[str] = []
+    Acl = plant.A - L @ plant.C
+    stable = _stable(np.linalg.eigvals(Acl), disc)
+    if circ.passed:
+        if disc:
+            lam = float(np.max(np.linalg.eigvals(np.linalg.solve(R, 0.5 * (circ.V + circ.V.T))).real))
+            implied = 1.0 / math.sqrt(lam)
+        else:
+            implied = 1.0
+    else:
+        implied = 0.0
+        notes.append("the circle condition fails, so it implies no margin")
+    (glo, ghi), gpm = margins_from_radius(implied)
+    if R_diag:
+        scope = ("diagonal perturbations delta_i with |1/delta_i - 1| < radius in all channels "
+                 "simultaneously (R is diagonal); not mixed gain+phase beyond the disk, not crossfeed")
+    else:
+        scope = ("R is NOT diagonal: no per-channel guarantee; only perturbations commuting with R^1/2, "
+                 "e.g. the uniform delta*I in all channels")
+        notes.append("R is not diagonal: the per-channel gain/phase statement of seed 002 Theorem 2 "
+                     "does not apply")
+    nanp = np.full(p, np.nan)
+    if not stable:
+        notes.append("A - L C is unstable: margins of an unstable loop are not defined (NaN)")
+        return FilterMargins(disc, False, R_diag, circ, implied, (glo, ghi), gpm, scope, float("nan"),
+                             *(nanp.copy() for _ in range(6)), tuple(notes))
+    grid = frequency_grid(plant, L) if omega is None else np.unique(as_vector("omega", omega))
+    grid = np.union1d(grid, circ.omega)
+    if disc:
+        grid = grid[grid <= math.pi / plant.dt]
+    grid = np.unique(grid)
+    pts_of = lambda w: _points(plant, np.asarray(w, dtype=float))  # noqa: E731
+
+    def M_of(w: NDArray) -> NDArray:
+        return _transfer(Acl, L, plant.C, pts_of(w))
+
+    Rh, Rih = _sqrtm_pd(R)
+
+    def neg_smax(w: NDArray) -> NDArray:
+        S = np.eye(p)[None] - M_of(w)
+        return -np.linalg.svd(Rih[None] @ S @ Rh[None], compute_uv=False)[:, 0]
+
+    log = not disc
+    _, v = adaptive_minimize(neg_smax, grid, log=log)
+    radius = 1.0 / float(-np.min(v))
+    Mgrid = M_of(grid)
+    glo_i, ghi_i, pm_i, pmw_i, dm_i, cdm_i = (np.empty(p) for _ in range(6))
+    for i in range(p):
+        def Mi(w: NDArray, i: int = i) -> NDArray:
+            return M_of(w)[:, i, i]
+
+        # M_ii is real at w = 0 (and at the Nyquist frequency in discrete time): always candidates
+        ends = [0.0] + ([math.pi / plant.dt] if disc else [])
+        Mg = Mgrid[:, i, i]
+        roots = ends + _crossings(lambda w, Mi=Mi: Mi(w).imag, grid, Mg.imag)
+        deltas = []
+        for w0 in roots:
+            m = Mi(np.array([w0]))[0]
+            if abs(m) > 1e-14:
+                deltas.append(1.0 - 1.0 / m.real)
+        d = np.asarray(deltas)
+        ghi_i[i] = float(np.min(d[d > 1.0], initial=np.inf))
+        glo_i[i] = float(np.max(d[d < 1.0], initial=-np.inf))
+        proots = _crossings(lambda w, Mi=Mi: Mi(w).real - 0.5, grid, Mg.real - 0.5)
+        best, bw = np.inf, np.nan
+        for w0 in proots:
+            m = Mi(np.array([w0]))[0]
+            phi = abs(math.degrees(np.angle(1.0 - 1.0 / m)))
+            if phi < best:
+                best, bw = phi, w0
+        pm_i[i], pmw_i[i] = best, bw
+        _, v0 = adaptive_minimize(lambda w, Mi=Mi: -np.abs(1.0 - 2.0 * Mi(w)), grid, log=log,
+                                  values=-np.abs(1.0 - 2.0 * Mg))
+        _, v1 = adaptive_minimize(lambda w, Mi=Mi: -np.abs(1.0 - Mi(w)), grid, log=log,
+                                  values=-np.abs(1.0 - Mg))
+        dm_i[i] = 2.0 / float(-np.min(v0))
+        cdm_i[i] = 1.0 / float(-np.min(v1))
+    return FilterMargins(disc, True, R_diag, circ, implied, (glo, ghi), gpm, scope, radius,
+                         glo_i, ghi_i, pm_i, pmw_i, dm_i, cdm_i, tuple(notes))
