@@ -57,6 +57,8 @@ _LAZY: dict[str, str] = {
     "generalized_observer": "optdesign.design.generalized",
     "GeneralizedObserver": "optdesign.design.generalized",
     "noise_rejecting_observer": "optdesign.design.generalized",
+    "NoiseRejectingObserver": "optdesign.design.generalized",
+    "ObserverSimulation": "optdesign.design.generalized",
     "simulate_observer": "optdesign.design.generalized",
     # robustness (seed 002)
     "return_difference": "optdesign.analysis.robustness",

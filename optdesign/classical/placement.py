@@ -6,6 +6,8 @@ Kautsky-Nichols-Van Dooren / Tits-Yang algorithm on the dual pair (A', C').
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -76,7 +78,11 @@ def place_observer(
             "place_poles cannot assign a pole with multiplicity greater than rank(C)"
         )
     try:
-        res = place_poles(plant.A.T, plant.C.T, poles, method=method, rtol=rtol, maxiter=maxiter)
+        with warnings.catch_warnings():
+            # YT stops at maxiter with a UserWarning; the gain still places the poles (callers verify
+            # eig(A - L C)), and the warning says nothing the caller can act on.
+            warnings.filterwarnings("ignore", message="Convergence was not reached", category=UserWarning)
+            res = place_poles(plant.A.T, plant.C.T, poles, method=method, rtol=rtol, maxiter=maxiter)
     except (ValueError, np.linalg.LinAlgError) as exc:  # pragma: no cover - guarded above
         raise NotObservableError(f"pole placement failed: {exc}") from exc
     return np.asarray(res.gain_matrix, dtype=float).T
