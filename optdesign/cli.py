@@ -188,6 +188,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.print_help()
             return 2
         return int(args._run(args) or 0)
+    except BrokenPipeError:  # `optdesign list | head`: the reader left; not an error of ours
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
     except CLIError as exc:
         print(f"optdesign: error: {exc}", file=sys.stderr)
         return 2
