@@ -1,0 +1,1700 @@
+r"""The inverse Kalman problem: which ``Q >= 0`` gives a steady-state filter with these poles?
+
+Two public verbs (seed 000, Chang & Lee 1984):
+
+* :func:`kalman_for_poles` -- find ``Q >= 0`` (state-space, the seeds' ``Q' = D Q D'``) whose
+  steady-state Kalman filter has the prescribed error poles ``eig(A - L C)``, by an SDP (single
+  output: L is fixed by the poles), a CasADi/IPOPT NLP (several outputs, where L is free), or
+  Solheim's sequential method (:func:`optdesign.classical.solheim`).  An unreachable target
+  returns an infeasible result with a certificate: the frequency where the return-difference
+  inequality fails, the SDP margin, and the closest achievable poles.
+* :func:`is_kalman_optimal` -- is a given gain L the Kalman gain of some ``Q >= 0``?  For a
+  fixed L the admissible Q form an affine slice of the PSD cone (the linear-in-P relations of
+  :mod:`optdesign.formulate.inverse_kalman`), so the answer is an SDP; by the KYP lemma it is
+  the return-difference (circle) condition ``T R T^* >= R`` (discrete: ``T V T^* >= R``), which
+  :func:`optdesign.analysis.robustness.circle_condition` evaluates and which supplies the
+  frequency certificate when the answer is no.
+
+Which member of the family of Q each objective returns
+------------------------------------------------------
+For a fixed gain the Q that work form a convex set (Example 1 of seed 000: a segment, ``P22``
+free, ``Q = [[76, -30 - P22], [-30 - P22, 10 P22 - 36]]``):
+
+* ``"min_trace"`` -- the smallest ``trace(Q)``; the answer lies on the boundary of the PSD cone
+  (rank-deficient Q).  Example 1: ``P22 = 350 - sqrt(118864) = 5.2334``, ``Q`` of rank one.
+* ``"nearest"`` -- the Q (or Qw) closest in Frobenius norm to ``Q_nominal`` (default: the
+  plant's own noise model).
+* ``"feasibility"`` -- the most robustly positive member: maximal smallest eigenvalue.
+  Example 1: ``P22 = 49.23``, ``lambda_min(Q) = 60.2`` (the maximizer is flat: known to ~1e-4).
+* ``method="sequential"`` -- whatever the sequential construction gives (Example 1:
+  ``P22 = 12``, the paper's ``Q' = [[76, -42], [-42, 84]]``); the objective is ignored.
+
+With several outputs the NLP optimizes over L as well: the best of a few starts (a local
+optimum; at the returned L the returned Q is the optimum of that gain's convex family).
+
+How an answer is computed and checked
+-------------------------------------
+* ``method="sdp"`` (one output): L from robust pole placement refined by Newton steps on the
+  eigenvalues (Ackermann's formula for repeated poles), then the fixed-gain SDP
+  (:func:`optdesign.formulate.inverse_kalman.build_fixed_gain_sdp`).  The SDP point is
+  *polished*: its face of the PSD cone is read off the eigenvalue gap of Q (``Q = U W U'``),
+  the linear relations are re-solved on that face by least squares and the face itself is
+  refined by Gauss-Newton on ``Q = V V'``, so that ``(P, Q)`` satisfy the Riccati equation to
+  rounding error with Q exactly PSD.  A numerical failure of Clarabel is retried with more
+  regularization, then with SCS; an objective SDP whose point fits no face falls back to the
+  feasibility SDP's point (status ``optimal_inaccurate``).
+* ``method="nlp"``: the spectral-identity NLP in Q alone
+  (:func:`optdesign.formulate.inverse_kalman.build_spectral_nlp`) from a few starts; L and P
+  then come from one Riccati solve with the optimized Q.  Where a target is an eigenvalue of A
+  (or of its mirror) the state-space NLP is used instead.  When no start gives a verified
+  design, a least-squares form of the spectral conditions and then the closest-poles NLP
+  decide between "reachable after all" (returned, objective not optimized) and "infeasible"
+  (a certificate with the closest achievable poles -- local evidence for several outputs).
+* Verification (independent of the solver): numpy eigenvalues of ``A - L C`` against the
+  targets, the Riccati residual of the returned P with the returned Q, a re-solve of the
+  Riccati equation with the returned Q by the Hamiltonian Schur method whose L and poles must
+  match, and the PSD eigenvalues of Q (and Qw) and P.  The pole tolerance is ``tol`` raised to
+  the rounding floor of the poles of ``A - L C`` when that is larger (capped at 1e-6): poles
+  with eigenvalue condition number kappa cannot be computed better than ``~kappa eps ||A - LC||``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validate import as_matrix, as_poles, as_positive_float, as_square, check_pd, check_symmetric
+from ..classical.placement import place_observer, pole_error
+from ..classical.riccati import filter_are, filter_are_residual
+from ..errors import OptDesignError, RiccatiError, ValidationError
+from ..formulate.inverse_kalman import (
+    OBJECTIVES,
+    STRUCTURES,
+    build_fixed_gain_sdp,
+    build_pole_nlp,
+    build_spectral_nlp,
+    build_spectral_sdp,
+    fixed_gain_maps,
+    spectral_terms,
+)
+from ..model.plant import Plant
+from ..results import Check, ResultMixin, SolverStats, Status, Verification
+
+__all__ = [
+    "METHODS",
+    "InfeasibilityCertificate",
+    "InverseKalmanResult",
+    "kalman_for_poles",
+    "KalmanOptimalityResult",
+    "is_kalman_optimal",
+]
+
+METHODS = ("auto", "sdp", "nlp", "sequential")
+
+#: relative tolerance of the PSD checks (smallest eigenvalue >= -PSD_RTOL * norm)
+PSD_RTOL = 1e-10
+#: relative Riccati residual accepted
+RESIDUAL_TOL = 1e-8
+#: relative gain difference accepted between the design and an independent ARE solve
+GAIN_TOL = 1e-7
+
+
+# ============================================================================ results
+@dataclass(frozen=True, eq=False)
+class InfeasibilityCertificate:
+    """Evidence that a target (or a gain) is not reachable by a steady-state Kalman filter.
+
+    Attributes
+    ----------
+    kind : str
+        ``"unstable_target"`` (a target pole is unstable: every Kalman filter is stable),
+        ``"gain_relation"`` (no symmetric P satisfies ``P C' = L R`` / its discrete analogue:
+        ``C L R`` resp. ``V - R`` is not symmetric positive semidefinite),
+        ``"return_difference"`` (the circle condition fails at ``omega``),
+        ``"sdp_margin"`` (the family of Q has no PSD member: ``margin < 0``),
+        ``"structure"`` (a structured Q cannot reach the target; see the closest poles),
+        ``"nlp_local"`` (several outputs: IPOPT found no feasible point -- local evidence only).
+    reason : str
+        One sentence.
+    margin : float or None
+        ``max`` over the Q family (fixed L) of the smallest eigenvalue of the decision
+        covariance; negative means infeasible.
+    omega : float or None
+        Frequency (rad/s) where ``lambda_min(T R T^* - R)`` (discrete ``T V T^* - R``) is smallest.
+    min_eigenvalue : float or None
+        That smallest eigenvalue (negative: the inequality fails by this much).
+    circle : CircleConditionResult or None
+        The full frequency scan (:func:`optdesign.analysis.robustness.circle_condition`).
+    closest_poles : (n,) ndarray of complex or None
+        Closest achievable poles (same real/complex pattern as the target) and the
+        corresponding design, from the closest-poles NLP (a local optimum).
+    closest_pole_error : float or None
+        :func:`pole_error` of ``closest_poles`` against the target.
+    closest_L, closest_Q, closest_Qw : ndarray or None
+    """
+
+    kind: str
+    reason: str
+    margin: float | None = None
+    omega: float | None = None
+    min_eigenvalue: float | None = None
+    circle: Any = None
+    closest_poles: NDArray[np.complex128] | None = None
+    closest_pole_error: float | None = None
+    closest_L: NDArray[np.float64] | None = None
+    closest_Q: NDArray[np.float64] | None = None
+    closest_Qw: NDArray[np.float64] | None = None
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain-data form (JSON friendly)."""
+
+        def arr(x):
+            if x is None:
+                return None
+            a = np.asarray(x)
+            return {"re": a.real.tolist(), "im": a.imag.tolist()} if np.iscomplexobj(a) else a.tolist()
+
+        return {"kind": self.kind, "reason": self.reason, "margin": self.margin, "omega": self.omega,
+                "min_eigenvalue": self.min_eigenvalue, "closest_poles": arr(self.closest_poles),
+                "closest_pole_error": self.closest_pole_error}
+
+    def __str__(self) -> str:
+        parts = [f"{self.kind}: {self.reason}"]
+        if self.omega is not None and self.min_eigenvalue is not None:
+            parts.append(f"worst frequency {self.omega:.6g} rad/s, min eigenvalue {self.min_eigenvalue:.4g}")
+        if self.margin is not None:
+            parts.append(f"SDP margin {self.margin:.4g}")
+        if self.closest_poles is not None:
+            poles = ", ".join(_fmt(z) for z in self.closest_poles)
+            parts.append(f"closest achievable poles {poles} (pole error {self.closest_pole_error:.3g})")
+        return "; ".join(parts)
+
+
+@dataclass(frozen=True, eq=False)
+class InverseKalmanResult(ResultMixin):
+    """Outcome of :func:`kalman_for_poles`.
+
+    Attributes
+    ----------
+    L : (n, p) ndarray or None
+        Kalman gain (continuous ``P C' R^-1``; discrete predictor gain ``A P C' (C P C' + R)^-1``).
+    Q : (n, n) ndarray or None
+        State-space process-noise covariance (the seeds' ``Q' = D Q D'``), exactly PSD.
+    Qw : ndarray or None
+        Noise-input covariance with ``Q = G Qw G'`` (structures ``"input"``: (m, m);
+        ``"diagonal"``: (m, m) diagonal); None for ``"full"``.
+    P : (n, n) ndarray or None
+        Steady-state error covariance (discrete: a-priori).
+    poles : (n,) ndarray of complex or None
+        ``eig(A - L C)`` by numpy.
+    target : (n,) ndarray of complex
+        Requested poles (sorted, conjugate pairs adjacent).
+    status : Status
+        ``OPTIMAL`` / ``OPTIMAL_INACCURATE`` / ``SOLVED`` (sequential), ``INFEASIBLE`` (with
+        ``certificate``), or a failure status with the reason in ``message``.
+    message : str
+    solver_stats : SolverStats
+    verification : Verification
+        ``pole_error``, ``riccati_residual`` (``filter_are_residual`` of P with Q),
+        ``are_resolve_gain`` / ``are_resolve_poles`` (an independent ``filter_are`` with the
+        returned Q: its L and poles must match), ``Q_min_eig``, ``P_min_eig`` (relative),
+        ``structure`` (``Q = G Qw G'``, ``Qw >= 0``) where it applies.
+    certificate : InfeasibilityCertificate or None
+    method, objective, structure : str
+        What was actually run (``method`` is never ``"auto"``).
+    objective_value : float
+        ``trace(Q)``, ``||Q - Q_nominal||_F`` or the smallest eigenvalue, by objective (nan if none).
+    plant : Plant
+    details : dict
+        Extras: backend reports of every stage, the SDP gain, NLP starts, ...
+    """
+
+    L: NDArray[np.float64] | None
+    Q: NDArray[np.float64] | None
+    Qw: NDArray[np.float64] | None
+    P: NDArray[np.float64] | None
+    poles: NDArray[np.complex128] | None
+    target: NDArray[np.complex128]
+    status: Status
+    message: str
+    solver_stats: SolverStats
+    verification: Verification
+    certificate: InfeasibilityCertificate | None
+    method: str
+    objective: str
+    structure: str
+    objective_value: float
+    plant: Plant = field(repr=False)
+    details: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @property
+    def pole_error(self) -> float:
+        """:func:`pole_error` of the achieved poles (inf without a design)."""
+        return self.verification["pole_error"].value if "pole_error" in self.verification else float("inf")
+
+    def summary(self) -> str:
+        """Multi-line human-readable report."""
+        lines = [f"kalman_for_poles: method={self.method}, objective={self.objective}, "
+                 f"structure={self.structure}, status={self.status.value}, success={self.success}",
+                 f"  target poles: {', '.join(_fmt(z) for z in self.target)}",
+                 f"  {self.message}"]
+        if self.L is not None:
+            with np.printoptions(precision=6, linewidth=100):
+                lines.append("  L = " + np.array2string(self.L, prefix="  L = "))
+                lines.append("  Q = " + np.array2string(self.Q, prefix="  Q = "))
+        if self.certificate is not None:
+            lines.append(f"  certificate: {self.certificate}")
+        lines.append("  verification:")
+        lines.extend("    " + str(c) for c in self.verification)
+        return "\n".join(lines)
+
+    def __repr__(self) -> str:
+        pe = self.pole_error
+        return (f"InverseKalmanResult(method={self.method!r}, status={self.status.value!r}, "
+                f"success={self.success}, pole_error={pe:.2e})")
+
+
+@dataclass(frozen=True, eq=False)
+class KalmanOptimalityResult(ResultMixin):
+    """Outcome of :func:`is_kalman_optimal`.
+
+    Attributes
+    ----------
+    optimal : bool
+        True when some ``Q >= 0`` makes L the steady-state Kalman gain (for R).
+    L : (n, p) ndarray
+    R : (p, p) ndarray
+    Q, P : (n, n) ndarray or None
+        The certificate of optimality: the most robustly positive member of the family
+        (maximal smallest eigenvalue), polished; ``filter_are`` with this Q returns L.
+    margin : float
+        Max over the family of ``lambda_min(Q)`` (negative: not optimal); nan if the linear
+        gain relation itself has no symmetric solution.
+    min_eigenvalue, omega : float
+        Smallest eigenvalue of ``T R T^* - R`` (discrete ``T V T^* - R``) over frequency and where.
+    circle : CircleConditionResult or None
+    certificate : InfeasibilityCertificate or None
+        Why L is not optimal (None when it is).
+    status : Status
+        ``OPTIMAL`` when optimal, ``INFEASIBLE`` when not, a failure status otherwise.
+    message : str
+    verification : Verification
+        When optimal: ``riccati_residual``, ``are_resolve_gain``, ``Q_min_eig``, ``P_min_eig``.
+        When not: ``margin`` / ``circle`` checks that document the failure (so ``success`` is
+        False: there is no Q).
+    solver_stats : SolverStats
+    """
+
+    optimal: bool
+    L: NDArray[np.float64]
+    R: NDArray[np.float64]
+    Q: NDArray[np.float64] | None
+    P: NDArray[np.float64] | None
+    margin: float
+    min_eigenvalue: float
+    omega: float
+    circle: Any
+    certificate: InfeasibilityCertificate | None
+    status: Status
+    message: str
+    verification: Verification
+    solver_stats: SolverStats
+
+    def __bool__(self) -> bool:
+        return bool(self.optimal)
+
+    def __repr__(self) -> str:
+        return (f"KalmanOptimalityResult(optimal={self.optimal}, margin={self.margin:.3g}, "
+                f"min_eigenvalue={self.min_eigenvalue:.3g} at omega={self.omega:.4g})")
+
+
+# ============================================================================ helpers
+def _fmt(z: complex) -> str:
+    z = complex(z)
+    return f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}j"
+
+
+def _stable(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
+    z = np.asarray(z, dtype=complex)
+    return np.abs(z) < 1.0 if discrete else z.real < 0.0
+
+
+def _sym(X: NDArray) -> NDArray:
+    return 0.5 * (X + X.T)
+
+
+def _rel(x: NDArray, y: NDArray) -> float:
+    d = float(np.linalg.norm(np.asarray(x) - np.asarray(y)))
+    return 0.0 if d == 0 else d / max(1.0, float(np.linalg.norm(y)))
+
+
+def _sorted_poles(z: NDArray) -> NDArray[np.complex128]:
+    z = np.asarray(z, dtype=complex)
+    return z[np.lexsort((z.imag, z.real))]
+
+
+def _lstsq(M: NDArray, b: NDArray) -> NDArray:
+    """Minimum-norm least squares by a complete orthogonal factorization (LAPACK gelsy: as
+    accurate here as the SVD-based gelsd and much faster, notably with oversubscribed BLAS)."""
+    from scipy.linalg import lstsq
+
+    return lstsq(M, b, lapack_driver="gelsy", check_finite=False)[0]
+
+
+def _duplication(n: int) -> tuple[NDArray, list[tuple[int, int]]]:
+    """D with vec(P) = D svec(P) (column-major vec, svec = lower-triangle entries)."""
+    idx = [(i, j) for j in range(n) for i in range(j, n)]
+    D = np.zeros((n * n, len(idx)))
+    for c, (i, j) in enumerate(idx):
+        D[j * n + i, c] = 1.0
+        D[i * n + j, c] = 1.0
+    return D, idx
+
+
+def _lower_rows(n: int) -> NDArray[np.intp]:
+    return np.array([j * n + i for j in range(n) for i in range(j, n)], dtype=np.intp)
+
+
+def _vec(X: NDArray) -> NDArray:
+    return np.asarray(X).reshape(-1, order="F")
+
+
+def _face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
+    """Re-solve the linear relations exactly on the face of the PSD cone that ``W0`` lies on.
+
+    ``W0`` is the decision covariance (Q for "full", Qw for "input", qw vector for "diagonal").
+    Returns ``(P, Wdec, residual)`` for the best face among the candidate ranks, or None.
+    """
+    n = A.shape[0]
+    gain_residual, q_of_P = fixed_gain_maps(A, C, L, R, dt)
+    In = np.eye(n)
+    if dt is None:
+        Mg = np.kron(C, In)                       # vec(P C')
+        Mq = -(np.kron(In, A) + np.kron(A, In))   # vec(-(A P + P A'))
+    else:
+        Fc = A - L @ C
+        Mg = np.kron(C, Fc)                       # vec(F P C')
+        Mq = np.eye(n * n) - np.kron(Fc, Fc)      # vec(P - F P F')
+    Dn, _ = _duplication(n)
+    rows = _lower_rows(n)
+    MgP = Mg @ Dn
+    MqP = (Mq @ Dn)[rows]
+    cg = -_vec(gain_residual(np.zeros((n, n))))   # MgP svec(P) = cg
+    cq = _vec(q_of_P(np.zeros((n, n))))[rows]     # q(P) = cq + MqP svec(P)
+    svecP0 = _vec(P0)[_lower_rows(n)]
+    Gm = np.eye(n) if structure == "full" else G
+    candidates: list[tuple[float, NDArray, NDArray]] = []
+    if structure == "diagonal":
+        w0 = np.asarray(W0, dtype=float).ravel()
+        wmax = max(float(np.max(np.abs(w0))), 1e-300)
+        masks = dict.fromkeys(tuple(w0 > tau * wmax) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-9, 1e-3))
+        faces = [np.flatnonzero(np.array(mk)) for mk in masks]
+    else:
+        lam, U = np.linalg.eigh(_sym(np.asarray(W0, dtype=float)))
+        lam, U = lam[::-1], U[:, ::-1]
+        lmax = max(float(lam[0]), 1e-300)
+        # candidate ranks from eigenvalue gaps, the likeliest thresholds first
+        ranks = list(dict.fromkeys(int(np.sum(lam > tau * lmax))
+                                   for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-9, 1e-3)))
+        faces = [U[:, :r] for r in ranks]
+    for face in faces:
+        if structure == "diagonal":
+            act = face
+            Mw = np.zeros((n * n, act.size))
+            for c, i in enumerate(act):
+                Mw[:, c] = _vec(np.outer(G[:, i], G[:, i]))
+            Mw = Mw[rows]
+            z0w = np.asarray(W0, dtype=float).ravel()[act]
+        else:
+            Uf = face
+            r = Uf.shape[1]
+            GU = Gm @ Uf
+            Dr, _ = _duplication(r)
+            Mw = (np.kron(GU, GU) @ Dr)[rows] if r else np.zeros((rows.size, 0))
+            Wr = Uf.T @ _sym(np.asarray(W0, dtype=float)) @ Uf
+            z0w = _vec(Wr)[_lower_rows(r)] if r else np.zeros(0)
+        # unknowns z = [svec P, w]:  MgP svecP = cg ;  cq + MqP svecP - Mw w = 0
+        M = np.block([[MgP, np.zeros((MgP.shape[0], Mw.shape[1]))], [MqP, -Mw]])
+        rhs = np.concatenate([cg, -cq])
+        z0 = np.concatenate([svecP0, z0w])
+        z = z0
+        for _ in range(3):  # min-norm correction, then iterative refinement
+            dz = _lstsq(M, rhs - M @ z)
+            z = z + dz
+        res = float(np.linalg.norm(M @ z - rhs)) / max(1e-300, float(np.linalg.norm(rhs)) + 1.0)
+        svp = z[: svecP0.size]
+        P = (Dn @ svp).reshape(n, n, order="F")
+        w = z[svecP0.size:]
+        if structure == "diagonal":
+            wd = np.zeros(G.shape[1])
+            wd[face] = w
+            ok = bool(np.all(w > 0)) if w.size else True
+            Wdec = wd
+        else:
+            r = face.shape[1]
+            Wr = (_duplication(r)[0] @ w).reshape(r, r, order="F") if r else np.zeros((0, 0))
+            ok = bool(np.linalg.eigvalsh(Wr)[0] > 0) if r else True
+            Wdec = _sym(face @ Wr @ face.T) if r else np.zeros((face.shape[0],) * 2)
+        if ok and structure != "diagonal" and face.shape[1] and 1e-14 < res < 1e-3:
+            # the face was read off an inexact point: refine it too (Gauss-Newton on Q = V V')
+            Wr = Uf.T @ Wdec @ Uf
+            lw, Uw = np.linalg.eigh(_sym(Wr))
+            V0 = Uf @ (Uw * np.sqrt(np.maximum(lw, 0.0)))
+            P, V, res = _gn_refine(MgP, MqP, cg, cq, Gm, Dn, P, V0, rhs)
+            Wdec = _sym(V @ V.T)
+        if ok:
+            candidates.append((res, P, Wdec))
+            if res < 1e-13:  # exact to rounding on this face: no need to try the others
+                break
+    if not candidates:
+        return None
+    res, P, Wdec = min(candidates, key=lambda c: c[0])
+    if res > rtol:
+        return None
+    return _sym(P), Wdec, res
+
+
+def _gn_refine(MgP, MqP, cg, cq, Gm, Dn, P0, V0, rhs, iters: int = 8):
+    """Gauss-Newton (min-norm steps) on ``P C' = L R``-type and ``q(P) = Gm V V' Gm'`` relations.
+
+    Unknowns ``svec(P)`` and ``V`` (k, r); returns ``(P, V, relative residual)`` -- the best
+    iterate.  Quadratic convergence from a point within the SDP's accuracy of a solution.
+    """
+    n = P0.shape[0]
+    k, r = V0.shape
+    low = _lower_rows(n)
+    nP = Dn.shape[1]
+    K = np.zeros((k * r, k * r))  # commutation: vec(V') = K vec(V)
+    for i in range(k):
+        for j in range(r):
+            K[i * r + j, j * k + i] = 1.0
+    x = np.concatenate([_vec(P0)[low], _vec(V0)])
+    norm_rhs = float(np.linalg.norm(rhs)) + 1.0
+
+    def unpack(x):
+        P = (Dn @ x[:nP]).reshape(n, n, order="F")
+        V = x[nP:].reshape(k, r, order="F")
+        return P, V
+
+    def resid(x):
+        P, V = unpack(x)
+        r1 = MgP @ x[:nP] - cg
+        r2 = cq + MqP @ x[:nP] - _vec(Gm @ V @ V.T @ Gm.T)[low]
+        return np.concatenate([r1, r2])
+
+    best = (float(np.linalg.norm(resid(x))) / norm_rhs, x)
+    for _ in range(iters):
+        P, V = unpack(x)
+        GV = Gm @ V
+        JV = -(np.kron(GV, Gm) + np.kron(Gm, GV) @ K)[low]
+        J = np.block([[MgP, np.zeros((MgP.shape[0], k * r))], [MqP, JV]])
+        dx = _lstsq(J, -resid(x))
+        x = x + dx
+        res = float(np.linalg.norm(resid(x))) / norm_rhs
+        if res < best[0]:
+            best = (res, x)
+        else:
+            break
+        if res < 1e-15:
+            break
+    P, V = unpack(best[1])
+    return _sym(P), V, best[0]
+
+
+def _noise_of(structure: str, G: NDArray | None, Wdec: NDArray) -> tuple[NDArray, NDArray | None]:
+    """(Q, Qw) from the decision covariance."""
+    if structure == "full":
+        return _sym(Wdec), None
+    Qw = np.diag(np.asarray(Wdec).ravel()) if structure == "diagonal" else _sym(Wdec)
+    return _sym(G @ Qw @ G.T), Qw
+
+
+def _project_psd(X: NDArray) -> NDArray:
+    w, V = np.linalg.eigh(_sym(X))
+    return _sym((V * np.maximum(w, 0.0)) @ V.T)
+
+
+def _refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int = 6) -> NDArray:
+    """Newton steps on ``eig(A - L C) = target`` (min-norm corrections); keeps the best L."""
+    best, best_err = L, pole_error(np.linalg.eigvals(A - L @ C), target)
+    if best_err == 0.0:
+        return L
+    n, p = L.shape
+    for _ in range(iters):
+        F = A - best @ C
+        lam, X = np.linalg.eig(F)
+        try:
+            Y = np.linalg.inv(X).conj().T  # left eigenvectors, y_i^H x_i = 1
+        except np.linalg.LinAlgError:
+            return best
+        from scipy.optimize import linear_sum_assignment
+
+        cost = np.abs(lam[:, None] - target[None, :])
+        r, c = linear_sum_assignment(cost)
+        rows, rhs = [], []
+        for i, j in zip(r, c, strict=True):
+            if lam[i].imag < -1e-12 * max(1.0, abs(lam[i])):
+                continue  # the conjugate equation is implied
+            # d lambda_i = -y_i^H dL C x_i
+            g = -np.outer(Y[:, i].conj(), C @ X[:, i]).reshape(-1)  # d/d vec_rowmajor(dL)
+            d = target[j] - lam[i]
+            rows.append(g.real)
+            rhs.append(d.real)
+            if abs(lam[i].imag) > 1e-12 * max(1.0, abs(lam[i])):
+                rows.append(g.imag)
+                rhs.append(d.imag)
+        J = np.asarray(rows)
+        dL = _lstsq(J, np.asarray(rhs))
+        cand = best + dL.reshape(n, p)
+        err = pole_error(np.linalg.eigvals(A - cand @ C), target)
+        if not err < best_err:
+            break
+        best, best_err = cand, err
+    return best
+
+
+def _independent_are(plant: Plant):
+    """The Riccati solve used to verify a design: the Hamiltonian Schur method (independent of
+    scipy's QZ, which produces L and P on the NLP path), scipy's if that one fails."""
+    try:  # no residual test here: an inaccurate re-solve shows up as a measured difference
+        return filter_are(plant, "hamiltonian", residual_tol=np.inf)
+    except (RiccatiError, OptDesignError):
+        return filter_are(plant, "scipy", residual_tol=np.inf)
+
+
+#: the pole tolerance is never raised above this, however ill-conditioned the poles
+POLE_FLOOR_CAP = 1e-6
+
+
+def _pole_tolerance(F: NDArray, tol: float) -> float:
+    """``max(tol, min(floor, POLE_FLOOR_CAP))``: the floor is the rounding level of the
+    eigenvalues of F itself, ``10 eps max_i kappa_i ||F||_F / max(1, |lambda_i|)`` with
+    ``kappa_i`` the eigenvalue condition numbers -- no gain can be verified to better than its
+    poles can be computed; the cap keeps the check meaningful for (nearly) defective poles."""
+    lam, V = np.linalg.eig(F)
+    try:
+        Y = np.linalg.inv(V)
+        kappa = np.linalg.norm(V, axis=0) * np.linalg.norm(Y, axis=1)
+        rel = kappa * np.linalg.norm(F) / np.maximum(1.0, np.abs(lam))
+        floor = 10 * np.finfo(float).eps * float(np.max(rel))
+    except np.linalg.LinAlgError:
+        floor = float("inf")
+    if not np.isfinite(floor):
+        floor = float("inf")
+    return max(tol, min(floor, POLE_FLOOR_CAP))
+
+
+def _placed_gain(plant: Plant, target: NDArray) -> NDArray:
+    """Robust pole placement (scipy, refined by Newton); for one output and repeated targets,
+    where scipy refuses, Ackermann's formula ``L = phi(A) O^-1 e_n`` (the gain is unique)."""
+    try:
+        L0 = place_observer(plant, target)
+    except ValidationError:
+        if plant.p != 1:
+            raise
+        n = plant.n
+        coeffs = np.real(np.poly(target))
+        phi = np.zeros((n, n))
+        for c in coeffs:
+            phi = phi @ plant.A + c * np.eye(n)
+        e = np.zeros((n, 1))
+        e[-1, 0] = 1.0
+        return phi @ np.linalg.solve(plant.observability_matrix(), e)
+    return _refine_gain(plant.A, plant.C, L0, target)
+
+
+def _verify(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
+            structure: str, tol: float) -> tuple[Verification, NDArray]:
+    """Independent checks of a design (numpy eigenvalues, residual, re-solved ARE, PSD)."""
+    A, C = plant.A, plant.C
+    F = A - L @ C
+    poles = _sorted_poles(np.linalg.eigvals(F))
+    nq = max(1.0, float(np.linalg.norm(Q, 2)))
+    npn = max(1.0, float(np.linalg.norm(P, 2)))
+    ptol = _pole_tolerance(F, tol)
+    pdetail = "max relative distance of eig(A - L C) (numpy) to the targets"
+    if ptol > tol:
+        pdetail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
+    checks = [
+        Check.at_most("pole_error", pole_error(poles, target), ptol, pdetail),
+        Check.at_most("riccati_residual", filter_are_residual(plant, P, Qs=Q), RESIDUAL_TOL,
+                      "relative residual of the filter ARE for the returned P with the returned Q"),
+        Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / nq, -PSD_RTOL,
+                       "smallest eigenvalue of Q / max(1, ||Q||)"),
+        Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / npn, -PSD_RTOL,
+                       "smallest eigenvalue of P / max(1, ||P||)"),
+    ]
+    try:
+        are = _independent_are(plant.replace(G=None, Q=_project_psd(Q)))
+        checks.append(Check.at_most("are_resolve_gain", _rel(are.L, L), GAIN_TOL,
+                                    "||L_are - L|| / max(1, ||L||), L_are from an independent "
+                                    "filter_are with Q"))
+        checks.append(Check.at_most("are_resolve_poles", pole_error(are.poles, target),
+                                    _pole_tolerance(A - are.L @ C, tol),
+                                    "poles of the independent filter_are solve vs the targets"))
+    except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
+        checks.append(Check.at_most("are_resolve_gain", float("inf"), GAIN_TOL, f"filter_are failed: {exc}"))
+    if structure != "full" and Qw is not None:
+        G = plant.G
+        mis = _rel(G @ Qw @ G.T, Q)
+        wmin = float(np.linalg.eigvalsh(_sym(Qw))[0]) / max(1.0, float(np.linalg.norm(Qw, 2)))
+        off = float(np.max(np.abs(Qw - np.diag(np.diag(Qw))))) if structure == "diagonal" else 0.0
+        checks.append(Check.at_most("structure", max(mis, off), 1e-9,
+                                    "||G Qw G' - Q|| (and off-diagonal of Qw for 'diagonal')"))
+        checks.append(Check.at_least("Qw_min_eig", wmin, -PSD_RTOL, "smallest eigenvalue of Qw (relative)"))
+    return Verification.of(checks), poles
+
+
+def _objective_value(objective: str, Q: NDArray, Wdec: NDArray, Qn: NDArray | None) -> float:
+    if objective == "min_trace":
+        return float(np.trace(Q))
+    if objective == "nearest":
+        return float(np.linalg.norm(Wdec - Qn)) if Qn is not None else float("nan")
+    W = np.diag(Wdec) if np.ndim(Wdec) == 1 else Wdec
+    return float(np.linalg.eigvalsh(_sym(np.asarray(W)))[0])
+
+
+def _stats(backend: str, native: str = "", t: float = 0.0, iterations=None, **extra) -> SolverStats:
+    return SolverStats(backend=backend, native_status=native, time=t, iterations=iterations, extra=extra)
+
+
+# ============================================================================ SDP stage
+_SOLVERS_CACHE: list[tuple[str, ...]] = []
+
+
+def _sdp_solvers() -> tuple[str, ...]:
+    """Installed SDP solvers (cached: cvxpy's installed_solvers() is slow)."""
+    if not _SOLVERS_CACHE:
+        from ..solvers.cvxpy_backend import available_sdp_solvers
+
+        _SOLVERS_CACHE.append(available_sdp_solvers())
+    return _SOLVERS_CACHE[0]
+
+
+#: retries after a numerical failure of the SDP solver: (solver, extra options)
+_SDP_RETRIES = ((None, None), ("CLARABEL", {"static_regularization_constant": 1e-7}), ("SCS", None))
+
+
+def _sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, objective: str,
+                    Qn: NDArray | None, solver: str | None):
+    """Solve the fixed-gain SDP.  Returns ``(P, Wdec, report, sdp)`` (physical units) or
+    ``(None, None, report, sdp)`` on failure.
+
+    A numerical failure of the backend (not an infeasibility verdict) is retried: Clarabel
+    with stronger static regularization, then SCS -- the latter only when no solver was
+    requested.  ``report.stats.extra["attempts"]`` lists what was tried.
+    """
+    from ..solvers.cvxpy_backend import solve_cvxpy
+
+    avail = _sdp_solvers()
+    if not avail:
+        from ..solvers.cvxpy_backend import default_sdp_solver
+
+        default_sdp_solver()  # raises BackendUnavailableError naming the package
+    first = (solver or avail[0]).upper()
+    attempts = []
+    rep = sdp = None
+    for alt, opts in _SDP_RETRIES:
+        name = first if alt is None else alt
+        forced_other = solver is not None and name != first
+        if alt is not None and (name not in avail or forced_other):
+            continue
+        if alt is not None and name == first and opts is None:
+            continue
+        sdp = build_fixed_gain_sdp(plant.A, plant.C, L, R, dt=plant.dt, structure=structure,
+                                   G=plant.G, objective=objective, Q_nominal=Qn)
+        rep = solve_cvxpy(sdp.problem, name, opts)
+        attempts.append(f"{name.lower()}{'' if not opts else ' ' + str(opts)}: {rep.stats.native_status}")
+        if rep.status.is_solved or rep.status.is_infeasible or rep.status == Status.UNBOUNDED:
+            break
+    rep.stats.extra["attempts"] = attempts
+    if not rep.status.is_solved or sdp.P.value is None:
+        return None, None, rep, sdp
+    s = sdp.scale
+    P0 = s * np.asarray(sdp.P.value)
+    if structure == "full":
+        W0 = s * np.asarray(sdp.Q.value)
+    elif structure == "input":
+        W0 = s * np.asarray(sdp.Qw.value)
+    else:
+        W0 = s * np.asarray(sdp.Qw.value).ravel()
+    return P0, W0, rep, sdp
+
+
+def _margin(plant: Plant, L: NDArray, R: NDArray, structure: str, solver: str | None):
+    """Max over the Q family of the smallest eigenvalue of the decision covariance."""
+    P0, W0, rep, sdp = _sdp_fixed_gain(plant, L, R, structure, "feasibility", None, solver)
+    if P0 is None:
+        return float("nan"), None, None, rep
+    return float(sdp.scale * sdp.t.value), P0, W0, rep
+
+
+# ============================================================================ public verbs
+def _check_choice(name: str, value, allowed) -> None:
+    if value not in allowed:
+        raise ValidationError(f"{name} must be one of {tuple(allowed)}; found {value!r}")
+
+
+def _nominal(plant: Plant, structure: str, objective: str, Q_nominal) -> NDArray | None:
+    if Q_nominal is None:
+        if objective != "nearest":
+            return None
+        if plant.Q is None:
+            raise ValidationError("objective='nearest' needs Q_nominal (or a plant with Q to use as "
+                                  "the nominal)")
+        return plant.process_noise() if structure == "full" else np.asarray(plant.Q, dtype=float)
+    k = plant.n if structure == "full" else plant.m
+    what = "n x n (state-space Q)" if structure == "full" else "m x m (noise-input Qw)"
+    Qn = as_square("Q_nominal", Q_nominal)
+    if Qn.shape[0] != k:
+        raise ValidationError(f"Q_nominal for structure={structure!r} must be {what}, i.e. ({k}, {k}); "
+                              f"found {Qn.shape}")
+    return check_symmetric("Q_nominal", Qn)
+
+
+def kalman_for_poles(
+    plant: Plant,
+    poles: ArrayLike,
+    *,
+    method: str = "auto",
+    objective: str = "min_trace",
+    Q_nominal: ArrayLike | None = None,
+    structure: str = "full",
+    solver: str | None = None,
+    seed: int = 0,
+    tol: float = 1e-8,
+) -> InverseKalmanResult:
+    r"""Process noise ``Q >= 0`` whose steady-state Kalman filter has the prescribed poles.
+
+    Finds L, P and Q with ``eig(A - L C) = poles`` and the filter Riccati equation satisfied
+    (continuous ``A P + P A' - P C' R^-1 C P + Q = 0``, ``L = P C' R^-1``; discrete predictor
+    DARE, ``L = A P C' (C P C' + R)^-1``).  See the module docstring for which member of the
+    family each objective returns.
+
+    Parameters
+    ----------
+    plant : Plant
+        ``A`` (n, n), ``C`` (p, n), ``R`` (p, p) (required), ``G`` (n, m) for structured Q,
+        ``dt`` for discrete time.  ``plant.Q`` is only used as the default ``Q_nominal``.
+    poles : (n,) array_like of complex
+        Target error poles, closed under conjugation.
+    method : {"auto", "sdp", "nlp", "sequential"}
+        ``"sdp"``: single output only (L is fixed by the poles; cvxpy SDP, then polished);
+        ``"nlp"``: CasADi/IPOPT over ``(L, P, Q = F F')`` (any number of outputs; local);
+        ``"sequential"``: Solheim's method (:func:`optdesign.classical.solheim`; structure
+        ``"full"``, objective ignored); ``"auto"``: ``"sdp"`` for one output, else ``"nlp"``.
+    objective : {"min_trace", "nearest", "feasibility"}
+    Q_nominal : array_like, optional
+        For ``"nearest"``: (n, n) for ``"full"``, (m, m) (compared with Qw) otherwise.
+        Default: the plant's noise model.
+    structure : {"full", "diagonal", "input"}
+        ``"full"``: any n x n ``Q >= 0``; ``"input"``: ``Q = G Qw G'``, ``Qw >= 0``;
+        ``"diagonal"``: ``Q = G diag(qw) G'``, ``qw >= 0``.
+    solver : {"CLARABEL", "SCS"} or None
+        SDP solver (default Clarabel).
+    seed : int
+        Seeds the NLP multi-start.
+    tol : float
+        Pole accuracy required by the verification (relative, :func:`pole_error`).
+
+    Returns
+    -------
+    InverseKalmanResult
+        An unreachable target gives ``status`` ``INFEASIBLE`` with ``certificate``; a solver
+        failure gives its status and the reason in ``message``.
+
+    Raises
+    ------
+    ValidationError
+        Bad choice of method / objective / structure, no R, ``method="sdp"`` with several
+        outputs, a malformed ``Q_nominal``.
+    DimensionError, NotConjugateClosedError
+        Wrong number of poles, not closed under conjugation.
+    NotObservableError
+        (C, A) is not observable (names the modes).
+
+    References
+    ----------
+    Chang & Lee 1984 (seed 000); Anderson & Moore, *Optimal Filtering* (1979).
+
+    Examples
+    --------
+    >>> from optdesign import Plant, kalman_for_poles
+    >>> res = kalman_for_poles(Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]]), [-5, -8])
+    >>> res.success, res.L.ravel().round(9).tolist()
+    (True, [8.0, -6.0])
+    """
+    t_start = time.perf_counter()
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    _check_choice("method", method, METHODS)
+    _check_choice("objective", objective, OBJECTIVES)
+    _check_choice("structure", structure, STRUCTURES)
+    tol = as_positive_float("tol", tol)
+    if plant.R is None:
+        raise ValidationError("kalman_for_poles needs the measurement-noise covariance R: the plant has no R")
+    target = as_poles("poles", poles, plant.n)
+    Qn = _nominal(plant, structure, objective, Q_nominal)
+    plant.require_observable(what="placing every filter pole")
+    p = plant.p
+    if method == "auto":
+        method = "sdp" if p == 1 else "nlp"
+    if method == "sdp" and p != 1:
+        raise ValidationError(
+            f"method='sdp' needs a single output (p = 1), where the poles fix L; this plant has p = {p}: "
+            f"use method='nlp' (or 'auto')")
+    if method == "sequential" and structure != "full":
+        raise ValidationError("method='sequential' (Solheim) gives a full Q; use structure='full'")
+    common = dict(target=target, method=method, objective=objective, structure=structure, plant=plant)
+
+    disc = plant.is_discrete
+    if not np.all(_stable(target, disc)):
+        bad = target[~_stable(target, disc)]
+        where = "inside the unit circle" if disc else "in the open left half-plane"
+        cert = InfeasibilityCertificate(
+            kind="unstable_target",
+            reason=f"target pole(s) {', '.join(_fmt(z) for z in bad)} not {where}: every steady-state "
+                   f"Kalman filter is stable")
+        return _empty(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+                      _stats("none", t=time.perf_counter() - t_start))
+
+    with _quiet():
+        if method == "sequential":
+            return _run_sequential(plant, target, common, tol, t_start)
+        if method == "sdp":
+            return _run_sdp(plant, target, common, Qn, solver, tol, seed, t_start)
+        return _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start)
+
+
+def _empty(common, status, message, certificate, stats, verification=None, details=None):
+    return InverseKalmanResult(
+        L=None, Q=None, Qw=None, P=None, poles=None, status=status, message=message,
+        solver_stats=stats, verification=verification or Verification.of([]), certificate=certificate,
+        objective_value=float("nan"), details=details or {}, **common)
+
+
+def _run_sequential(plant, target, common, tol, t_start):
+    from ..classical.solheim import solheim
+
+    try:
+        sol = solheim(plant, target)
+    except (ValidationError, RiccatiError) as exc:
+        return _empty(common, Status.SOLVER_ERROR, f"sequential method not applicable: {exc}", None,
+                      _stats("solheim", "error", time.perf_counter() - t_start))
+    ver, poles = _verify(plant, target, sol.L, sol.P, sol.Q, None, "full", tol)
+    msg = f"Solheim's sequential method: {sol.message}"
+    if not ver.passed:
+        msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
+    return InverseKalmanResult(
+        L=sol.L, Q=sol.Q, Qw=None, P=sol.P, poles=poles, status=Status.SOLVED, message=msg,
+        solver_stats=_stats("solheim", "solved", time.perf_counter() - t_start, len(sol.steps)),
+        verification=ver, certificate=None, objective_value=float(np.trace(sol.Q)),
+        details={"solheim": sol}, **common)
+
+
+def _polished(plant, L, R, structure, P0, W0):
+    """Face polish of an SDP point; None when no face fits."""
+    return _face_polish(plant.A, plant.C, L, R, plant.dt, structure, plant.G, P0, W0, 1e-9)
+
+
+def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start):
+    R = np.asarray(plant.R, dtype=float)
+    L = _placed_gain(plant, target)
+    structure, objective = common["structure"], common["objective"]
+    details: dict[str, Any] = {"L_placed": L}
+    P0, W0, rep, _ = _sdp_fixed_gain(plant, L, R, structure, objective, Qn, solver)
+    details["sdp_report"] = rep
+    stage_note = ""
+    pol = None if P0 is None else _polished(plant, L, R, structure, P0, W0)
+    if pol is None:
+        # the objective SDP failed or its point fits no face: the feasibility (margin) SDP decides
+        t_star, Pm, Wm, rep_m = _margin(plant, L, R, structure, solver)
+        details["margin_report"] = rep_m
+        if Pm is None and rep_m.status.is_infeasible:
+            return _infeasible_fixed_gain(plant, target, common, L, R, float("nan"), rep, rep_m, Qn, solver,
+                                          tol, seed, t_start, details)
+        if Pm is None and P0 is None:
+            return _empty(common, rep_m.status if not rep_m.status.is_solved else Status.NUMERICAL_ERROR,
+                          f"the SDP failed: {rep.message}; the feasibility SDP failed too: {rep_m.message}",
+                          None, _stats(rep_m.stats.backend, rep_m.stats.native_status,
+                                       time.perf_counter() - t_start), details=details)
+        if Pm is not None:
+            wscale = max(1.0, float(np.max(np.abs(Wm))))
+            if t_star < -1e-7 * wscale:
+                return _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep, rep_m, Qn, solver,
+                                              tol, seed, t_start, details)
+            pol = _polished(plant, L, R, structure, Pm, Wm)
+            if pol is not None or P0 is None:
+                what = ("returned " + rep.stats.native_status) if P0 is None else \
+                    "point fits no face of the PSD cone"
+                stage_note = (f"the {objective} SDP {what}; the feasibility SDP's point "
+                              f"(margin {t_star:.3g}) is returned instead; ")
+                P0, W0, rep = Pm, Wm, rep_m
+    if pol is None:
+        P, Wdec = P0, (np.maximum(W0, 0.0) if structure == "diagonal" else _project_psd(W0))
+        polish = "not polished (no face of the PSD cone fits); projected onto the PSD cone"
+    else:
+        P, Wdec, res = pol
+        polish = f"polished on its face of the PSD cone (linear residual {res:.1e})"
+    Q, Qw = _noise_of(structure, plant.G, Wdec)
+    ver, poles = _verify(plant, target, L, P, Q, Qw, structure, tol)
+    status = rep.status if (rep.status.is_solved and not stage_note) else Status.OPTIMAL_INACCURATE
+    msg = f"SDP ({rep.stats.backend}: {rep.stats.native_status}), {stage_note}{polish}"
+    if not ver.passed:
+        msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
+    st = rep.stats
+    wd = Wdec if structure != "diagonal" else np.diag(Wdec)
+    return InverseKalmanResult(
+        L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=status, message=msg,
+        solver_stats=_stats(st.backend, st.native_status, time.perf_counter() - t_start, st.iterations,
+                            solve_time=st.time, objective=st.extra.get("objective")),
+        verification=ver, certificate=None, objective_value=_objective_value(objective, Q, wd, Qn),
+        details=details, **common)
+
+
+def _run_sdp(plant, target, common, Qn, solver, tol, seed, t_start):
+    """One output: the fixed-gain SDP in (P, Q); if it gives no verified design, the spectral SDP
+    in Q alone (better scaled for large gains) -- an infeasibility verdict of an inaccurate
+    fixed-gain SDP is not trusted until the spectral SDP agrees."""
+    res = _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start)
+    if res.success:
+        return res
+    terms = spectral_terms(plant.A, plant.C, target, plant.dt)
+    if terms is None:
+        return res
+    alt = _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start)
+    alt.details["fixed_gain_attempt"] = res.message
+    if alt.success:
+        return alt
+    if alt.L is not None and (res.L is None or len(alt.verification.failed) < len(res.verification.failed)):
+        if res.L is None and res.status.is_infeasible:
+            alt.details["fixed_gain_certificate"] = res.certificate
+        return alt  # a design close to the target whose checks fail: better than no design
+    if res.status.is_infeasible:
+        rep = res.details.get("margin_report")
+        trusted = rep is not None and rep.status == Status.OPTIMAL
+        circ = res.certificate.circle if res.certificate is not None else None
+        if not trusted and circ is not None and circ.passed and not alt.status.is_infeasible:
+            # the KYP-equivalent frequency test passes and neither SDP is accurate: no verdict
+            return _empty(common, Status.NUMERICAL_ERROR,
+                          f"inconclusive: the fixed-gain SDP reported {res.message} from an inaccurate "
+                          f"solve, but the return-difference inequality holds (min eigenvalue "
+                          f"{circ.min_eigenvalue:.3g}); the spectral SDP: {alt.message}",
+                          None, res.solver_stats, details=res.details)
+    return res
+
+
+def _spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None, W0: NDArray):
+    """Exact solutions of the spectral conditions ``E vec(Q) + off = 0`` near ``W0`` with Q PSD:
+    Gauss-Newton on ``Q = Gm V V' Gm'`` over candidate ranks (``diagonal``: a linear solve on
+    the support).  Returns ``(Wdec, residual)`` or None."""
+    best = None
+    if structure == "diagonal":
+        w0 = np.maximum(np.ravel(W0), 0.0)
+        wmax = max(float(np.max(w0)), 1e-300)
+        for mk in dict.fromkeys(tuple(w0 > tau * wmax) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-3)):
+            act = np.flatnonzero(np.array(mk))
+            M = np.column_stack([E @ _vec(np.outer(G[:, i], G[:, i])) for i in act]) if act.size else \
+                np.zeros((E.shape[0], 0))
+            d = w0[act]
+            for _ in range(3):
+                d = d + _lstsq(M, -(M @ d + off)) if act.size else d
+            res = float(np.linalg.norm(M @ d + off)) / (1.0 + float(np.linalg.norm(off)))
+            if np.all(d > 0) and (best is None or res < best[1]):
+                wd = np.zeros(G.shape[1])
+                wd[act] = d
+                best = (wd, res)
+        return best
+    Gm = np.eye(np.asarray(W0).shape[0]) if structure == "full" else G
+    lam, U = np.linalg.eigh(_sym(np.asarray(W0, dtype=float)))
+    lam, U = lam[::-1], U[:, ::-1]
+    lmax = max(float(lam[0]), 1e-300)
+    for r in dict.fromkeys(int(np.sum(lam > tau * lmax)) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-3)):
+        if r == 0:
+            continue
+        k = U.shape[0]
+        V = U[:, :r] * np.sqrt(np.maximum(lam[:r], 0.0))
+        K = np.zeros((k * r, k * r))
+        for i in range(k):
+            for j in range(r):
+                K[i * r + j, j * k + i] = 1.0
+
+        def resid(V):
+            return E @ _vec(Gm @ V @ V.T @ Gm.T) + off
+
+        cur = float(np.linalg.norm(resid(V)))
+        for _ in range(10):
+            GV = Gm @ V
+            J = E @ (np.kron(GV, Gm) + np.kron(Gm, GV) @ K)
+            Vn = V + _lstsq(J, -resid(V)).reshape(k, r, order="F")
+            new = float(np.linalg.norm(resid(Vn)))
+            if not new < cur:
+                break
+            V, cur = Vn, new
+            if cur < 1e-15 * (1.0 + float(np.linalg.norm(off))):
+                break
+        res = cur / (1.0 + float(np.linalg.norm(off)))
+        if best is None or res < best[1]:
+            best = (_sym(V @ V.T), res)
+        if res < 1e-13:
+            break
+    return best
+
+
+def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
+    from ..solvers.cvxpy_backend import solve_cvxpy
+
+    structure, objective = common["structure"], common["objective"]
+    avail = _sdp_solvers()
+    first = (solver or avail[0]).upper()
+    rep = sdp = None
+    for alt, opts in _SDP_RETRIES:
+        name = first if alt is None else alt
+        if alt is not None and (name not in avail or (solver is not None and name != first)
+                                or (name == first and opts is None)):
+            continue
+        sdp = build_spectral_sdp(plant.A, plant.C, np.asarray(plant.R, dtype=float), target, dt=plant.dt,
+                                 structure=structure, G=plant.G, objective=objective, Q_nominal=Qn,
+                                 terms=terms)
+        rep = solve_cvxpy(sdp.problem, name, opts)
+        if rep.status.is_solved or rep.status.is_infeasible:
+            break
+    stats = _stats(rep.stats.backend, rep.stats.native_status, time.perf_counter() - t_start,
+                   rep.stats.iterations, form="spectral")
+    if not rep.status.is_solved or sdp.Q.value is None:
+        return _empty(common, rep.status if not rep.status.is_solved else Status.NUMERICAL_ERROR,
+                      f"the spectral SDP: {rep.message}", None, stats)
+    s = sdp.scale
+    W0 = s * (np.asarray(sdp.Q.value) if structure == "full" else
+              (np.asarray(sdp.Qw.value) if structure == "input" else np.ravel(sdp.Qw.value)))
+    pol = _spectral_polish(sdp.coefficients, sdp.offset, structure, plant.G, W0)
+    if pol is not None:
+        Wdec = pol[0]
+    else:
+        Wdec = np.maximum(W0, 0.0) if structure == "diagonal" else _project_psd(W0)
+    Q, Qw = _noise_of(structure, plant.G, Wdec)
+    try:
+        L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, Q, Qw, tol)
+    except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
+        return _empty(common, Status.NUMERICAL_ERROR, f"the spectral SDP's Q has no Riccati solution: {exc}",
+                      None, stats)
+    msg = (f"spectral SDP in Q alone ({rep.stats.backend}: {rep.stats.native_status}); "
+           + ("polished" if pol is not None else "not polished")
+           + "; L and P from a Riccati solve")
+    if not ver.passed:
+        msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
+    wd = Wdec if structure != "diagonal" else np.diag(Wdec)
+    return InverseKalmanResult(
+        L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=rep.status, message=msg, solver_stats=stats,
+        verification=ver, certificate=None, objective_value=_objective_value(objective, Q, wd, Qn),
+        details={"spectral_sdp_report": rep}, **common)
+
+
+def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep, rep_m, Qn, solver, tol, seed,
+                           t_start, details):
+    """Single-output target out of reach: circle-condition certificate + closest poles."""
+    from ..analysis.robustness import circle_condition
+
+    structure = common["structure"]
+    circ = None
+    try:
+        circ = circle_condition(plant, L, R=R)
+    except (ValidationError, np.linalg.LinAlgError) as exc:  # pragma: no cover - defensive
+        details["circle_error"] = str(exc)
+    closest = {k: v for k, v in _closest_poles(plant, target, structure, Qn, seed).items() if k != "rep"}
+    details["closest"] = closest
+    if circ is not None and not circ.passed and structure == "full":
+        kind = "return_difference"
+        reason = (f"the return-difference inequality fails: lambda_min(T R T* - R) = "
+                  f"{circ.min_eigenvalue:.4g} at omega = {circ.omega_worst:.6g} rad/s"
+                  if not plant.is_discrete else
+                  f"the discrete return-difference inequality T V T* >= R fails: lambda_min = "
+                  f"{circ.min_eigenvalue:.4g} at omega = {circ.omega_worst:.6g} rad/s")
+    elif structure != "full":
+        kind = "structure"
+        reason = (f"no Q of structure {structure!r} gives these poles (the fixed-gain SDP is infeasible"
+                  + (f", margin {t_star:.4g})" if np.isfinite(t_star) else ")"))
+    else:
+        kind = "sdp_margin"
+        reason = (f"no Q >= 0 in the family of the gain fixed by the poles (max smallest eigenvalue "
+                  f"{t_star:.4g})" if np.isfinite(t_star) else
+                  f"the fixed-gain SDP is infeasible ({rep_m.stats.native_status})")
+    if not closest:
+        reason += ("; no closest poles: no scaled nominal noise of this structure gives a stabilizing "
+                   "Riccati solution (modes on the stability boundary not excited?)")
+    show = circ is not None and (kind == "return_difference" or not circ.passed)
+    cert = InfeasibilityCertificate(
+        kind=kind, reason=reason, margin=t_star if np.isfinite(t_star) else None,
+        omega=circ.omega_worst if show else None, min_eigenvalue=circ.min_eigenvalue if show else None,
+        circle=circ, **closest)
+    return _empty(common, Status.INFEASIBLE, f"infeasible: {cert}", cert,
+                  _stats(rep_m.stats.backend, rep_m.stats.native_status, time.perf_counter() - t_start,
+                         rep_m.stats.iterations), details=details)
+
+
+# ============================================================================ NLP stage
+def _modal_start(F: NDArray, blocks: list) -> tuple[NDArray, NDArray]:
+    """Real modal eigenvector matrix of F arranged like the target blocks, and the matching
+    initial pole variables (re per real block, (re, im) per pair)."""
+    from scipy.optimize import linear_sum_assignment
+
+    n = F.shape[0]
+    lam, V = np.linalg.eig(F)
+    cand = [k for k in range(n) if lam[k].imag >= -1e-12 * max(1.0, abs(lam[k]))]
+    cost = np.zeros((len(blocks), len(cand)))
+    for b, (size, z) in enumerate(blocks):
+        for c, k in enumerate(cand):
+            is_c = abs(lam[k].imag) > 1e-9 * max(1.0, abs(lam[k]))
+            cost[b, c] = abs(lam[k] - z) + (0.0 if (size == 2) == is_c else 1e3 * max(1.0, abs(z)))
+    rows, cols = linear_sum_assignment(cost)
+    assigned = dict(zip(rows.tolist(), cols.tolist(), strict=True))
+    X = np.zeros((n, n))
+    mu: list[float] = []
+    pos = np.cumsum([0] + [s for s, _ in blocks])
+    rng = np.random.default_rng(0)
+    for b, (size, z) in enumerate(blocks):
+        i0 = pos[b]
+        if b in assigned:
+            k = cand[assigned[b]]
+            v, lk = V[:, k], lam[k]
+        else:  # fewer eigenvalue groups than blocks: a random vector and the target itself
+            v, lk = rng.standard_normal(n) + 1j * rng.standard_normal(n), z
+        if size == 1:
+            x = np.real(v * np.exp(-1j * np.angle(v[np.argmax(np.abs(v))])))
+            X[:, i0] = x / max(float(np.linalg.norm(x)), 1e-300)
+            mu.append(float(lk.real))
+        else:
+            v = v * np.exp(-0.5j * np.angle(v @ v))
+            u, w = v.real, v.imag
+            if np.linalg.norm(w) < 1e-8 * max(1.0, float(np.linalg.norm(u))):  # real eigenvalue here
+                w = rng.standard_normal(n)
+                w -= (w @ u) / (u @ u) * u
+                w *= 0.1 * np.linalg.norm(u) / np.linalg.norm(w)
+            nrm = np.sqrt(u @ u + w @ w)
+            X[:, i0], X[:, i0 + 1] = u / nrm, w / nrm
+            mu += [float(lk.real), max(abs(float(lk.imag)), 1e-3 * max(1.0, abs(z)))]
+    return X, np.asarray(mu)
+
+
+def _factor(W: NDArray) -> NDArray:
+    """Lower-triangular factor of a PSD matrix (Cholesky of W + tiny I)."""
+    W = _project_psd(W)
+    eps = 1e-10 * max(1.0, float(np.linalg.norm(W, 2)))
+    return np.linalg.cholesky(W + eps * np.eye(W.shape[0]))
+
+
+def _lower_vec(F: NDArray) -> NDArray:
+    k = F.shape[0]
+    return np.array([F[i, j] for j in range(k) for i in range(j, k)])
+
+
+class _quiet:
+    """Silence the backends' advisory warnings (the statuses are reported in the result)."""
+
+    def __enter__(self):
+        import warnings
+
+        self._ctx = warnings.catch_warnings()
+        self._ctx.__enter__()
+        warnings.filterwarnings("ignore", message=".*may be inaccurate.*")
+        warnings.filterwarnings("ignore", message=".*Convergence was not reached.*")
+        return self
+
+    def __exit__(self, *exc):
+        return self._ctx.__exit__(*exc)
+
+
+def _eig_nlp_solve(plant, target, structure, objective, Qn, start, *, closest=False, scale=1.0,
+                   options=None):
+    """The state-space (eigenvector) NLP from ``start`` = dict(L, P, W[, mu])."""
+    from ..solvers.casadi_backend import solve_opti
+
+    nlp = build_pole_nlp(plant.A, plant.C, np.asarray(plant.R, dtype=float), target, dt=plant.dt,
+                         structure=structure, G=plant.G, objective=objective, Q_nominal=Qn,
+                         closest=closest, scale=scale)
+    opti = nlp.opti
+    s = nlp.scale
+    opti.set_initial(nlp.L, start["L"])
+    opti.set_initial(nlp.P, start["P"] / s)
+    W = start["W"] / s
+    t0 = 0.0
+    if nlp.t is not None:
+        Wm = np.diag(W) if structure == "diagonal" else W
+        wmin = float(np.linalg.eigvalsh(_sym(np.atleast_2d(Wm)))[0])
+        t0 = min(0.0, wmin) - 1e-3 * max(1.0, float(np.abs(Wm).max()))
+        opti.set_initial(nlp.t, t0)
+    if structure == "diagonal":
+        opti.set_initial(nlp.Fvec, np.maximum(np.asarray(W).ravel(), max(t0, 0.0) + 1e-8))
+    else:
+        opti.set_initial(nlp.Fvec, _lower_vec(_factor(W - t0 * np.eye(W.shape[0]))))
+    X0, mu0 = _modal_start(plant.A - start["L"] @ plant.C, nlp.blocks)
+    opti.set_initial(nlp.X, X0)
+    if nlp.mu is not None:
+        opti.set_initial(nlp.mu, start.get("mu", mu0))
+    opts = {"ipopt.max_iter": 500, "expand": True}
+    opts.update(options or {})
+    rep = solve_opti(opti, opts)
+    Q = s * rep.value(nlp.Q).reshape(plant.n, plant.n)
+    Qw = None if nlp.Qw is None else s * np.atleast_2d(rep.value(nlp.Qw))
+    L = rep.value(nlp.L).reshape(plant.n, plant.p)
+    return rep, L, _sym(Q), (None if Qw is None else _sym(Qw))
+
+
+def _spectral_solve(plant, target, structure, objective, Qn, W0, terms, *, options=None, soft=False):
+    """The spectral-identity NLP from the decision covariance ``W0``."""
+    from ..solvers.casadi_backend import solve_opti
+
+    Wm = np.diag(np.ravel(W0)) if structure == "diagonal" else np.asarray(W0)
+    scale = max(1.0, float(np.linalg.norm(Wm)))
+    nlp = build_spectral_nlp(plant.A, plant.C, np.asarray(plant.R, dtype=float), target, dt=plant.dt,
+                             structure=structure, G=plant.G, objective=objective, Q_nominal=Qn, W0=W0,
+                             scale=scale, terms=terms, soft=soft)
+    opts = {"ipopt.max_iter": 500, "expand": True}  # SX evaluation: much faster derivatives
+    opts.update(options or {})
+    rep = solve_opti(nlp.opti, opts)
+    s = nlp.scale
+    Q = s * rep.value(nlp.Q).reshape(plant.n, plant.n)
+    Qw = None if nlp.Qw is None else s * np.atleast_2d(rep.value(nlp.Qw))
+    return rep, _sym(Q), (None if Qw is None else _sym(Qw))
+
+
+def _start_covariances(plant: Plant, target: NDArray, structure: str, Qn, seed: int, count: int, solver):
+    """Initial decision covariances for the NLP, in order.
+
+    1. Single output: the fixed-gain SDP's most positive Q at the (unique) gain -- a feasible
+       point when the target is reachable.
+    2. The scaled nominal noise whose Kalman filter comes closest to the target (the most
+       reliable start with several outputs).
+    3. Several outputs (where a placed gain is almost never a Kalman gain, so that SDP is
+       infeasible): ``c I`` with ``c = ||L0 R L0'||``, ``L0`` the robust pole placement gain.
+    4. Random positive definite matrices of the same scale (seeded), up to ``count``.
+    """
+    rng = np.random.default_rng(seed)
+    R = np.asarray(plant.R, dtype=float)
+    k = plant.n if structure == "full" else plant.m
+    out = []
+    L0 = None
+
+    def shaped(W):
+        return np.diag(W).copy() if structure == "diagonal" else W
+
+    if plant.p == 1:
+        L0 = _placed_gain(plant, target)
+        t_star, P0, Wm, _ = _margin(plant, L0, R, structure, solver)
+        if P0 is not None:
+            W0 = np.maximum(np.ravel(Wm), 0.0) if structure == "diagonal" else Wm
+            out.append({"kind": "fixed-gain SDP", "W": W0, "L": L0, "P": P0, "margin": t_star})
+    ks = _kalman_start(plant, target, structure, Qn) if (count >= 2 or not out) else None
+    if ks is not None:
+        out.append({"kind": "scaled nominal", "W": shaped(ks[2]), "L": ks[1].L, "P": ks[1].P})
+    # the scale of the other starts: the placed gain's ||L R L'|| (one output) or the nominal's
+    if plant.p == 1 or ks is None:
+        L0 = _placed_gain(plant, target) if L0 is None else L0
+        c = max(1e-12, float(np.linalg.norm(L0 @ R @ L0.T, 2)))
+        if structure != "full":  # scale of Qw: Q = G Qw G'
+            c = c / max(1e-12, float(np.linalg.norm(plant.G, 2)) ** 2)
+    else:
+        L0 = ks[1].L
+        c = max(1e-12, float(np.linalg.norm(np.atleast_2d(ks[2]), 2)))
+    P_guess = np.eye(plant.n) * max(1.0, float(np.linalg.norm(L0 @ R)))
+    if len(out) < count or not out:
+        out.append({"kind": "scaled identity", "W": shaped(c * np.eye(k)), "L": L0, "P": P_guess})
+    for _ in range(max(0, count - len(out))):
+        F = rng.standard_normal((k, k))
+        W = c * (F @ F.T / k + 0.1 * np.eye(k))
+        out.append({"kind": "random", "W": shaped(W), "L": L0, "P": P_guess})
+    return out[:max(count, 1)]
+
+
+def _design_from_Q(plant, target, structure, Q, Qw, tol):
+    """L and P by a Riccati solve with the optimizer's Q, then verified."""
+    Q = _project_psd(Q)
+    if Qw is not None:
+        Qw = np.diag(np.maximum(np.diag(Qw), 0.0)) if structure == "diagonal" else _project_psd(Qw)
+        Q = _sym(plant.G @ Qw @ plant.G.T)
+    are = filter_are(plant.replace(G=None, Q=Q), residual_tol=np.inf)
+    ver, poles = _verify(plant, target, are.L, are.P, Q, Qw, structure, tol)
+    return are.L, are.P, Q, Qw, ver, poles
+
+
+def _decision_size(plant: Plant, structure: str) -> int:
+    m = plant.m
+    return {"full": plant.n * (plant.n + 1) // 2, "input": m * (m + 1) // 2, "diagonal": m}[structure]
+
+
+def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
+    structure, objective = common["structure"], common["objective"]
+    details: dict[str, Any] = {"starts": []}
+    nstarts = 2 if plant.p == 1 else 3
+    terms = spectral_terms(plant.A, plant.C, target, plant.dt)
+    formulation = "spectral" if terms is not None else "state-space"
+    details["formulation"] = formulation
+    dof = _decision_size(plant, structure) - plant.n
+    details["degrees_of_freedom"] = dof
+    best = fallback = last_rep = None
+    best_time = 0.0
+    starts = _start_covariances(plant, target, structure, Qn, seed, nstarts, solver) if dof >= 0 else []
+    for k, start in enumerate(starts):
+        # once a verified design exists, the other starts only look for a better local optimum:
+        # at most 200 iterations and twice the wall time the first success took
+        opts = None if best is None else {"ipopt.max_iter": 200,
+                                          "ipopt.max_wall_time": max(1.0, 2.0 * best_time)}
+        if terms is not None:
+            rep, Q, Qw = _spectral_solve(plant, target, structure, objective, Qn, start["W"], terms,
+                                         options=opts)
+        else:
+            scale = max(1.0, float(np.linalg.norm(start["L"] @ plant.R @ start["L"].T)))
+            rep, _, Q, Qw = _eig_nlp_solve(plant, target, structure, objective, Qn, start, scale=scale,
+                                           options=opts)
+        last_rep = rep
+        entry = {"start": k, "kind": start["kind"], "status": rep.status.value,
+                 "native": rep.stats.native_status, "iterations": rep.stats.iterations,
+                 "time": rep.stats.time}
+        details["starts"].append(entry)
+        if not rep.status.is_solved:
+            continue
+        try:
+            L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, Q, Qw, tol)
+        except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
+            entry["error"] = str(exc)
+            continue
+        entry["verified"] = ver.passed
+        Wdec = Q if structure == "full" else Qw
+        val = _objective_value(objective, Q, Wdec, Qn)
+        entry["objective"] = val
+        cand = (val, rep, L, P, Q, Qw, ver, poles)
+        if ver.passed:
+            if best is None:
+                best_time = rep.stats.time
+            if best is None or (val > best[0] if objective == "feasibility" else val < best[0]):
+                best = cand
+        elif fallback is None or ver["pole_error"].value < fallback[6]["pole_error"].value:
+            fallback = cand
+
+    def result(cand, note, optimized=True):
+        val, rep, L, P, Q, Qw, ver, poles = cand
+        st = rep.stats
+        msg = f"NLP ({note}; ipopt: {st.native_status}), {len(starts)} start(s); L and P from a Riccati solve"
+        if not ver.passed:
+            msg += "; the verification failed: " + ", ".join(c.name for c in ver.failed)
+        status = rep.status if optimized else Status.OPTIMAL_INACCURATE
+        return InverseKalmanResult(
+            L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=status, message=msg,
+            solver_stats=_stats("ipopt", st.native_status, time.perf_counter() - t_start, st.iterations,
+                                objective=st.extra.get("objective"), starts=len(starts),
+                                formulation=formulation),
+            verification=ver, certificate=None, objective_value=val, details=details, **common)
+
+    if best is not None:
+        return result(best, f"{formulation} formulation")
+    if fallback is not None and fallback[6]["pole_error"].value <= 1e-3:
+        # IPOPT converged near the target but the design failed a check: a precision problem
+        # (ill-conditioned poles), not a reachability one -- the fallbacks could not do better
+        return result(fallback, f"{formulation} formulation")
+    if terms is not None:
+        # least-squares spectral form (also where the structure has too few parameters)
+        soft_starts = _start_covariances(plant, target, structure, Qn, seed, 2, solver)
+        rng = np.random.default_rng(seed + 1)
+        for _ in range(3):  # a few random positive starts as well
+            k = plant.n if structure == "full" else plant.m
+            F = rng.standard_normal((k, k))
+            Wr = F @ F.T / k if structure != "diagonal" else rng.uniform(0.1, 1.0, k)
+            sc = max(1.0, float(np.linalg.norm(soft_starts[0]["W"]))) if soft_starts else 1.0
+            soft_starts.append({"kind": "random", "W": Wr * sc})
+        for start in soft_starts:
+            rep, Q, Qw = _spectral_solve(plant, target, structure, objective, Qn, start["W"], terms,
+                                         soft=True)
+            details["starts"].append({"kind": "least squares from " + start["kind"],
+                                      "status": rep.status.value, "native": rep.stats.native_status,
+                                      "iterations": rep.stats.iterations})
+            if not rep.status.is_solved:
+                continue
+            try:
+                L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, Q, Qw, tol)
+            except (RiccatiError, OptDesignError, np.linalg.LinAlgError):
+                continue
+            if ver.passed:
+                Wdec = Q if structure == "full" else Qw
+                note = (f"least-squares spectral formulation (the {objective} objective was not optimized"
+                        f"{'; ' + str(dof) + ' degrees of freedom' if dof < 0 else ''})")
+                return result((_objective_value(objective, Q, Wdec, Qn), rep, L, P, Q, Qw, ver, poles), note,
+                              optimized=False)
+    # nothing verified: the closest achievable poles decide -- reachable (then that point is the
+    # answer, without the objective), a near miss of a converged design, or out of reach
+    closest = _closest_poles(plant, target, structure, Qn, seed)
+    details["closest"] = closest
+    reached = closest.get("closest_pole_error")
+    if reached is not None and reached <= tol and closest.get("rep") is not None:
+        try:
+            L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, closest["closest_Q"],
+                                                     closest["closest_Qw"], tol)
+            if ver.passed:
+                Wdec = Q if structure == "full" else Qw
+                note = (f"closest-poles formulation (the {objective} objective was not optimized"
+                        f"{'; ' + str(dof) + ' degrees of freedom' if dof < 0 else ''})")
+                val = _objective_value(objective, Q, Wdec, Qn)
+                return result((val, closest["rep"], L, P, Q, Qw, ver, poles), note, optimized=False)
+        except (RiccatiError, OptDesignError, np.linalg.LinAlgError):
+            pass
+    natives = ", ".join(e["native"] for e in details["starts"]) or "not run"
+    native = last_rep.stats.native_status if last_rep else ""
+    closest_public = {k: v for k, v in closest.items() if k != "rep"}
+    if reached is not None and reached > 100 * tol:
+        kind = "structure" if structure != "full" else "nlp_local"
+        why = (f"the {structure} structure has {_decision_size(plant, structure)} parameters for "
+               f"{plant.n} pole conditions" if dof < 0 else
+               f"IPOPT found no Kalman filter with these poles from {len(starts)} start(s) ({natives})")
+        reason = (f"{why}; the closest achievable poles found are {reached:.3g} away "
+                  f"(a local search: evidence, not proof)")
+    elif reached is None and (dof < 0 or (details["starts"] and all(
+            e["status"] in ("infeasible", "infeasible_inaccurate") for e in details["starts"]))):
+        kind = "structure" if structure != "full" else "nlp_local"
+        reason = (f"IPOPT found no Kalman filter with these poles ({natives}), and no scaled nominal noise "
+                  f"of this structure gives a stabilizing Riccati solution to measure the closest poles")
+    else:
+        reason = ""
+    if reason:
+        cert = InfeasibilityCertificate(kind=kind, reason=reason, **closest_public)
+        return _empty(common, Status.INFEASIBLE, f"infeasible: {cert}", cert,
+                      _stats("ipopt", native, time.perf_counter() - t_start), details=details)
+    status = last_rep.status if last_rep is not None else Status.SOLVER_ERROR
+    if status.is_solved:
+        status = Status.NUMERICAL_ERROR
+    msg = (f"NLP did not converge to a verified design from {len(starts)} start(s) ({natives})"
+           + ("" if reached is None else f"; the closest-poles NLP reached pole error {reached:.3g}"))
+    return _empty(common, status, msg, None, _stats("ipopt", native, time.perf_counter() - t_start),
+                  details=details)
+
+
+def _kalman_start(plant: Plant, target: NDArray, structure: str, Qn: NDArray | None):
+    """``(pole error, ARE result, W, Q)``: the Kalman filter of a scaled nominal noise whose
+    poles come closest to the target (scale searched on a log grid), or None."""
+    n, m = plant.n, plant.m
+    if Qn is not None:
+        base = np.asarray(Qn, dtype=float)
+    else:
+        base = np.eye(n if structure == "full" else m)
+    if structure == "diagonal":
+        d = np.diag(base)
+        base = np.diag(np.maximum(d, 1e-3 * max(1.0, float(np.max(d)))))
+    best = None
+    for a in np.logspace(-6, 6, 25):
+        W = a * base
+        Q = W if structure == "full" else plant.G @ W @ plant.G.T
+        try:
+            are = filter_are(plant.replace(G=None, Q=_sym(Q)))
+        except (RiccatiError, OptDesignError):
+            continue
+        err = pole_error(are.poles, target)
+        if best is None or err < best[0]:
+            best = (err, are, W, _sym(Q))
+    return best
+
+
+def _closest_poles(plant: Plant, target: NDArray, structure: str, Qn: NDArray | None, seed: int) -> dict:
+    """Closest achievable poles (same real/complex pattern) by the closest-mode NLP, started
+    from the best scaled-nominal Kalman filter (which is itself a fallback answer)."""
+    ks = _kalman_start(plant, target, structure, Qn)
+    if ks is None:
+        return {}
+    err0, are, W, Q = ks
+    start = {"L": are.L, "P": are.P, "W": W}
+    scale = max(1.0, float(np.linalg.norm(are.L @ plant.R @ are.L.T)))
+    cand = (err0, are.L, Q, None if structure == "full" else W)
+    try:
+        rep, _, Qc, Qw = _eig_nlp_solve(plant, target, structure, "min_trace", None, start, closest=True,
+                                        scale=scale)
+    except (RuntimeError, OptDesignError):  # pragma: no cover - defensive
+        rep = None
+    if rep is not None and rep.status.is_solved:
+        try:
+            if Qw is not None:
+                Qw = np.diag(np.maximum(np.diag(Qw), 0.0)) if structure == "diagonal" else _project_psd(Qw)
+                Qc = _sym(plant.G @ Qw @ plant.G.T)
+            Qp = _project_psd(Qc)
+            are2 = filter_are(plant.replace(G=None, Q=Qp))
+            err = pole_error(are2.poles, target)
+            if err < cand[0]:
+                cand = (err, are2.L, Qp, Qw)
+        except (RiccatiError, OptDesignError):
+            pass
+    err, L, Q, Qw = cand
+    poles = _sorted_poles(np.linalg.eigvals(plant.A - L @ plant.C))
+    return {"closest_poles": poles, "closest_pole_error": float(err), "closest_L": L, "closest_Q": Q,
+            "closest_Qw": Qw, "rep": rep if (rep is not None and rep.status.is_solved) else None}
+
+
+# ============================================================================ optimality test
+def is_kalman_optimal(
+    plant: Plant,
+    L: ArrayLike,
+    R: ArrayLike | None = None,
+    *,
+    omega: ArrayLike | None = None,
+    solver: str | None = None,
+    tol: float = 1e-8,
+) -> KalmanOptimalityResult:
+    r"""Is L the steady-state Kalman gain of the plant for some process noise ``Q >= 0``?
+
+    For a fixed L the admissible ``(P, Q)`` satisfy linear relations (continuous
+    ``P C' = L R``, ``Q = L R L' - A P - P A'``; discrete ``(A - L C) P C' = L R``,
+    ``Q = P - (A - LC) P (A - LC)' - L R L'``), so the question is an SDP: maximize the
+    smallest eigenvalue ``t`` of Q over that family (``A - L C`` must be stable).  ``t >= 0``:
+    optimal, and the maximizing Q (polished) is returned as the certificate.  ``t < 0``: not
+    optimal, and the return-difference inequality -- continuous ``T R T^* >= R``, discrete
+    ``T V T^* >= R`` with ``T = I + C (sI - A)^-1 L`` (equivalent by the KYP lemma) -- is scanned by
+    :func:`optdesign.analysis.robustness.circle_condition` for the frequency where it fails and
+    by how much.
+
+    Parameters
+    ----------
+    plant : Plant
+        A (n, n), C (p, n), dt; R from the plant unless given.
+    L : (n, p) array_like
+    R : (p, p) array_like, optional
+        Measurement-noise covariance, symmetric positive definite.
+    omega : array_like, optional
+        Seed frequency grid (rad/s) for the circle-condition scan.
+    solver : {"CLARABEL", "SCS"} or None
+    tol : float
+        Relative tolerance: optimal when ``t >= -tol * max(1, ||Q||)``.
+
+    Returns
+    -------
+    KalmanOptimalityResult
+
+    Raises
+    ------
+    ValidationError
+        No R; plant not a Plant.
+    DimensionError, NotFiniteError, NotPositiveDefiniteError
+        Malformed L or R.
+
+    References
+    ----------
+    Kalman, R. E., "When is a linear control system optimal?", J. Basic Eng. 86 (1964);
+    Anderson & Moore, *Optimal Filtering* (1979); seed 002 eq (17).
+
+    Examples
+    --------
+    >>> from optdesign import Plant, is_kalman_optimal
+    >>> di = Plant([[0, 1], [0, 0]], [[1, 0]], R=[[1]])
+    >>> bool(is_kalman_optimal(di, [[4], [3]])), bool(is_kalman_optimal(di, [[0.4], [9.04]]))
+    (True, False)
+    """
+    with _quiet():
+        return _is_kalman_optimal(plant, L, R, omega, solver, tol)
+
+
+def _is_kalman_optimal(plant, L, R, omega, solver, tol) -> KalmanOptimalityResult:
+    from ..analysis.robustness import circle_condition
+
+    t0 = time.perf_counter()
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    L = as_matrix("L", L, (plant.n, plant.p))
+    if R is None:
+        if plant.R is None:
+            raise ValidationError("is_kalman_optimal needs R: give R=... or a plant with R")
+        R = np.asarray(plant.R, dtype=float)
+    else:
+        R = check_pd("R", as_matrix("R", R, (plant.p, plant.p)))
+    tol = as_positive_float("tol", tol)
+    A, C = plant.A, plant.C
+    disc = plant.is_discrete
+    poles = np.linalg.eigvals(A - L @ C)
+    nan = float("nan")
+
+    def no(kind, reason, status=Status.INFEASIBLE, margin=nan, circ=None, checks=(), stats=None):
+        cert = InfeasibilityCertificate(
+            kind=kind, reason=reason, margin=None if not np.isfinite(margin) else margin,
+            omega=None if circ is None else circ.omega_worst,
+            min_eigenvalue=None if circ is None else circ.min_eigenvalue, circle=circ)
+        return KalmanOptimalityResult(
+            optimal=False, L=L, R=R, Q=None, P=None, margin=margin,
+            min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
+            omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=cert,
+            status=status, message=f"not Kalman-optimal: {cert}", verification=Verification.of(checks),
+            solver_stats=stats or _stats("none", t=time.perf_counter() - t0))
+
+    if not np.all(_stable(poles, disc)):
+        worst = poles[np.argmax(np.abs(poles))] if disc else poles[np.argmax(poles.real)]
+        return no("unstable_target", f"A - L C is not stable (eigenvalue {_fmt(worst)}); a steady-state "
+                                     f"Kalman filter always is",
+                  checks=[Check.at_most("stability", float(abs(worst) - 1 if disc else worst.real), 0.0,
+                                        "A - L C must be stable")])
+    circ = None
+    try:
+        circ = circle_condition(plant, L, R=R, omega=omega)
+    except (ValidationError, np.linalg.LinAlgError):
+        circ = None
+    # algebraic necessary condition: C P C' (symmetric PSD) is fixed by L
+    if disc:
+        Fc = A - L @ C
+        PCt = _lstsq(Fc, L @ R)
+        CPC = C @ PCt
+        rel_gap = float(np.linalg.norm(Fc @ PCt - L @ R)) / max(1e-300, float(np.linalg.norm(L @ R)) + 1e-300)
+    else:
+        CPC = C @ L @ R
+        rel_gap = 0.0
+    asym = float(np.linalg.norm(CPC - CPC.T)) / max(1.0, float(np.linalg.norm(CPC)))
+    cmin = float(np.linalg.eigvalsh(_sym(CPC))[0]) / max(1.0, float(np.linalg.norm(CPC)))
+    if asym > 1e-9 or cmin < -1e-9 or rel_gap > 1e-9:
+        what = "C L R" if not disc else "C P C' (from (A - LC) P C' = L R)"
+        return no("gain_relation",
+                  f"{what} must be symmetric positive semidefinite (it is C P C'); asymmetry {asym:.3g}, "
+                  f"smallest eigenvalue {cmin:.3g}", circ=circ,
+                  checks=[Check.at_most("gain_relation_asymmetry", asym, 1e-9, f"{what} symmetric"),
+                          Check.at_least("gain_relation_min_eig", cmin, -1e-9, f"{what} PSD")])
+    t_star, P0, W0, rep = _margin(plant, L, R, "full", solver)
+    stats = _stats(rep.stats.backend, rep.stats.native_status, time.perf_counter() - t0, rep.stats.iterations)
+    if P0 is None:
+        return no("sdp_margin", f"the fixed-gain SDP failed ({rep.message})", status=rep.status, circ=circ,
+                  stats=stats)
+    qscale = max(1.0, float(np.linalg.norm(W0, 2)))
+    if t_star < -tol * qscale:
+        checks = [Check.at_least("margin", t_star, -tol * qscale,
+                                 "max over the Q family of lambda_min(Q) (must be >= 0)")]
+        if circ is not None:
+            checks.append(Check.at_least("circle_condition", circ.min_eigenvalue, -circ.tol,
+                                         "min over frequency of lambda_min of the return-difference form"))
+        kind = "return_difference" if (circ is not None and not circ.passed) else "sdp_margin"
+        ineq = "T V T* - R" if disc else "T R T* - R"
+        reason = (f"no Q >= 0 makes L a Kalman gain: the best Q has smallest eigenvalue {t_star:.4g}"
+                  + (f"; lambda_min({ineq}) = {circ.min_eigenvalue:.4g} at omega = "
+                     f"{circ.omega_worst:.6g} rad/s" if circ is not None else ""))
+        return no(kind, reason, margin=t_star, circ=circ, checks=checks, stats=stats)
+    pol = _face_polish(A, C, L, R, plant.dt, "full", None, P0, W0, 1e-9)
+    if pol is not None:
+        P, Q, _ = pol
+    else:
+        P, Q = P0, _project_psd(W0)
+    checks = [
+        Check.at_most("riccati_residual", filter_are_residual(plant.replace(R=R), P, Qs=Q), RESIDUAL_TOL,
+                      "relative residual of the filter ARE with the certificate Q"),
+        Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / max(1.0, float(np.linalg.norm(Q, 2))),
+                       -PSD_RTOL, "smallest eigenvalue of Q (relative)"),
+        Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / max(1.0, float(np.linalg.norm(P, 2))),
+                       -PSD_RTOL, "smallest eigenvalue of P (relative)"),
+    ]
+    try:
+        are = _independent_are(plant.replace(G=None, Q=_project_psd(Q), R=R))
+        checks.append(Check.at_most("are_resolve_gain", _rel(are.L, L), GAIN_TOL,
+                                    "gain of an independent filter_are with the certificate Q vs L"))
+    except (RiccatiError, OptDesignError) as exc:
+        checks.append(Check.at_most("are_resolve_gain", float("inf"), GAIN_TOL, f"filter_are failed: {exc}"))
+    ver = Verification.of(checks)
+    msg = f"Kalman-optimal: Q certificate with smallest eigenvalue margin {t_star:.4g}"
+    if circ is not None:
+        msg += f"; circle condition min eigenvalue {circ.min_eigenvalue:.3g}"
+    if not ver.passed:
+        msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
+    return KalmanOptimalityResult(
+        optimal=True, L=L, R=R, Q=Q, P=P, margin=t_star,
+        min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
+        omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=None,
+        status=rep.status, message=msg, verification=ver, solver_stats=stats)

@@ -1,0 +1,904 @@
+r"""Inverse Kalman problem: which ``Q >= 0`` gives a steady-state filter with these poles?
+
+Builds (never solves) the formulations used by :func:`optdesign.kalman_for_poles`.
+
+Linear-in-P relations for a fixed gain L
+----------------------------------------
+Continuous time, ``A P + P A' - P C' R^-1 C P + Q = 0`` and ``L = P C' R^-1``.  With L
+fixed, ``P C' R^-1 C P = L R L'``, so
+
+.. math::
+
+    P C' = L R, \qquad Q = L R L' - A P - P A'            \tag{C}
+
+are linear in P; equivalently ``(A - LC) P + P (A - LC)' + L R L' + Q = 0``, so
+``P >= 0`` follows from ``Q >= 0`` when ``A - L C`` is stable.
+
+Discrete time, predictor DARE ``P = A P A' - A P C' S^-1 C P A' + Q`` with the innovation
+covariance ``S = C P C' + R`` and ``L = A P C' S^-1``.  From ``L S = A P C'``, i.e.
+``L (C P C' + R) = A P C'``,
+
+.. math::
+
+    (A - L C) P C' = L R, \qquad
+    Q = P - A P A' + L S L' = P - (A - L C) P (A - L C)' - L R L'   \tag{D}
+
+(the second form uses ``A P C' = L S`` twice), again linear in P for fixed L, and a Lyapunov
+(Joseph) form: ``P = F P F' + L R L' + Q`` with ``F = A - L C``, so ``P >= 0`` when F is Schur
+stable and ``Q >= 0``.  Conversely, any symmetric P with (C) / (D), ``Q >= 0`` and ``A - L C``
+stable is the stabilizing Riccati solution for that Q, and L is its Kalman gain
+(in discrete time ``S = C P C' + R > 0`` because ``P >= 0``).
+
+Hence, for a fixed L (single output: L is fixed by the poles), ``{Q >= 0, (C) or (D)}`` is an
+SDP in ``(P, Q)`` -- :func:`build_fixed_gain_sdp`.  The family of Q for one L is an affine
+slice of the PSD cone (for seed 000's Example 1 it is one-dimensional: ``P22`` is free).
+
+With several outputs L is not fixed by the poles.  :func:`build_spectral_nlp` (the default
+NLP) works in Q alone: by the Kalman spectral identity ``T(s) R T(-s)' = R + C (sI - A)^-1 Q
+(-sI - A')^-1 C'`` a stable ``s_i`` is a filter pole iff that p x p matrix is singular at
+``s_i``, i.e. has a unit null vector ``w_i`` -- constraints bilinear in ``(Q, w_i)`` (linear in
+Q for one output), with ``Q = F F'`` so that ``Q >= 0`` by construction; L and P follow from
+one Riccati solve.  :func:`build_pole_nlp` is the state-space alternative in
+``(L, P, F, X)``: the relations (C)/(D) (bilinear in L and P) and the eigenvalue conditions
+in real modal form ``(A - L C) X = X Lambda``; it is used where the spectral form is singular
+(a target at an eigenvalue of A or its mirror) and, with ``closest=True`` (the eigenvalues
+``Lambda(mu)`` become variables and the objective is their distance to the targets), for the
+closest achievable poles reported as a certificate when a target is out of reach.
+
+Structures of Q: ``"full"`` (any n x n ``Q >= 0``), ``"input"`` (``Q = G Qw G'``, ``Qw >= 0``
+m x m) and ``"diagonal"`` (``Q = G diag(qw) G'``, ``qw >= 0``: independent noise inputs; a
+diagonal Q when ``G = I``).
+
+Objectives (which member of the family is returned): ``"min_trace"`` minimizes ``trace(Q)``
+(state-space Q, whatever the structure); ``"nearest"`` minimizes the Frobenius distance of the
+decision covariance (Q for ``"full"``, Qw -- ``diag(qw)`` -- otherwise) to ``Q_nominal``;
+``"feasibility"`` maximizes the smallest eigenvalue ``t`` of the decision covariance (the most
+robustly positive member; ``t < 0`` at the optimum measures infeasibility).  For a fixed stable
+gain that maximum is finite: a direction D with ``D C' = 0`` and ``-(A D + D A') >= 0`` would
+give ``(A - LC) D + D (A - LC)' <= 0``, hence ``D >= 0`` and ``C D C' = 0``, hence ``D = 0`` by
+observability -- the PSD part of the family is bounded.
+
+References
+----------
+Chang & Lee 1984 (seed 000), eq (20)-(21).  Kalman, R. E., "When is a linear control system
+optimal?", J. Basic Eng. 86 (1964) 51-60 (the inverse problem and the return difference).
+Anderson, B. D. O. & Moore, J. B., *Optimal Filtering*, Prentice-Hall 1979 (the spectral
+factorization / return-difference identity of the Kalman filter).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..errors import ValidationError
+
+__all__ = [
+    "STRUCTURES",
+    "OBJECTIVES",
+    "fixed_gain_maps",
+    "modal_blocks",
+    "FixedGainSDP",
+    "build_fixed_gain_sdp",
+    "PoleNLP",
+    "build_pole_nlp",
+    "spectral_terms",
+    "SpectralNLP",
+    "build_spectral_nlp",
+    "spectral_linear_conditions",
+    "SpectralSDP",
+    "build_spectral_sdp",
+]
+
+STRUCTURES = ("full", "diagonal", "input")
+OBJECTIVES = ("min_trace", "nearest", "feasibility")
+
+
+def _check_choice(name: str, value: str, allowed: tuple[str, ...]) -> None:
+    if value not in allowed:
+        raise ValidationError(f"{name} must be one of {allowed}; found {value!r}")
+
+
+def fixed_gain_maps(A: NDArray, C: NDArray, L: NDArray, R: NDArray, dt: float | None,
+                    scale: float = 1.0) -> tuple[Callable[[Any], Any], Callable[[Any], Any]]:
+    """The affine relations (C) / (D) for a fixed gain.
+
+    Returns ``gain_residual(P)`` ((n, p), zero for an admissible P) and ``q_of_P(P)`` ((n, n),
+    the process noise that makes P the Riccati solution).  Both accept numpy arrays or cvxpy
+    expressions (only ``@``, ``+``, ``-`` and ``.T`` are used).  With ``scale = s`` they are
+    the relations for ``P / s`` and ``Q / s`` (the constant terms ``L R`` and ``L R L'`` are
+    divided by s).
+    """
+    LR = L @ R / scale
+    LRL = LR @ L.T
+    LRL = 0.5 * (LRL + LRL.T)
+    if dt is None:
+        def gain_residual(P):
+            return P @ C.T - LR
+
+        def q_of_P(P):
+            return LRL - A @ P - P @ A.T
+    else:
+        F = A - L @ C
+
+        def gain_residual(P):
+            return F @ P @ C.T - LR
+
+        def q_of_P(P):
+            return P - F @ P @ F.T - LRL
+    return gain_residual, q_of_P
+
+
+def modal_blocks(poles: NDArray) -> list[tuple[int, complex]]:
+    """Real modal pattern of a conjugate-closed pole vector sorted as :func:`as_poles` does.
+
+    Returns a list of ``(size, pole)``: ``(1, s)`` for a real pole, ``(2, a + jb)`` (b > 0) for a
+    pair; the block for a pair is ``[[a, b], [-b, a]]``.
+    """
+    out: list[tuple[int, complex]] = []
+    k = 0
+    z = np.asarray(poles, dtype=complex)
+    while k < z.size:
+        if z[k].imag != 0:
+            out.append((2, complex(z[k].real, abs(z[k].imag))))
+            k += 2
+        else:
+            out.append((1, complex(z[k].real)))
+            k += 1
+    return out
+
+
+def _block_matrix(blocks: list[tuple[int, complex]]) -> NDArray[np.float64]:
+    n = sum(b for b, _ in blocks)
+    Lam = np.zeros((n, n))
+    k = 0
+    for size, z in blocks:
+        if size == 1:
+            Lam[k, k] = z.real
+        else:
+            Lam[k:k + 2, k:k + 2] = [[z.real, z.imag], [-z.imag, z.real]]
+        k += size
+    return Lam
+
+
+# ------------------------------------------------------------------------------ SDP
+@dataclass(frozen=True, eq=False)
+class FixedGainSDP:
+    """A cvxpy problem for the family of Q of one fixed gain (values are scaled by ``scale``).
+
+    Attributes
+    ----------
+    problem : cvxpy.Problem
+    P : cvxpy.Variable
+        (n, n) symmetric; the error covariance is ``scale * P.value``.
+    Q : cvxpy.Variable
+        (n, n) symmetric, PSD (for ``"full"``) or equal to ``G Qw G'``; state-space noise is
+        ``scale * Q.value``.
+    Qw : cvxpy.Variable or None
+        (m, m) symmetric PSD (``"input"``) or (m,) nonnegative (``"diagonal"``).
+    t : cvxpy.Variable or None
+        Smallest-eigenvalue margin (objective ``"feasibility"``), scaled.
+    scale : float
+    structure, objective : str
+    """
+
+    problem: Any
+    P: Any
+    Q: Any
+    Qw: Any
+    t: Any
+    scale: float
+    structure: str
+    objective: str
+
+
+def _scale_of(L: NDArray, R: NDArray, extra: NDArray | None = None) -> float:
+    s = max(float(np.linalg.norm(L @ R @ L.T)), float(np.linalg.norm(L @ R)))
+    if extra is not None:
+        s = max(s, float(np.linalg.norm(extra)))
+    return s if s > 0 and np.isfinite(s) else 1.0
+
+
+def build_fixed_gain_sdp(
+    A: NDArray, C: NDArray, L: NDArray, R: NDArray, *, dt: float | None = None,
+    structure: str = "full", G: NDArray | None = None, objective: str = "min_trace",
+    Q_nominal: NDArray | None = None,
+) -> FixedGainSDP:
+    r"""SDP over the Q family of a fixed gain L (relations (C) / (D) of the module docstring).
+
+    Parameters
+    ----------
+    A : (n, n) ndarray
+    C : (p, n) ndarray
+    L : (n, p) ndarray
+        The fixed gain.
+    R : (p, p) ndarray
+        Positive definite.
+    dt : float, optional
+        None for continuous time (relations (C)), else discrete (relations (D)).
+    structure : {"full", "diagonal", "input"}
+    G : (n, m) ndarray, optional
+        Needed for ``"diagonal"`` and ``"input"``.
+    objective : {"min_trace", "nearest", "feasibility"}
+    Q_nominal : ndarray, optional
+        For ``"nearest"``: (n, n) for ``"full"``, (m, m) for ``"input"`` / ``"diagonal"``.
+
+    Returns
+    -------
+    FixedGainSDP
+        Built, not solved (solve with :func:`optdesign.solvers.cvxpy_backend.solve_cvxpy`).
+
+    Raises
+    ------
+    ValidationError
+        Unknown structure / objective, or a missing G / Q_nominal.
+    """
+    from ..solvers.cvxpy_backend import import_cvxpy
+
+    cp = import_cvxpy()
+    _check_choice("structure", structure, STRUCTURES)
+    _check_choice("objective", objective, OBJECTIVES)
+    n = A.shape[0]
+    if structure != "full" and G is None:
+        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    if objective == "nearest" and Q_nominal is None:
+        raise ValidationError("objective='nearest' needs Q_nominal")
+    s = _scale_of(L, R, None if Q_nominal is None else Q_nominal)
+    gain_residual, q_of_P = fixed_gain_maps(A, C, L, R, dt, scale=s)
+    P = cp.Variable((n, n), symmetric=True, name="P")
+    Q = cp.Variable((n, n), symmetric=True, name="Q")
+    Qe = q_of_P(P)
+    Qe = 0.5 * (Qe + Qe.T)
+    gres = gain_residual(P)
+    D = Q - Qe
+    cons = [gres == 0, cp.upper_tri(D) == 0, cp.diag(D) == 0]
+    Qw = t = None
+    if structure == "full":
+        dec = Q
+    else:
+        m = G.shape[1]
+        if structure == "input":
+            Qw = cp.Variable((m, m), symmetric=True, name="Qw")
+            W = Qw
+        else:
+            Qw = cp.Variable(m, name="qw")
+            W = cp.diag(Qw)
+        E = Q - G @ W @ G.T
+        cons += [cp.upper_tri(E) == 0, cp.diag(E) == 0]
+        dec = W
+    k = dec.shape[0]
+    if objective == "feasibility":
+        t = cp.Variable(name="t")
+        if structure == "diagonal":
+            cons.append(Qw >= t)
+        else:
+            cons.append(dec - t * np.eye(k) >> 0)
+        obj = cp.Maximize(t)
+    else:
+        if structure == "diagonal":
+            cons.append(Qw >= 0)
+        else:
+            cons.append(dec >> 0)
+        if objective == "min_trace":
+            obj = cp.Minimize(cp.trace(Q))
+        else:
+            obj = cp.Minimize(cp.norm(dec - np.asarray(Q_nominal) / s, "fro"))
+    return FixedGainSDP(problem=cp.Problem(obj, cons), P=P, Q=Q, Qw=Qw, t=t, scale=s,
+                        structure=structure, objective=objective)
+
+
+# ------------------------------------------------------------------------------ NLP
+@dataclass(frozen=True, eq=False)
+class PoleNLP:
+    """A CasADi ``Opti`` problem for Kalman gains with prescribed (or closest) poles.
+
+    All covariances are scaled: the physical ones are ``scale *`` the symbols' values.
+
+    Attributes
+    ----------
+    opti : casadi.Opti
+    L : casadi.MX
+        (n, p) gain variable.
+    P : casadi.MX
+        (n, n) symmetric variable.
+    Fvec : casadi.MX
+        The decision vector behind F (lower-triangle entries, column by column; for
+        ``"diagonal"`` the same as F) -- set its initial value.
+    F : casadi.MX
+        Lower-triangular factor: ``Q = F F'`` (full) or ``Qw = F F'`` (input), plus ``t I``
+        for the objective ``"feasibility"``; for ``"diagonal"`` the (m, 1) variable
+        ``qw >= 0`` (``>= t``).
+    Q : casadi.MX
+        (n, n) state-space process noise expression (scaled).
+    Qw : casadi.MX or None
+        (m, m) noise-input covariance expression (input / diagonal).
+    X : casadi.MX
+        (n, n) real modal eigenvector variable.
+    Lam : casadi.MX
+        (n, n) modal matrix (constant for exact targets, a function of ``mu`` when closest).
+    mu : casadi.MX or None
+        Pole variables (closest mode): one per real pole, (re, im) per pair.
+    t : casadi.MX or None
+        Margin variable (objective ``"feasibility"``).
+    blocks : list of (int, complex)
+        Modal pattern of the targets.
+    scale : float
+    closest : bool
+    """
+
+    opti: Any
+    L: Any
+    P: Any
+    Fvec: Any
+    F: Any
+    Q: Any
+    Qw: Any
+    X: Any
+    Lam: Any
+    mu: Any
+    t: Any
+    blocks: list
+    scale: float
+    closest: bool
+    structure: str
+    objective: str
+
+
+def _lower_factor(ca, opti, k: int):
+    """A lower-triangular k x k MX matrix built from k(k+1)/2 new variables."""
+    idx = [(i, j) for j in range(k) for i in range(j, k)]
+    v = opti.variable(len(idx))
+    E = np.zeros((k * k, len(idx)))
+    for c, (i, j) in enumerate(idx):
+        E[j * k + i, c] = 1.0  # column-major vec
+    return ca.reshape(ca.mtimes(ca.DM(E), v), k, k), v
+
+
+def _lower_entries(ca, M, k: int):
+    idx = [(i, j) for j in range(k) for i in range(j, k)]
+    return ca.vertcat(*[M[i, j] for i, j in idx])
+
+
+def build_pole_nlp(
+    A: NDArray, C: NDArray, R: NDArray, poles: NDArray, *, dt: float | None = None,
+    structure: str = "full", G: NDArray | None = None, objective: str = "min_trace",
+    Q_nominal: NDArray | None = None, closest: bool = False, scale: float = 1.0,
+    margin: float = 1e-6,
+) -> PoleNLP:
+    r"""NLP over ``(L, P, Q = F F', X)`` with ``eig(A - L C) = poles`` (or closest to them).
+
+    Constraints: (C) or (D) of the module docstring with L a variable (bilinear), the
+    structure of Q, ``(A - L C) X = X Lambda`` in real modal form with each real column /
+    complex pair of columns normalized (``x'x = 1``; ``u'u + w'w = 1``, ``u'w = 0``) and, for
+    repeated targets, mutually orthogonal columns within the repeated group.  In ``closest``
+    mode ``Lambda`` holds the variables ``mu`` (same real/complex pattern as the targets),
+    constrained stable by ``margin``, and the objective is
+    ``sum |mu_i - s_i|^2 / max(1, |s_i|)^2``.
+
+    Parameters
+    ----------
+    A, C, R : ndarray
+        Plant matrices, (n, n), (p, n), (p, p).
+    poles : (n,) ndarray of complex
+        Targets sorted as :func:`optdesign._validate.as_poles` returns them.
+    dt : float, optional
+        Discrete time when given.
+    structure : {"full", "diagonal", "input"}
+    G : (n, m) ndarray, optional
+        For ``"input"`` / ``"diagonal"``.
+    objective : {"min_trace", "nearest", "feasibility"}
+        Ignored in ``closest`` mode.
+    Q_nominal : ndarray, optional
+        For ``"nearest"`` (physical units).
+    closest : bool
+        Closest-achievable-poles mode.
+    scale : float
+        Covariance scale: the symbols hold ``Q / scale`` and ``P / scale``.
+    margin : float
+        Closest mode: ``Re mu <= -margin`` (continuous) or ``|mu| <= 1 - margin`` (discrete).
+
+    Returns
+    -------
+    PoleNLP
+        Built, not solved; the caller sets initial values and runs
+        :func:`optdesign.solvers.casadi_backend.solve_opti`.
+
+    Raises
+    ------
+    ValidationError
+        Unknown structure / objective, missing G or Q_nominal.
+    """
+    from ..solvers.casadi_backend import import_casadi
+
+    ca = import_casadi()
+    _check_choice("structure", structure, STRUCTURES)
+    _check_choice("objective", objective, OBJECTIVES)
+    if structure != "full" and G is None:
+        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    if objective == "nearest" and Q_nominal is None and not closest:
+        raise ValidationError("objective='nearest' needs Q_nominal")
+    n, p = A.shape[0], C.shape[0]
+    s = float(scale)
+    opti = ca.Opti()
+    L = opti.variable(n, p)
+    P = opti.variable(n, n, "symmetric")
+    Rs = ca.DM(R / s)  # P, Q scaled by s: L R L' -> L (R/s) L'
+    Ad, Cd = ca.DM(A), ca.DM(C)
+    Fcl = Ad - ca.mtimes(L, Cd)
+    LR = ca.mtimes(L, Rs)
+    LRL = ca.mtimes(LR, L.T)
+    if dt is None:
+        gres = ca.mtimes(P, Cd.T) - LR
+        Qe = LRL - ca.mtimes(Ad, P) - ca.mtimes(P, Ad.T)
+    else:
+        gres = ca.mtimes(ca.mtimes(Fcl, P), Cd.T) - LR
+        Qe = P - ca.mtimes(ca.mtimes(Fcl, P), Fcl.T) - LRL
+    opti.subject_to(ca.vec(gres) == 0)
+    t = opti.variable() if (objective == "feasibility" and not closest) else None
+    Qw = None
+    if structure == "full":
+        F, Fvec = _lower_factor(ca, opti, n)
+        Q = ca.mtimes(F, F.T)
+        if t is not None:
+            Q = Q + t * ca.DM(np.eye(n))
+        Qdec = Q
+    elif structure == "input":
+        m = G.shape[1]
+        F, Fvec = _lower_factor(ca, opti, m)
+        Qw = ca.mtimes(F, F.T)
+        if t is not None:
+            Qw = Qw + t * ca.DM(np.eye(m))
+        Qdec = Qw
+        Q = ca.mtimes(ca.mtimes(ca.DM(G), Qw), ca.DM(G).T)
+    else:
+        m = G.shape[1]
+        F = Fvec = opti.variable(m)
+        opti.subject_to(F >= (t if t is not None else 0))
+        Qw = ca.densify(ca.diag(F))
+        Qdec = Qw
+        Q = ca.mtimes(ca.mtimes(ca.DM(G), Qw), ca.DM(G).T)
+    opti.subject_to(_lower_entries(ca, Qe - Q, n) == 0)
+    # eigenvalue conditions in real modal form
+    target = np.asarray(poles, dtype=complex)
+    blocks = modal_blocks(target)
+    X = opti.variable(n, n)
+    mu = None
+    if closest:
+        nmu = sum(size for size, _ in blocks)
+        mu = opti.variable(nmu)
+        rows = []
+        k0 = 0
+        Lam = ca.MX.zeros(n, n)
+        cost = 0
+        for size, z in blocks:
+            w = max(1.0, abs(z)) ** 2
+            if size == 1:
+                Lam[k0, k0] = mu[k0]
+                cost = cost + (mu[k0] - z.real) ** 2 / w
+                if dt is None:
+                    rows.append(mu[k0] + margin)
+                else:
+                    rows.append(mu[k0] ** 2 - (1 - margin) ** 2)
+            else:
+                a, b = mu[k0], mu[k0 + 1]
+                Lam[k0, k0] = a
+                Lam[k0, k0 + 1] = b
+                Lam[k0 + 1, k0] = -b
+                Lam[k0 + 1, k0 + 1] = a
+                cost = cost + 2 * ((a - z.real) ** 2 + (b - z.imag) ** 2) / w
+                rows.append(a + margin if dt is None else a ** 2 + b ** 2 - (1 - margin) ** 2)
+            k0 += size
+        opti.subject_to(ca.vertcat(*rows) <= 0)
+        opti.minimize(cost)
+    else:
+        Lam = ca.DM(_block_matrix(blocks))
+        if objective == "min_trace":
+            opti.minimize(ca.trace(Q))
+        elif objective == "nearest":
+            Qn = ca.DM(np.asarray(Q_nominal, dtype=float) / s)
+            opti.minimize(ca.sumsqr(Qdec - Qn))
+        else:
+            opti.minimize(-t)
+    opti.subject_to(ca.vec(ca.mtimes(Fcl, X) - ca.mtimes(X, Lam)) == 0)
+    k0 = 0
+    norms = []
+    groups: dict[complex, list[int]] = {}
+    for size, z in blocks:
+        if size == 1:
+            norms.append(ca.sumsqr(X[:, k0]) - 1)
+        else:
+            u, w = X[:, k0], X[:, k0 + 1]
+            norms.append(ca.sumsqr(u) + ca.sumsqr(w) - 1)
+            norms.append(ca.dot(u, w))
+        if not closest:
+            key = complex(round(z.real, 10), round(z.imag, 10))
+            groups.setdefault(key, []).append(k0)
+        k0 += size
+    for cols in groups.values():  # repeated targets: keep their eigenvectors independent
+        for i in range(len(cols)):
+            for j in range(i + 1, len(cols)):
+                norms.append(ca.dot(X[:, cols[i]], X[:, cols[j]]))
+    opti.subject_to(ca.vertcat(*norms) == 0)
+    return PoleNLP(opti=opti, L=L, P=P, Fvec=Fvec, F=F, Q=Q, Qw=Qw, X=X, Lam=Lam, mu=mu, t=t, blocks=blocks,
+                   scale=s, closest=closest, structure=structure, objective=objective)
+
+
+# --------------------------------------------------------------------- spectral NLP
+def spectral_terms(A: NDArray, C: NDArray, poles: NDArray, dt: float | None,
+                   rtol: float = 1e-8) -> list[tuple[int, complex, NDArray, NDArray, float]] | None:
+    r"""The resolvent factors of the Kalman spectral identity at each target block.
+
+    For each block ``(size, s)`` of :func:`modal_blocks` returns ``(size, s, G1, G2, w)`` with
+    ``G1 = C (s I - A)^-1`` and ``G2 = C (s~ I - A)^-1`` ((p, n), complex), ``s~ = -s``
+    (continuous) or ``1/s`` (discrete), and a row weight ``w = 1 / max(1, ||G1|| ||G2||)``.
+    Returns None when a target is (relative ``rtol``) an eigenvalue of A or the mirror image
+    ``s~`` of one (the resolvent is singular there), or a discrete target is 0.
+    """
+    n = A.shape[0]
+    eig = np.linalg.eigvals(A)
+    out = []
+    for size, s in modal_blocks(poles):
+        if dt is not None and abs(s) <= rtol:
+            return None
+        s2 = (1.0 / s) if dt is not None else -s
+        for z in (s, s2):
+            if np.min(np.abs(eig - z)) <= rtol * max(1.0, abs(z)):
+                return None
+        G1 = np.linalg.solve((s * np.eye(n) - A).T, C.T.astype(complex)).T
+        G2 = np.linalg.solve((s2 * np.eye(n) - A).T, C.T.astype(complex)).T
+        w = 1.0 / max(1.0, float(np.linalg.norm(G1) * np.linalg.norm(G2)))
+        out.append((size, complex(s), G1, G2, w))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class SpectralNLP:
+    """The spectral-identity NLP (see :func:`build_spectral_nlp`); values scaled by ``scale``.
+
+    Attributes
+    ----------
+    opti : casadi.Opti
+    Fvec : casadi.MX
+        Decision vector of the factor (or of ``qw`` for ``"diagonal"``).
+    Q : casadi.MX
+        (n, n) state-space process noise expression (scaled).
+    Qw : casadi.MX or None
+        Noise-input covariance expression (input / diagonal).
+    t : casadi.MX or None
+        Margin variable (objective ``"feasibility"``).
+    null_vectors : list of casadi.MX
+        The null-vector variables, real and imaginary parts.
+    scale : float
+    blocks : list of (int, complex)
+    """
+
+    opti: Any
+    Fvec: Any
+    Q: Any
+    Qw: Any
+    t: Any
+    null_vectors: list
+    scale: float
+    blocks: list
+    structure: str
+    objective: str
+
+
+def build_spectral_nlp(
+    A: NDArray, C: NDArray, R: NDArray, poles: NDArray, *, dt: float | None = None,
+    structure: str = "full", G: NDArray | None = None, objective: str = "min_trace",
+    Q_nominal: NDArray | None = None, W0: NDArray | None = None, scale: float = 1.0,
+    terms: list | None = None, soft: bool = False,
+) -> SpectralNLP:
+    r"""NLP in Q alone from the Kalman spectral identity evaluated at the target poles.
+
+    Continuous time: for the Kalman filter of ``(A, C, Q, R)`` the return difference
+    ``T(s) = I + C (sI - A)^-1 L`` satisfies ``T(s) R T(-s)' = M(s)`` with
+
+    .. math::
+
+        M(s) = R + C (sI - A)^{-1} Q (-sI - A')^{-1} C' ,
+
+    and ``det T(s) = det(sI - A + LC) / det(sI - A)``.  Discrete time (predictor):
+    ``T(z) V T(1/z)' = R + C (zI - A)^-1 Q (z^-1 I - A')^-1 C'`` (V the innovation covariance).
+    So a stable ``s_i`` (not an eigenvalue of A or of its mirror ``-A`` / ``A^-1``) is a pole
+    of the filter iff ``M(s_i)`` is singular: there is a unit vector ``w_i`` with
+    ``M(s_i) w_i = 0``.  Imposing that at every target (complex ``w_i`` split into real and
+    imaginary parts, phase fixed by ``Re w' Im w = 0``; a pole repeated k times needs k
+    orthonormal null vectors, i.e. a non-defective filter pole) places all n filter poles,
+    with ``Q = F F'`` (or ``G F F' G'`` / ``G diag(qw) G'``) as the only design variable --
+    P and L then follow from one Riccati solve.  The constraints are bilinear in
+    ``(Q, w_i)``; for one output they are linear in Q.
+
+    Parameters
+    ----------
+    A, C, R : ndarray
+    poles : (n,) ndarray of complex
+        Targets sorted as :func:`optdesign._validate.as_poles` returns them.
+    dt : float, optional
+    structure, objective, G, Q_nominal
+        As for :func:`build_pole_nlp` (``Q_nominal`` in physical units).
+    W0 : ndarray, optional
+        Initial decision covariance (physical units): Q (n, n) for ``"full"``, Qw (m, m) for
+        ``"input"``, qw (m,) for ``"diagonal"``.  Sets the initial factor and the initial null
+        vectors (smallest singular vectors of ``M(s_i)`` at ``W0``).
+    scale : float
+        Q symbols hold ``Q / scale``.
+    terms : list, optional
+        Precomputed :func:`spectral_terms`.
+    soft : bool
+        Least-squares form: minimize ``sum_i ||M(s_i) w_i||^2`` (only the normalizations stay
+        constraints; ``objective`` is ignored).  For structures with fewer parameters than
+        pole conditions, where the exact form has too few degrees of freedom for IPOPT: a zero
+        optimum means the target is reachable after all.
+
+    Returns
+    -------
+    SpectralNLP
+
+    Raises
+    ------
+    ValidationError
+        Unknown structure / objective, missing G / Q_nominal, or a target at an eigenvalue
+        of A or its mirror (use :func:`build_pole_nlp` then).
+    """
+    from ..solvers.casadi_backend import import_casadi
+
+    ca = import_casadi()
+    _check_choice("structure", structure, STRUCTURES)
+    _check_choice("objective", objective, OBJECTIVES)
+    if structure != "full" and G is None:
+        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    if soft:
+        objective = "min_trace"
+    if objective == "nearest" and Q_nominal is None:
+        raise ValidationError("objective='nearest' needs Q_nominal")
+    n, p = A.shape[0], C.shape[0]
+    if terms is None:
+        terms = spectral_terms(A, C, poles, dt)
+    if terms is None:
+        raise ValidationError("a target pole is an eigenvalue of A or of its mirror image: the spectral "
+                              "identity is singular there (use build_pole_nlp)")
+    s = float(scale)
+    opti = ca.Opti()
+    t = opti.variable() if objective == "feasibility" else None
+    Qw = None
+    Gd = None if G is None else ca.DM(G)
+    if structure == "diagonal":
+        m = G.shape[1]
+        F = None
+        Fvec = opti.variable(m)
+        opti.subject_to(Fvec >= (t if t is not None else 0))
+        Qw = ca.densify(ca.diag(Fvec))
+        Q = ca.mtimes(ca.mtimes(Gd, Qw), Gd.T)
+        Qdec = Qw
+        k = m
+    else:
+        k = n if structure == "full" else G.shape[1]
+        F, Fvec = _lower_factor(ca, opti, k)
+        Qdec = ca.mtimes(F, F.T)
+        if t is not None:
+            Qdec = Qdec + t * ca.DM(np.eye(k))
+        if structure == "full":
+            Q = Qdec
+        else:
+            Qw = Qdec
+            Q = ca.mtimes(ca.mtimes(Gd, Qw), Gd.T)
+    # initial values
+    Q0 = None
+    if W0 is not None:
+        W0 = np.asarray(W0, dtype=float)
+        if structure == "diagonal":
+            q0 = np.maximum(W0.ravel(), 0.0) / s
+            opti.set_initial(Fvec, q0)
+            Q0 = G @ np.diag(q0) @ G.T
+        else:
+            Wp = _psd_part(W0) / s
+            if t is not None:
+                t0 = -1e-3 * max(1.0, float(np.max(np.abs(Wp))))
+                opti.set_initial(t, t0)
+                Wp = Wp - t0 * np.eye(k)
+            Lf = np.linalg.cholesky(Wp + 1e-10 * max(1.0, float(np.linalg.norm(Wp, 2))) * np.eye(k))
+            opti.set_initial(Fvec, np.array([Lf[i, j] for j in range(k) for i in range(j, k)]))
+            Q0 = Wp if structure == "full" else G @ Wp @ G.T
+    Rs = R / s
+
+    def qmul(a):
+        """Q a without forming Q: matrix-vector products through the factor (cheaper
+        derivatives than the dense n x n product)."""
+        if structure == "full":
+            b = ca.mtimes(F, ca.mtimes(F.T, a))
+            return b + t * a if t is not None else b
+        ga = ca.mtimes(Gd.T, a)
+        if structure == "diagonal":
+            return ca.mtimes(Gd, Fvec * ga)
+        b = ca.mtimes(F, ca.mtimes(F.T, ga))
+        if t is not None:
+            b = b + t * ga
+        return ca.mtimes(Gd, b)
+
+    def mw(G1, G2, wgt, wr, wi=None):
+        """Real and imaginary parts of wgt (R + G1 Q G2^T) (wr + j wi)."""
+        g1r, g1i, g2r, g2i = (ca.DM(X) for X in (G1.real, G1.imag, G2.real, G2.imag))
+        if wi is None:
+            return wgt * (ca.mtimes(ca.DM(Rs), wr) + ca.mtimes(g1r, qmul(ca.mtimes(g2r.T, wr)))), None
+        ar = ca.mtimes(g2r.T, wr) - ca.mtimes(g2i.T, wi)
+        ai = ca.mtimes(g2r.T, wi) + ca.mtimes(g2i.T, wr)
+        br, bi = qmul(ar), qmul(ai)
+        re = ca.mtimes(ca.DM(Rs), wr) + ca.mtimes(g1r, br) - ca.mtimes(g1i, bi)
+        im = ca.mtimes(ca.DM(Rs), wi) + ca.mtimes(g1r, bi) + ca.mtimes(g1i, br)
+        return wgt * re, wgt * im
+
+    cons = []
+    resid = []
+    nulls = []
+    groups: dict[tuple[float, float], list] = {}
+    for size, z, G1, G2, wgt in terms:
+        M0 = None if Q0 is None else wgt * (Rs + G1 @ Q0 @ G2.T)
+        key = (round(z.real, 9), round(z.imag, 9))
+        prev = groups.setdefault(key, [])
+        if size == 1:
+            w = opti.variable(p)
+            if M0 is not None:
+                v = np.linalg.svd(M0.real)[2][-1 - len(prev) if len(prev) < p else -1]
+                opti.set_initial(w, v)
+            resid.append(mw(G1, G2, wgt, w)[0])
+            cons.append(ca.sumsqr(w) - 1)
+            for wo in prev:
+                cons.append(ca.dot(w, wo[0]))
+            prev.append((w, None))
+            nulls.append(w)
+        else:
+            wr, wi = opti.variable(p), opti.variable(p)
+            if M0 is not None:
+                v = np.linalg.svd(M0)[2][-1 - len(prev) if len(prev) < p else -1].conj()
+                v = v * np.exp(-0.5j * np.angle(v @ v))
+                opti.set_initial(wr, v.real)
+                opti.set_initial(wi, v.imag)
+            resid += list(mw(G1, G2, wgt, wr, wi))
+            cons += [ca.sumsqr(wr) + ca.sumsqr(wi) - 1, ca.dot(wr, wi)]
+            for ar, ai in prev:  # Hermitian orthogonality w_a^H w_b = 0
+                cons += [ca.dot(ar, wr) + ca.dot(ai, wi), ca.dot(ar, wi) - ca.dot(ai, wr)]
+            prev.append((wr, wi))
+            nulls += [wr, wi]
+    opti.subject_to(ca.vertcat(*cons) == 0)
+    if soft:
+        opti.minimize(ca.sumsqr(ca.vertcat(*resid)))
+    else:
+        opti.subject_to(ca.vertcat(*resid) == 0)
+        if objective == "min_trace":
+            opti.minimize(ca.trace(Q))
+        elif objective == "nearest":
+            opti.minimize(ca.sumsqr(Qdec - ca.DM(np.asarray(Q_nominal, dtype=float) / s)))
+        else:
+            opti.minimize(-t)
+    return SpectralNLP(opti=opti, Fvec=Fvec, Q=Q, Qw=Qw, t=t, null_vectors=nulls, scale=s,
+                       blocks=[(b[0], b[1]) for b in terms], structure=structure, objective=objective)
+
+
+def _psd_part(W: NDArray) -> NDArray:
+    w, V = np.linalg.eigh(0.5 * (W + W.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+# --------------------------------------------------------------------- spectral SDP
+@dataclass(frozen=True, eq=False)
+class SpectralSDP:
+    """The one-output spectral conditions as an SDP in Q alone (values scaled by ``scale``).
+
+    Attributes
+    ----------
+    problem : cvxpy.Problem
+    Q : cvxpy.Variable
+        (n, n) symmetric (state-space noise / scale).
+    Qw : cvxpy.Variable or None
+        (m, m) or (m,) for ``"input"`` / ``"diagonal"``.
+    t : cvxpy.Variable or None
+    coefficients : ndarray
+        (n_eq, n*n) real matrix E and ``offset`` (n_eq,) with the conditions
+        ``E vec(Q / scale) + offset = 0`` (column-major vec).
+    offset : ndarray
+    scale : float
+    """
+
+    problem: Any
+    Q: Any
+    Qw: Any
+    t: Any
+    coefficients: NDArray[np.float64]
+    offset: NDArray[np.float64]
+    scale: float
+    structure: str
+    objective: str
+
+
+def spectral_linear_conditions(terms: list, R: NDArray) -> tuple[NDArray, NDArray]:
+    """For one output: the target conditions ``R + G1 Q G2^T = 0`` as real linear equations
+    ``E vec(Q) + offset = 0`` (one per real target, two -- real and imaginary part -- per pair),
+    each row scaled to unit norm."""
+    rows, off = [], []
+    r = float(np.asarray(R).ravel()[0])
+    for size, _, G1, G2, _ in terms:
+        g1, g2 = G1[0], G2[0]
+        coef = np.outer(g2, g1).reshape(-1)  # vec(Q) . coef = g1 Q g2^T (column-major vec)
+        parts = [(coef.real, r)] if size == 1 else [(coef.real, r), (coef.imag, 0.0)]
+        for c, o in parts:
+            nrm = max(float(np.linalg.norm(c)), abs(o), 1e-300)
+            rows.append(c / nrm)
+            off.append(o / nrm)
+    return np.asarray(rows), np.asarray(off)
+
+
+def build_spectral_sdp(
+    A: NDArray, C: NDArray, R: NDArray, poles: NDArray, *, dt: float | None = None,
+    structure: str = "full", G: NDArray | None = None, objective: str = "min_trace",
+    Q_nominal: NDArray | None = None, terms: list | None = None,
+) -> SpectralSDP:
+    r"""One output: the spectral conditions of :func:`build_spectral_nlp` are *linear* in Q.
+
+    With p = 1 the null vector is a scalar, so ``s_i`` is a filter pole iff
+    ``R + C (s_i I - A)^-1 Q (s~_i I - A)^-T C' = 0`` -- n real linear equations on Q (a pair
+    gives the real and imaginary part), plus ``Q >= 0``: an SDP in Q alone, without P or L,
+    and better scaled than the fixed-gain SDP when the gain is large (its ``L R L'`` and
+    ``A P + P A'`` nearly cancel).  L and P then follow from one Riccati solve.
+
+    Parameters and structures / objectives as for :func:`build_fixed_gain_sdp`.
+
+    Raises
+    ------
+    ValidationError
+        More than one output, a target at an eigenvalue of A or its mirror, or bad options.
+    """
+    from ..solvers.cvxpy_backend import import_cvxpy
+
+    cp = import_cvxpy()
+    _check_choice("structure", structure, STRUCTURES)
+    _check_choice("objective", objective, OBJECTIVES)
+    if C.shape[0] != 1:
+        raise ValidationError(f"the spectral SDP needs one output; C has {C.shape[0]} rows")
+    if structure != "full" and G is None:
+        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    if objective == "nearest" and Q_nominal is None:
+        raise ValidationError("objective='nearest' needs Q_nominal")
+    if terms is None:
+        terms = spectral_terms(A, C, poles, dt)
+    if terms is None:
+        raise ValidationError("a target pole is an eigenvalue of A or of its mirror image: the spectral "
+                              "conditions are singular there")
+    n = A.shape[0]
+    E, off = spectral_linear_conditions(terms, R)
+    # scale Q so that the conditions are O(1): |E vec(Q)| ~ |offset|
+    s = float(np.median(np.abs(off[np.abs(off) > 0]))) / max(
+        float(np.median(np.linalg.norm(E, axis=1))), 1e-300) if np.any(off) else 1.0
+    s = s if (np.isfinite(s) and s > 0) else 1.0
+    Q = cp.Variable((n, n), symmetric=True, name="Q")
+    cons = [E @ cp.vec(Q, order="F") * s + off == 0]
+    Qw = t = None
+    if structure == "full":
+        dec = Q
+    else:
+        m = G.shape[1]
+        if structure == "input":
+            Qw = cp.Variable((m, m), symmetric=True, name="Qw")
+            Wd = Qw
+        else:
+            Qw = cp.Variable(m, name="qw")
+            Wd = cp.diag(Qw)
+        D = Q - G @ Wd @ G.T
+        cons += [cp.upper_tri(D) == 0, cp.diag(D) == 0]
+        dec = Wd
+    k = dec.shape[0]
+    if objective == "feasibility":
+        t = cp.Variable(name="t")
+        cons.append(Qw >= t if structure == "diagonal" else dec - t * np.eye(k) >> 0)
+        obj = cp.Maximize(t)
+    else:
+        cons.append(Qw >= 0 if structure == "diagonal" else dec >> 0)
+        obj = cp.Minimize(cp.trace(Q)) if objective == "min_trace" else \
+            cp.Minimize(cp.norm(dec - np.asarray(Q_nominal) / s, "fro"))
+    return SpectralSDP(problem=cp.Problem(obj, cons), Q=Q, Qw=Qw, t=t, coefficients=E, offset=off,
+                       scale=s, structure=structure, objective=objective)
