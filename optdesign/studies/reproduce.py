@@ -3,18 +3,35 @@
 Each paper has a module ``optdesign.studies.paperNNN`` with a function
 ``reproduce(outdir, *, quick=False) -> PaperReproduction`` that recomputes the paper's
 examples with the library, writes its figures (PNG) into ``outdir`` and returns the table
-of printed vs reproduced values.
+of printed vs reproduced values.  :func:`reproduce_all` runs them all (a paper module that is
+missing or fails is reported, not raised) and writes a summary table of printed vs reproduced
+values (``summary.md`` and ``summary.csv``) next to the figures.
 """
 
 from __future__ import annotations
 
+import csv
+import importlib
 import math
+import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import BackendUnavailableError
+from ..errors import BackendUnavailableError, ValidationError
 
-__all__ = ["ReproRow", "PaperReproduction", "pyplot", "format_table"]
+__all__ = [
+    "ReproRow",
+    "PaperReproduction",
+    "pyplot",
+    "format_table",
+    "fmt",
+    "PAPERS",
+    "paper_id",
+    "PaperOutcome",
+    "ReproductionSummary",
+    "reproduce_all",
+]
 
 
 @dataclass(frozen=True)
@@ -52,8 +69,8 @@ def format_table(rows) -> str:
     head = ("example", "quantity", "printed", "reproduced", "agrees", "note")
     body = [(r.example, r.quantity, r.printed if r.printed is not None else "-", r.reproduced,
              {True: "yes", False: "NO", None: "-"}[r.agrees], r.note) for r in rows]
-    widths = [min(60, max(len(str(x)) for x in col)) for col in zip(head, *body)]
-    line = lambda cells: " | ".join(str(c)[:60].ljust(w) for c, w in zip(cells, widths))  # noqa: E731
+    widths = [min(60, max(len(str(x)) for x in col)) for col in zip(head, *body, strict=True)]
+    line = lambda cells: " | ".join(str(c)[:60].ljust(w) for c, w in zip(cells, widths, strict=True))  # noqa: E731
     out = [line(head), "-+-".join("-" * w for w in widths)]
     out += [line(b) for b in body]
     return "\n".join(out)
@@ -82,3 +99,220 @@ def fmt(x, digits: int = 4) -> str:
             return f"{v.real:.{digits}g}"
         return f"{v.real:.{digits}g}{v.imag:+.{digits}g}j"
     return "[" + ", ".join(fmt(v, digits) for v in a.ravel()) + "]"
+
+
+# --------------------------------------------------------------------------- all papers
+
+#: seed paper id -> short title (the module is ``optdesign.studies.paper<id>``)
+PAPERS: dict[str, str] = {
+    "000": "Chang & Lee 1984: Kalman gain with pre-specified estimator eigenvalues",
+    "001": "Jung & Huh: well-conditioned observer via the non-normality measure",
+    "002": "Lee: frequency-domain properties of Kalman filters with output delay",
+    "003": "Kim, Lee & Kim: generalized observer and output-noise rejection",
+    "004": "Ahn et al.: Kalman filter design via block-pulse functions",
+}
+
+
+def paper_id(name: str | int) -> str:
+    """Normalize a paper name: ``2``, ``"2"``, ``"002"``, ``"seed002"``, ``"paper002"`` -> ``"002"``.
+
+    Raises
+    ------
+    ValidationError
+        Not one of the seed papers.
+    """
+    s = str(name).strip().lower()
+    for prefix in ("paper", "seed"):
+        if s.startswith(prefix):
+            s = s[len(prefix):]
+    if s.isdigit() and s.zfill(3) in PAPERS:
+        return s.zfill(3)
+    raise ValidationError(f"unknown paper {name!r}; expected one of {', '.join(PAPERS)} (or seed000, ...)")
+
+
+@dataclass(frozen=True)
+class PaperOutcome:
+    """What reproducing one paper gave.
+
+    Attributes
+    ----------
+    paper : str
+        ``"000"`` ... ``"004"``.
+    title : str
+    status : str
+        ``"ok"``; ``"missing"`` (no module ``optdesign.studies.paper<id>`` or no ``reproduce``);
+        ``"failed"`` (it raised; ``error`` has the one-line reason); ``"figures missing"``
+        (a figure it reported was not written).
+    reproduction : PaperReproduction or None
+    error : str or None
+    time : float
+        Seconds.
+    """
+
+    paper: str
+    title: str
+    status: str
+    reproduction: PaperReproduction | None = None
+    error: str | None = None
+    time: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    @property
+    def figures(self) -> tuple[Path, ...]:
+        return tuple(self.reproduction.figures) if self.reproduction is not None else ()
+
+
+@dataclass(frozen=True)
+class ReproductionSummary:
+    """The outcome of :func:`reproduce_all`: per-paper outcomes and the summary files."""
+
+    outdir: Path
+    outcomes: tuple[PaperOutcome, ...]
+    markdown: Path
+    csv: Path
+
+    @property
+    def ok(self) -> bool:
+        """Every requested paper was reproduced and wrote its figures."""
+        return all(o.ok for o in self.outcomes)
+
+    @property
+    def figures(self) -> tuple[Path, ...]:
+        return tuple(f for o in self.outcomes for f in o.figures)
+
+    def overview(self) -> str:
+        """A short plain-text table: one line per paper."""
+        lines = []
+        for o in self.outcomes:
+            rows = o.reproduction.rows if o.reproduction is not None else ()
+            agree = sum(1 for r in rows if r.agrees is True)
+            differ = sum(1 for r in rows if r.agrees is False)
+            what = (f"{len(rows)} values ({agree} agree with the print, {differ} differ), "
+                    f"{len(o.figures)} figures" if o.reproduction is not None else (o.error or ""))
+            lines.append(f"seed {o.paper}  {o.status:<15} {o.time:7.1f} s  {what}")
+        return "\n".join(lines)
+
+
+def _md_cell(x) -> str:
+    return " ".join(str(x).split()).replace("|", "\\|")
+
+
+def _run_paper(pid: str, outdir: Path, quick: bool) -> PaperOutcome:
+    title = PAPERS[pid]
+    modname = f"optdesign.studies.paper{pid}"
+    t0 = time.perf_counter()
+    try:
+        module = importlib.import_module(modname)
+    except ModuleNotFoundError as exc:
+        if exc.name == modname:
+            return PaperOutcome(pid, title, "missing", error=f"module {modname} does not exist (not "
+                                                             "written yet)")
+        return PaperOutcome(pid, title, "failed", error=f"importing {modname}: {_one_line(exc)}",
+                            time=time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001 - reported in the table
+        return PaperOutcome(pid, title, "failed", error=f"importing {modname}: {_one_line(exc)}",
+                            time=time.perf_counter() - t0)
+    fn = getattr(module, "reproduce", None)
+    if not callable(fn):
+        return PaperOutcome(pid, title, "missing", error=f"{modname} has no reproduce(outdir, *, quick) "
+                                                         "function")
+    try:
+        rep = fn(outdir, quick=quick)
+    except Exception as exc:  # noqa: BLE001 - a failing paper is reported, the others still run
+        return PaperOutcome(pid, title, "failed", error=_one_line(exc), time=time.perf_counter() - t0)
+    finally:
+        _close_figures()
+    dt = time.perf_counter() - t0
+    if not isinstance(rep, PaperReproduction):
+        return PaperOutcome(pid, title, "failed", error=f"reproduce() returned {type(rep).__name__}, "
+                            f"not a PaperReproduction", time=dt)
+    missing = [str(f) for f in rep.figures if not Path(f).is_file()]
+    if missing:
+        return PaperOutcome(pid, title, "figures missing", rep, "figure(s) not written: "
+                                                                f"{', '.join(missing)}", dt)
+    return PaperOutcome(pid, title or rep.title, "ok", rep, None, dt)
+
+
+def _one_line(exc: BaseException) -> str:
+    tb = traceback.extract_tb(exc.__traceback__)
+    where = f" (at {Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}{where}"
+
+
+def _close_figures() -> None:
+    import sys
+
+    if "matplotlib.pyplot" in sys.modules:
+        sys.modules["matplotlib.pyplot"].close("all")
+
+
+def reproduce_all(outdir: str | Path, papers=None, quick: bool = False) -> ReproductionSummary:
+    """Reproduce seed papers: every figure into ``outdir``, and a summary of printed vs reproduced values.
+
+    Parameters
+    ----------
+    outdir : str or Path
+        Folder for the figures and the summary (created if missing).
+    papers : iterable of str, optional
+        Paper ids (``"000"`` ... ``"004"``; ``"seed001"``, ``2`` ... accepted); default all.
+    quick : bool
+        Passed to each paper's ``reproduce`` (smaller grids and fewer starts, for CI).
+
+    Returns
+    -------
+    ReproductionSummary
+        Per-paper outcomes; ``summary.md`` (one section per paper: status, figures, the table of
+        printed vs reproduced values with notes) and ``summary.csv`` (one row per value; a paper
+        that is missing or failed has one row saying so) are written into ``outdir``.  A missing or
+        failing paper does not stop the others; ``summary.ok`` is False then.
+
+    Raises
+    ------
+    ValidationError
+        An unknown paper id.
+    """
+    ids = list(PAPERS) if papers is None else list(dict.fromkeys(paper_id(p) for p in papers))
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    outcomes = tuple(_run_paper(pid, out, quick) for pid in ids)
+    md_path = out / "summary.md"
+    csv_path = out / "summary.csv"
+    lines = ["# optdesign: seed papers reproduced", "",
+             f"Figures are in this folder. Mode: {'quick' if quick else 'full'}.", "",
+             "| paper | status | values | agree | differ | figures | time (s) |",
+             "|---|---|---|---|---|---|---|"]
+    for o in outcomes:
+        rows = o.reproduction.rows if o.reproduction is not None else ()
+        lines.append(f"| {o.paper} {_md_cell(o.title)} | {o.status} | {len(rows)} | "
+                     f"{sum(1 for r in rows if r.agrees is True)} | "
+                     f"{sum(1 for r in rows if r.agrees is False)} | "
+                     f"{len(o.figures)} | {o.time:.1f} |")
+    for o in outcomes:
+        lines += ["", f"## Seed {o.paper}: {o.title}", "", f"Status: **{o.status}**" +
+                  (f" -- {_md_cell(o.error)}" if o.error else "")]
+        if o.reproduction is not None:
+            if o.figures:
+                lines += ["", "Figures: " + ", ".join(f"[{Path(f).name}]({Path(f).name})" for f in o.figures)]
+            lines += ["", "| example | quantity | printed | reproduced | agrees | note "
+                          "|", "|---|---|---|---|---|---|"]
+            for r in o.reproduction.rows:
+                agrees = {True: "yes", False: "**NO**", None: "-"}[r.agrees]
+                lines.append(f"| {_md_cell(r.example)} | {_md_cell(r.quantity)} | "
+                             f"{_md_cell(r.printed if r.printed is not None else '-')} | "
+                             f"{_md_cell(r.reproduced)} | "
+                             f"{agrees} | {_md_cell(r.note)} |")
+    md_path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    with csv_path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(["paper", "status", "example", "quantity", "printed", "reproduced", "agrees", "note"])
+        for o in outcomes:
+            if o.reproduction is None or not o.reproduction.rows:
+                w.writerow([o.paper, o.status, "", "", "", "", "", o.error or ""])
+                continue
+            for r in o.reproduction.rows:
+                w.writerow([o.paper, o.status, r.example, r.quantity, "" if r.printed is None else r.printed,
+                            r.reproduced, {True: "yes", False: "no", None: ""}[r.agrees], r.note])
+    return ReproductionSummary(out, outcomes, md_path, csv_path)

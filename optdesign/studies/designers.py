@@ -1,0 +1,951 @@
+"""Study-oriented design functions: build once per worker, re-solve for every point.
+
+A *designer* is a small, picklable, frozen object that :func:`optdesign.studies.sweep` calls
+with one point of a grid (``designer(alpha=1.5, zeta=0.6)``) and that returns a design result
+(with ``status``, ``success`` and a ``record()`` of scalar metrics).
+
+:class:`RegionSweepDesigner` is the workhorse of region studies ("how does the best kappa2 change
+with the decay rate and the damping sector?").  Its CasADi problem
+(:func:`optdesign.formulate.well_conditioned.build_observer_nlp`) is built **once per worker
+process** (and pole structure), with the decay rate ``alpha``, the damping ratio ``zeta``, the
+radius and the bounds ``max_gain`` / ``kappa2_max`` / ``eta_max`` as ``opti.parameter`` s; IPOPT
+is configured once, and every point only sets the parameter values and re-solves:
+
+* a *warm start* from the previous point's solution (same chunk of the sweep, see
+  :mod:`optdesign.studies.sweep`), solved at the final stage of the kappa2 continuation only, and
+* ``starts`` *placement starts*: poles sampled in the point's region, a robust placement
+  (scipy YT) for the initial gain, and the full continuation -- so a point never depends on a
+  warm start alone;
+* the previous point's design itself, when it is feasible for this point (a looser region or a
+  weaker bound): so along a chunk that loosens the constraints, the answer never gets worse.
+  Order the last axis of a grid from the tightest to the loosest region (e.g. ``zeta``
+  descending) to get this monotonicity; the NLP is non-convex and independent local solves can
+  otherwise land in different local optima at neighbouring points.
+
+Every candidate is verified independently of the solver (poles of ``A - L C`` with numpy, signed
+distance to the point's region, the solver's eigenbasis against :func:`optdesign.metrics.kappa2`,
+the bounds) and the best verified candidate is returned as an
+:class:`~optdesign.design.well_conditioned.ObserverDesign`.  ``reuse=False`` rebuilds the NLP for
+every point (same algorithm): the benchmark ``benchmarks/bench_sweep.py`` measures the difference.
+
+:class:`KalmanNoiseDesigner` (axes ``q``, ``r``: noise-ratio studies) and
+:class:`PoleTargetDesigner` (axes ``scale``, ``shift`` of a target pole set: where does a
+prescribed-pole Kalman target become infeasible?) wrap the other verbs for studies;
+:func:`place_baseline` is the scipy placement baseline as a verified result.
+
+References
+----------
+Jung & Huh (seed 001); Chang & Lee 1984 (seed 000); Kautsky, Nichols & Van Dooren (1985).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+import warnings
+import zlib
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validate import as_poles, as_positive_float
+from ..errors import ValidationError
+from ..model.plant import Plant
+from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
+from ..results import Check, ResultMixin, SolverStats, Status, Verification
+
+__all__ = [
+    "RegionSweepDesigner",
+    "KalmanNoiseDesigner",
+    "PoleTargetDesigner",
+    "DesignPoint",
+    "PlacementResult",
+    "place_baseline",
+    "DESIGNERS",
+    "SWEEP_IPOPT_OPTIONS",
+    "clear_cache",
+]
+
+#: IPOPT options of the region designer (merged under ``options``); as the verb's defaults but
+#: with fewer iterations, so that a hopeless point does not hold a 1,000-point sweep
+SWEEP_IPOPT_OPTIONS: dict[str, Any] = {
+    "ipopt.tol": 1e-8,
+    "ipopt.constr_viol_tol": 1e-10,
+    "ipopt.acceptable_tol": 1e-6,
+    "ipopt.max_iter": 300,
+}
+
+#: relative agreement required between the solver's eigenbasis and numpy's kappa2
+KAPPA_TOL = 1e-3
+#: relative residual required of the solver's eigenbasis
+EIG_TOL = 1e-7
+#: region distance allowed outside, relative to max(1, |poles|)
+REGION_TOL = 1e-7
+#: pole accuracy required of placement baselines (relative, :func:`pole_error`)
+POLE_TOL = 1e-6
+
+#: real-pole fractions of successive placement starts: as many conjugate pairs as possible first, then all
+#: real, then mixed -- so that two starts already cover both extremes (with (0.5, 1.0) first, an odd n
+#: would never try a complex pair, and the damping sector would never matter)
+_FRACTIONS = (0.0, 1.0, 0.5, 0.25, 0.75)
+_CACHE_SIZE = 8
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _plant_of(problem: str | None, plant: Plant | None, who: str) -> Plant:
+    if (problem is None) == (plant is None):
+        raise ValidationError(f"{who} needs exactly one of problem (a library name) or plant")
+    if plant is not None:
+        if not isinstance(plant, Plant):
+            raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+        return plant
+    if not isinstance(problem, str):
+        raise ValidationError(f"problem must be a problem name (str); found {type(problem).__name__}")
+    return _library_plant(problem)
+
+
+@lru_cache(maxsize=64)
+def _library_plant(name: str) -> Plant:
+    from .. import problems
+
+    prob = problems.load(name)
+    if prob.plant is None:
+        raise ValidationError(f"problem {name!r} has no valid plant ({prob.notes or 'see its notes'})")
+    return prob.plant
+
+
+def _point_seed(seed: int, point: Mapping[str, Any]) -> list[int]:
+    """Entropy for a point's random choices: the seed and the point's values (order-free)."""
+    out = [int(seed)]
+    for k in sorted(point):
+        v = point[k]
+        out.append(zlib.crc32(k.encode()))
+        if isinstance(v, (bool, np.bool_)):
+            out.append(int(v))
+        elif isinstance(v, (int, float, np.integer, np.floating)):
+            out.append(int.from_bytes(np.float64(v).tobytes(), "little"))
+        else:
+            out.append(zlib.crc32(repr(v).encode()))
+    return out
+
+
+def _sorted_poles(p: ArrayLike) -> NDArray[np.complex128]:
+    p = np.asarray(p, dtype=complex)
+    return p[np.lexsort((p.imag, p.real))]
+
+
+def _plant_key(plant: Plant) -> tuple:
+    return (plant.A.shape, plant.A.tobytes(), plant.C.shape, plant.C.tobytes(), plant.dt)
+
+
+def _finite_metrics(X: NDArray) -> dict[str, float]:
+    from ..analysis import metrics
+
+    s = metrics.condition_summary(X)
+    return {"kappa2": float(s["kappa2"]), "eta": float(s["eta"]), "kappa_fro": float(s["kappa_fro"])}
+
+
+def _verify_gain(plant: Plant, L: NDArray, *, region: Region | None = None, target: NDArray | None = None,
+                 basis: tuple[NDArray, NDArray] | None = None, max_gain: float | None = None,
+                 kappa2_max: float | None = None, eta_max: float | None = None,
+                 ) -> tuple[dict[str, Any], Verification]:
+    """Independent checks of an observer gain (numpy/scipy only) and its metrics.
+
+    The same checks as the well-conditioned verb's verification: finite gain, poles of
+    ``A - L C`` against the target or inside the region, the solver's eigenbasis (residual and
+    its condition number against ``metrics.kappa2``), bounds.
+    """
+    checks: list[Check] = []
+    nan = float("nan")
+    if not np.all(np.isfinite(L)):
+        checks.append(Check.at_most("finite_gain", math.inf, 0.0, "the gain has NaN/Inf entries"))
+        return ({"kappa2": nan, "eta": nan, "kappa_fro": nan, "gain_norm": nan,
+                 "poles": np.full(plant.n, nan + 0j), "V": None}, Verification.of(checks))
+    X = plant.A - L @ plant.C
+    poles = _sorted_poles(np.linalg.eigvals(X))
+    scale = max(1.0, float(np.max(np.abs(poles))))
+    if target is not None:
+        from ..classical.placement import pole_error
+
+        checks.append(Check.at_most("pole_error", pole_error(poles, target), POLE_TOL,
+                                    "max relative error of eig(A - LC) vs the target poles"))
+    if region is not None:
+        checks.append(Check.at_most("region_margin", region.margin(poles), REGION_TOL * scale,
+                                    "max signed distance of eig(A - LC) to the region (<= 0 inside)"))
+    m = _finite_metrics(X)
+    k2 = m["kappa2"]
+    V = None
+    if basis is not None:
+        Z, zp = basis
+        res = float(np.linalg.norm(X @ Z - Z * zp[None, :]) / max(np.linalg.norm(X), 1e-300))
+        checks.append(Check.at_most("eig_residual", res, EIG_TOL,
+                                    "||(A - LC) Z - Z diag(poles)||_F / ||A - LC||_F for the solver's basis"))
+        sv = np.linalg.svd(Z, compute_uv=False)
+        kz = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+        if math.isfinite(k2):
+            checks.append(Check.at_most("kappa2_agreement", abs(kz - k2) / k2, KAPPA_TOL,
+                                        "solver basis cond vs metrics.kappa2 (relative)"))
+        elif math.isfinite(kz) and res <= EIG_TOL:
+            # repeated pole: the basis is not unique; report the verified basis the solver found
+            k2 = kz
+            m["kappa_fro"] = float(np.linalg.norm(Z) * np.linalg.norm(np.linalg.inv(Z)))
+        V = Z
+    elif math.isfinite(k2):
+        from ..analysis import metrics
+
+        V = metrics.eigenvector_matrix(X)
+    gn = float(np.linalg.norm(L, 2))
+    if max_gain is not None:
+        checks.append(Check.at_most("gain_bound", gn, max_gain * (1 + 1e-6), "||L||_2 <= max_gain"))
+    if kappa2_max is not None:
+        checks.append(Check.at_most("kappa2_bound", k2, kappa2_max * (1 + 1e-6), "kappa2 <= kappa2_max"))
+    if eta_max is not None:
+        checks.append(Check.at_most("eta_bound", m["eta"], eta_max * (1 + 1e-6), "eta <= eta_max"))
+    if not checks:
+        checks.append(Check.at_most("finite_gain", 0.0, 0.0))
+    out = {"kappa2": k2, "eta": m["eta"], "kappa_fro": m["kappa_fro"], "gain_norm": gn, "poles": poles,
+           "V": V}
+    return out, Verification.of(checks)
+
+
+# --------------------------------------------------------------------------- per-worker cache
+
+_local = threading.local()
+
+
+def _cache() -> OrderedDict:
+    c = getattr(_local, "cache", None)
+    if c is None:
+        c = _local.cache = OrderedDict()
+    return c
+
+
+def clear_cache() -> None:
+    """Forget the NLPs built by designers in this thread (tests, benchmarks)."""
+    _cache().clear()
+
+
+class _Workspace:
+    """The NLPs of one designer configuration (one per pole structure), configured once."""
+
+    def __init__(self, build, options: dict[str, Any]) -> None:
+        self._build = build
+        self.options = options
+        self.nlps: dict[Any, Any] = {}
+        self.configured: set[Any] = set()
+        self.builds = 0
+
+    def get(self, structure):
+        if structure not in self.nlps:
+            self.nlps[structure] = self._build(structure)
+            self.builds += 1
+        return self.nlps[structure]
+
+
+# --------------------------------------------------------------------------- region designer
+
+
+@dataclass(frozen=True)
+class _Cand:
+    origin: str
+    structure: Any
+    L: NDArray
+    basis: tuple[NDArray, NDArray] | None
+    status: Status
+    native: str
+    message: str
+    iterations: int
+    time: float
+    snapshot: dict[str, NDArray] | None
+
+
+@dataclass(frozen=True)
+class RegionSweepDesigner:
+    """Well-conditioned observer over a parametric pole region, for sweeps (build once, re-solve).
+
+    Call it with a point: ``designer(alpha=1.5, zeta=0.6)``.  The pole region of the point is
+    ``region & HalfPlane(alpha) & Sector.from_damping(zeta) & Disk(0, radius)`` (the pieces that
+    are given, by the point or by the defaults below); with none of them, the stability region.
+
+    Parameters
+    ----------
+    problem : str, optional
+        A library problem whose plant is used (loaded in the worker).  Give ``problem`` or
+        ``plant``.
+    plant : Plant, optional
+    objective : {"kappa2", "kappa_fro", "eta"}
+        What to minimize (as :func:`optdesign.design.well_conditioned.well_conditioned_observer`).
+    region : Region, optional
+        A fixed part of the region (its constraints are part of the NLP).
+    alpha, zeta, radius : float, optional
+        Defaults of the sweepable region pieces: decay ``Re s <= -alpha``, damping ratio
+        ``>= zeta`` (continuous time only) and ``|s| <= radius``.  Unbounded regions need a radius
+        or ``max_gain`` when the metric keeps improving as the poles move away.
+    max_gain, kappa2_max, eta_max : float, optional
+        Defaults of the sweepable bounds ``||L||_2 <= max_gain``, ``kappa2 <= kappa2_max``,
+        ``eta <= eta_max``.
+    starts : int, default 2
+        Placement starts per point (in addition to the warm start).  Start ``k`` samples poles
+        with a real-pole fraction of 0, 1, 0.5, 0.25, 0.75 (cyclic): the first has as many
+        conjugate pairs as possible, the second is all real.  The pole structure (number of
+        pairs) is fixed within a local solve, so ``starts=1`` explores one structure only.
+    seed : int, default 0
+        Seeds the region samples (combined with the point's values: a point's samples do not
+        depend on where or when it runs).
+    warm_start : bool, default True
+        Start from the previous point's solution (within a chunk of the sweep).
+    placement : {"always", "fallback"}
+        ``"always"``: every point also runs the ``starts`` placement starts (robust: a point does
+        not depend on the warm start alone); ``"fallback"``: only when there is no warm start or
+        it fails verification (first point of a chunk) -- much faster along smooth paths, but it
+        follows one local optimum along the chunk (measured in ``benchmarks/results/sweep.md``).
+    reuse : bool, default True
+        Keep the built NLPs in a per-process cache and re-solve them; False rebuilds them for
+        every point (for benchmarks).
+    pole_scale : float, optional
+        Time scale of the NLP scaling (default: ``radius`` if given, else the magnitude of the
+        fixed region's deepest real point, else the largest of the spectral radius of ``A``,
+        ``|alpha|`` and 1).  It must not depend on the point, so it is fixed per designer.
+    options : dict, optional
+        IPOPT options merged over :data:`SWEEP_IPOPT_OPTIONS`.
+    initial_gain : (n, p) array_like, optional
+        A known good gain (e.g. an unconstrained optimum): every point also starts from it
+        (final continuation stage only, like the warm start).
+
+    Raises
+    ------
+    ValidationError
+        Bad arguments (on construction); at call time, unknown point keys or bad values.
+
+    Examples
+    --------
+    >>> from optdesign.studies import RegionSweepDesigner, sweep, grid
+    >>> d = RegionSweepDesigner(problem="compleib_dis2", radius=20.0)
+    >>> table = sweep(d, grid(alpha=[1.0, 2.0], zeta=[0.5, 0.7]), executor="serial")  # doctest: +SKIP
+    """
+
+    problem: str | None = None
+    plant: Plant | None = None
+    objective: str = "kappa2"
+    region: Region | None = None
+    alpha: float | None = None
+    zeta: float | None = None
+    radius: float | None = None
+    max_gain: float | None = None
+    kappa2_max: float | None = None
+    eta_max: float | None = None
+    starts: int = 2
+    seed: int = 0
+    warm_start: bool = True
+    placement: str = "always"
+    reuse: bool = True
+    pole_scale: float | None = None
+    options: Mapping[str, Any] | None = None
+    initial_gain: Any = field(default=None, compare=False)
+
+    #: point keys understood (sweepable parameters) -> NLP parameter names
+    AXES: ClassVar[dict[str, str]] = {"alpha": "decay", "zeta": "damping", "radius": "radius",
+                                      "max_gain": "max_gain", "kappa2_max": "kappa2_max",
+                                      "eta_max": "eta_max"}
+
+    def __post_init__(self) -> None:
+        from ..formulate.well_conditioned import OBJECTIVES
+
+        if self.objective not in OBJECTIVES:
+            raise ValidationError(f"objective must be one of {OBJECTIVES}; found {self.objective!r}")
+        if self.region is not None and not isinstance(self.region, Region):
+            raise ValidationError("region must be an optdesign.regions.Region; found "
+                                  f"{type(self.region).__name__}")
+        if self.placement not in ("always", "fallback"):
+            raise ValidationError(f"placement must be 'always' or 'fallback'; found {self.placement!r}")
+        for name in ("starts", "seed"):
+            v = getattr(self, name)
+            lo = 1 if name == "starts" else 0
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
+                raise ValidationError(f"{name} must be an integer >= {lo}; found {v!r}")
+        self._check_values(self.defaults(), where="")
+        if self.pole_scale is not None:
+            as_positive_float("pole_scale", self.pole_scale)
+        plant = _plant_of(self.problem, self.plant, "RegionSweepDesigner")
+        if self.initial_gain is not None:
+            L0 = np.array(self.initial_gain, dtype=float)
+            if L0.shape != (plant.n, plant.p) or not np.all(np.isfinite(L0)):
+                raise ValidationError(f"initial_gain must be a finite ({plant.n}, {plant.p}) array; found "
+                                      "shape "
+                                      f"{L0.shape}")
+            L0.setflags(write=False)
+            object.__setattr__(self, "initial_gain", L0)
+
+    # ------------------------------------------------------------------ configuration
+    def defaults(self) -> dict[str, float]:
+        """The non-None defaults of the sweepable parameters."""
+        return {k: getattr(self, k) for k in self.AXES if getattr(self, k) is not None}
+
+    def _check_values(self, values: Mapping[str, Any], where: str) -> dict[str, float]:
+        out: dict[str, float] = {}
+        for k, v in values.items():
+            if k not in self.AXES:
+                raise ValidationError(f"unknown parameter {k!r}{where}; a region designer takes "
+                                      f"{', '.join(self.AXES)}")
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(float(v)):
+                raise ValidationError(f"{k} must be a finite number{where}; found {v!r}")
+            v = float(v)
+            if k == "zeta" and not 0.0 < v < 1.0:
+                raise ValidationError(f"zeta (damping ratio) must be in (0, 1){where}; found {v!r}")
+            if k in ("radius", "max_gain", "eta_max", "kappa2_max") and not v > 0:
+                raise ValidationError(f"{k} must be > 0{where}; found {v!r}")
+            if k == "kappa2_max" and v < 1:
+                raise ValidationError(f"kappa2_max must be >= 1 (kappa2 >= 1 always){where}; found {v!r}")
+            out[k] = v
+        return out
+
+    def _plant(self) -> Plant:
+        return _plant_of(self.problem, self.plant, "RegionSweepDesigner")
+
+    def _omega(self, plant: Plant) -> float:
+        if self.pole_scale is not None:
+            return float(self.pole_scale)
+        if self.radius is not None:
+            return float(self.radius)
+        if self.region is not None:
+            try:
+                x0 = abs(self.region.interior_point())
+            except Exception:  # noqa: BLE001 - any failure: fall back on the plant's scale
+                x0 = 0.0
+            if x0 > 0 and math.isfinite(x0):
+                return x0
+        rho = float(np.max(np.abs(np.linalg.eigvals(plant.A)))) if plant.n else 1.0
+        return max(1.0, rho, abs(self.alpha or 0.0))
+
+    def check_point(self, **point: Any) -> None:
+        """Validate a point without solving (unknown keys, values, empty region)."""
+        self.region_for(**point)
+
+    def region_for(self, **point: float) -> Region:
+        """The pole region of a point (validated), as used for verification."""
+        vals = {**self.defaults(), **self._check_values(point, where=" in the point")}
+        plant = self._plant()
+        members: list[Region] = []
+        if self.region is not None:
+            members.append(self.region)
+        if plant.is_discrete and ("alpha" in vals or "zeta" in vals):
+            raise ValidationError("alpha and zeta describe continuous-time regions; this plant is discrete "
+                                  "(use radius or a fixed discrete-time region)")
+        if "alpha" in vals:
+            members.append(HalfPlane(vals["alpha"]))
+        if "zeta" in vals:
+            members.append(Sector.from_damping(vals["zeta"]))
+        if "radius" in vals:
+            members.append(Disk(0.0, vals["radius"]))
+        if not members:
+            return stability_region(plant.is_discrete)
+        reg = members[0]
+        for m in members[1:]:
+            reg = reg & m
+        return reg
+
+    # ------------------------------------------------------------------ workspace
+    def _workspace(self, plant: Plant, params: frozenset[str]) -> _Workspace:
+        from ..formulate.well_conditioned import NLPScaling, build_observer_nlp
+
+        fixed_region = self.region
+        if fixed_region is None and not ({"alpha", "zeta", "radius"} & params):
+            fixed_region = stability_region(plant.is_discrete)
+        omega = self._omega(plant)
+        sc = NLPScaling.for_plant(plant, omega, balance=False)
+        opts = dict(SWEEP_IPOPT_OPTIONS)
+        opts.update(self.options or {})
+        start = {self.AXES[k]: 1.0 for k in params}  # placeholders: every point sets its values
+        if "damping" in start:
+            start["damping"] = 0.5
+
+        def build(structure):
+            return build_observer_nlp(plant, structure, fixed_poles=False, objective=self.objective,
+                                      region=fixed_region, scaling=sc, **start)
+
+        key = (_plant_key(plant), self.objective, repr(fixed_region), params, omega,
+               tuple(sorted((k, repr(v)) for k, v in opts.items())))
+        if not self.reuse:
+            return _Workspace(build, opts)
+        cache = _cache()
+        ws = cache.get(key)
+        if ws is None:
+            ws = cache[key] = _Workspace(build, opts)
+            while len(cache) > _CACHE_SIZE:
+                cache.popitem(last=False)
+        else:
+            cache.move_to_end(key)
+        return ws
+
+    # ------------------------------------------------------------------ calls
+    def start_chunk(self) -> _RegionSession:
+        """A callable for one chunk of a sweep: carries the warm start from point to point."""
+        return _RegionSession(self)
+
+    def __call__(self, **point: float):
+        """Design for one point (no warm start: a fresh session)."""
+        return _RegionSession(self)(**point)
+
+
+class _RegionSession:
+    def __init__(self, designer: RegionSweepDesigner) -> None:
+        self.d = designer
+        self.prev: tuple[Any, frozenset, dict[str, NDArray]] | None = None
+        self.prev_cand: _Cand | None = None
+
+    def __call__(self, **point: float):
+        from ..design.well_conditioned import ObserverDesign, StartRecord
+        from ..formulate.well_conditioned import KAPPA2_STAGES, PoleStructure, random_gain_for_poles
+        from ..solvers.casadi_backend import solve_opti
+
+        d = self.d
+        region = d.region_for(**point)  # validates the point
+        vals = {**d.defaults(), **d._check_values(point, where=" in the point")}
+        plant = d._plant()
+        plant.require_observable(what="well-conditioned observer design")
+        params = frozenset(vals)
+        ws = d._workspace(plant, params)
+        builds0 = ws.builds
+        nlp_values = {d.AXES[k]: v for k, v in vals.items()}
+        bounds = {k: vals.get(k) for k in ("max_gain", "kappa2_max", "eta_max")}
+        rng = np.random.default_rng(_point_seed(d.seed, point))
+        final = (KAPPA2_STAGES[-1],) if d.objective == "kappa2" else (None,)
+        full = KAPPA2_STAGES if d.objective == "kappa2" else (None,)
+
+        def evaluate(c: _Cand):
+            return _verify_gain(plant, c.L, region=region, basis=c.basis, **bounds)
+
+        def run(origin: str, structure, init, stages) -> _Cand:
+            nlp = ws.get(structure)
+            nlp.set_parameters(**nlp_values)
+            init(nlp)
+            best: _Cand | None = None
+            hist: list[_Cand] = []
+            good = None
+            for J in stages:
+                if J is not None:
+                    nlp.set_stage(J)
+                if good is not None:
+                    nlp.warm_start(good)
+                configure = structure not in ws.configured
+                rep = solve_opti(nlp.opti, ws.options, configure=configure)
+                ws.configured.add(structure)
+                L = nlp.gain(rep.value)
+                try:
+                    basis = nlp.basis(rep.value)
+                except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+                    basis = None
+                snap = nlp.snapshot(rep.value)
+                c = _Cand(origin, structure, L, basis, rep.status, rep.stats.native_status, rep.message,
+                          int(rep.stats.iterations or 0), float(rep.stats.time), snap)
+                hist.append(c)
+                if evaluate(c)[1].passed:
+                    good = snap
+                    best = c
+                elif J is not None and good is None:
+                    init(nlp)  # a failed early stage: continue the continuation from the start
+            chosen = best if best is not None else hist[-1]
+            return _Cand(chosen.origin, structure, chosen.L, chosen.basis, chosen.status, chosen.native,
+                         chosen.message, sum(h.iterations for h in hist), sum(h.time for h in hist),
+                         chosen.snapshot)
+
+        cands: list[_Cand] = []
+        warm_ok = False
+        if d.warm_start and self.prev is not None and self.prev[1] == params:
+            structure, _, snap = self.prev
+            cands.append(run("warm start", structure, lambda nlp, s=snap: nlp.warm_start(s), final))
+            warm_ok = Status(cands[-1].status).is_solved and evaluate(cands[-1])[1].passed
+        if d.initial_gain is not None:
+            L0 = d.initial_gain
+            st0 = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
+            cands.append(run("initial gain", st0, lambda nlp, L0=L0: nlp.set_initial_gain(L0), final))
+            warm_ok = warm_ok or (Status(cands[-1].status).is_solved and evaluate(cands[-1])[1].passed)
+        if d.warm_start and self.prev_cand is not None and self.prev[1] == params:
+            # the previous point's design as it is: when the region got looser (or a bound weaker) it is
+            # still feasible, and the point's answer can then only be as good or better
+            p = self.prev_cand
+            kept = _Cand("previous point's design", p.structure, p.L, p.basis, p.status, p.native,
+                         "kept from the previous point (no solve)", 0, 0.0, p.snapshot)
+            if evaluate(kept)[1].passed:
+                tail = [kept]
+            else:
+                tail = []
+        else:
+            tail = []
+        for k in range(d.starts if (d.placement == "always" or not warm_ok) else 0):
+            P0 = region.sample_poles(plant.n, rng, real_fraction=_FRACTIONS[k % len(_FRACTIONS)])
+            structure = PoleStructure.of(P0)
+            origin = "region sample + YT"
+            L0 = _placement(plant, P0)
+            if L0 is None:
+                try:
+                    L0 = random_gain_for_poles(plant, P0, rng)
+                    origin = "region sample + random assignment"
+                except (np.linalg.LinAlgError, ValueError):
+                    L0 = np.zeros((plant.n, plant.p))
+                    origin = "region sample, zero gain"
+            cands.append(run(origin, structure, lambda nlp, L0=L0: nlp.set_initial_gain(L0), full))
+
+        cands += tail
+        evaluated = []
+        records = []
+        for i, c in enumerate(cands):
+            m, v = evaluate(c)
+            obj = float(m[d.objective])
+            records.append(StartRecord(i, c.origin, c.status, v.passed, m["kappa2"], m["eta"], m["gain_norm"],
+                                       obj, c.iterations, c.time, c.message))
+            evaluated.append((obj, i, m, v, c))
+
+        def rank(e):
+            obj, i, m, v, c = e
+            r = 0 if (v.passed and Status(c.status).is_solved) else 1 if v.passed else 2
+            return (r, obj if math.isfinite(obj) else math.inf, i)
+
+        obj, idx, m, v, c = min(evaluated, key=rank)
+        if v.passed and c.snapshot is not None and Status(c.status).is_solved:
+            self.prev = (c.structure, params, c.snapshot)
+            self.prev_cand = c
+        status = Status(c.status)
+        converged = sum(1 for r in records if r.verified and Status(r.status).is_solved)
+        certificate = None
+        if v.passed and status.is_solved:
+            msg = (f"best of {len(records)} starts (start {idx}, {c.origin}): {d.objective} = {obj:.6g}; "
+                   f"{converged} of {len(records)} converged to verified designs")
+        else:
+            if all(Status(r.status).is_infeasible for r in records):
+                status = Status.INFEASIBLE
+                certificate = {"reason": "IPOPT converged to a point of local infeasibility from every start "
+                                         "(not a proof: the NLP is non-convex)", "starts": len(records)}
+            failed = "; ".join(ch.name for ch in v.failed)
+            msg = (f"no start gave a solved and verified design; best start {idx} ({c.origin}): {c.message}"
+                   + (f"; failed checks: {failed}" if failed else ""))
+        stats = SolverStats(backend="ipopt", native_status=c.native, time=float(sum(r.time for r in records)),
+                            iterations=int(sum(r.iterations for r in records)),
+                            extra={"starts": len(records), "converged": converged, "best_start": idx,
+                                   "best_origin": c.origin, "objective": obj,
+                                   "nlp_builds": ws.builds - builds0})
+        return ObserverDesign(L=c.L, poles=m["poles"], kappa2=m["kappa2"], eta=m["eta"],
+                              kappa_fro=m["kappa_fro"],
+                              gain_norm=m["gain_norm"], objective=d.objective, status=status, message=msg,
+                              solver_stats=stats, verification=v, starts=tuple(records), V=m["V"],
+                              region=region, certificate=certificate,
+                              extra={"point": dict(point), "best_origin": c.origin})
+
+
+def _placement(plant: Plant, poles: NDArray) -> NDArray | None:
+    from ..classical.placement import place_observer
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            L = place_observer(plant, poles, method="YT")
+    except (ValueError, np.linalg.LinAlgError):
+        return None
+    return L if np.all(np.isfinite(L)) else None
+
+
+# --------------------------------------------------------------------------- generic point result
+
+
+@dataclass(frozen=True, eq=False)
+class DesignPoint(ResultMixin):
+    """A design result with the scalar metrics a study tabulates.
+
+    Attributes
+    ----------
+    result : object
+        The verb's own result (``KalmanFilter``, ``InverseKalmanResult``, :class:`PlacementResult`, ...).
+    values : dict
+        Scalar metrics (``kappa2``, ``eta``, ``gain_norm``, ``max_real_pole``, ...).
+    status, message, verification
+        Those of ``result``.
+    """
+
+    result: Any
+    values: dict[str, Any]
+    status: Status
+    message: str
+    verification: Verification
+
+    def record(self) -> dict[str, Any]:
+        return {"status": Status(self.status).value, "success": self.success, **self.values}
+
+
+def _gain_values(plant: Plant, L: NDArray | None) -> dict[str, float]:
+    nan = float("nan")
+    if L is None or not np.all(np.isfinite(L)):
+        return {"kappa2": nan, "eta": nan, "gain_norm": nan, "max_real_pole": nan}
+    X = plant.A - L @ plant.C
+    m = _finite_metrics(X)
+    ev = np.linalg.eigvals(X)
+    return {"kappa2": m["kappa2"], "eta": m["eta"], "gain_norm": float(np.linalg.norm(L, 2)),
+            "max_real_pole": float(np.max(ev.real)), "max_abs_pole": float(np.max(np.abs(ev)))}
+
+
+# --------------------------------------------------------------------------- placement baseline
+
+
+@dataclass(frozen=True, eq=False)
+class PlacementResult(ResultMixin):
+    """Observer gain by robust pole placement (scipy ``place_poles`` on the dual), verified.
+
+    Attributes
+    ----------
+    L : (n, p) ndarray
+    poles : (n,) ndarray of complex
+        ``eig(A - L C)`` recomputed with numpy, sorted.
+    target : (n,) ndarray of complex
+    kappa2, eta, kappa_fro, gain_norm : float
+        Of ``A - L C`` (``optdesign.metrics``).
+    method : str
+        ``"YT"`` or ``"KNV0"``.
+    status : Status
+        ``SOLVED``, or ``SOLVER_ERROR`` when placement raised (``message`` says why).
+    message : str
+    solver_stats : SolverStats
+    verification : Verification
+        ``pole_error`` (relative, <= 1e-6).
+    """
+
+    L: NDArray[np.float64] | None
+    poles: NDArray[np.complex128] | None
+    target: NDArray[np.complex128]
+    kappa2: float
+    eta: float
+    kappa_fro: float
+    gain_norm: float
+    method: str
+    status: Status
+    message: str
+    solver_stats: SolverStats
+    verification: Verification
+
+    def record(self) -> dict[str, Any]:
+        return {"status": Status(self.status).value, "success": self.success, "kappa2": self.kappa2,
+                "eta": self.eta, "kappa_fro": self.kappa_fro, "gain_norm": self.gain_norm,
+                "pole_error": self.verification["pole_error"].value if "pole_error" in self.verification
+                else float("nan"),
+                "max_real_pole": float(np.max(self.poles.real)) if self.poles is not None else float("nan")}
+
+
+def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> PlacementResult:
+    """Robust pole placement (the baseline of seed 001-style designs), as a verified result.
+
+    Parameters
+    ----------
+    plant : Plant
+    poles : (n,) array_like of complex
+        Conjugate-closed target poles.
+    method : {"YT", "KNV0"}
+
+    Returns
+    -------
+    PlacementResult
+        A placement that scipy cannot perform (e.g. a pole repeated more than ``rank(C)``
+        times) gives ``status`` solver_error with the reason in ``message``.
+
+    Raises
+    ------
+    ValidationError
+        Bad method; ``plant`` not a Plant.
+    DimensionError, NotConjugateClosedError
+        Bad pole set.
+    NotObservableError
+        ``(C, A)`` not observable.
+    """
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    if method not in ("YT", "KNV0"):
+        raise ValidationError(f"method must be 'YT' or 'KNV0'; found {method!r}")
+    from ..classical.placement import place_observer
+
+    target = as_poles("poles", poles, plant.n)
+    plant.require_observable(what="pole placement")
+    t0 = time.perf_counter()
+    nan = float("nan")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            L = place_observer(plant, target, method=method)
+    except ValidationError as exc:
+        stats = SolverStats(backend="scipy", native_status="error", time=time.perf_counter() - t0)
+        return PlacementResult(None, None, target, nan, nan, nan, nan, method, Status.SOLVER_ERROR, str(exc),
+                               stats,
+                               Verification.of([Check.at_most("pole_error", math.inf, POLE_TOL, str(exc))]))
+    stats = SolverStats(backend="scipy", native_status="placed", time=time.perf_counter() - t0)
+    m, v = _verify_gain(plant, L, target=target)
+    return PlacementResult(L, m["poles"], target, m["kappa2"], m["eta"], m["kappa_fro"], m["gain_norm"],
+                           method,
+                           Status.SOLVED, f"scipy.signal.place_poles ({method}) on the dual pair", stats, v)
+
+
+# --------------------------------------------------------------------------- noise-ratio designer
+
+
+@dataclass(frozen=True)
+class KalmanNoiseDesigner:
+    """Steady-state Kalman filter with scaled noise covariances, for q/r studies.
+
+    A point ``(q, r)`` designs the filter of ``plant.replace(Q=q Q, R=r R)`` (missing axes: 1);
+    the gain depends on ``q/r`` only (seed 001 eq 29).  ``record()`` has ``kappa2`` and ``eta`` of
+    ``A - L C``, ``gain_norm``, ``max_real_pole`` and the Riccati ``residual``.
+
+    Parameters
+    ----------
+    problem : str, optional
+    plant : Plant, optional
+        Needs a noise model (``Q`` and ``R``).
+    method : {"scipy", "hamiltonian"}
+    """
+
+    problem: str | None = None
+    plant: Plant | None = None
+    method: str = "scipy"
+
+    AXES: ClassVar[dict[str, str]] = {"q": "process-noise multiplier", "r": "measurement-noise multiplier"}
+
+    def __post_init__(self) -> None:
+        if self.method not in ("scipy", "hamiltonian"):
+            raise ValidationError(f"method must be 'scipy' or 'hamiltonian'; found {self.method!r}")
+        _plant_of(self.problem, self.plant, "KalmanNoiseDesigner").require_noise_model()
+
+    def check_point(self, **point: Any) -> None:
+        """Validate a point without solving."""
+        for k, v in point.items():
+            if k not in self.AXES:
+                raise ValidationError(f"unknown parameter {k!r} in the point; a noise designer takes q, r")
+            as_positive_float(k, v)
+
+    def __call__(self, *, q: float = 1.0, r: float = 1.0) -> DesignPoint:
+        from ..design.kalman import kalman
+
+        plant = _plant_of(self.problem, self.plant, "KalmanNoiseDesigner")
+        plant.require_noise_model()
+        q = as_positive_float("q", q)
+        r = as_positive_float("r", r)
+        kf = kalman(plant.replace(Q=q * plant.Q, R=r * plant.R), method=self.method)
+        vals = _gain_values(plant, kf.L)
+        vals["residual"] = float(kf.residual)
+        vals["solver_time"] = float(kf.solver_stats.time)
+        return DesignPoint(kf, vals, kf.status, kf.message, kf.verification)
+
+
+# --------------------------------------------------------------------------- pole-target designer
+
+
+@dataclass(frozen=True)
+class PoleTargetDesigner:
+    """A verb with a target pole set ``scale * poles + shift``, for feasibility studies.
+
+    Parameters
+    ----------
+    problem : str, optional
+        Library problem (its ``targets["poles"]`` are the default poles).
+    plant : Plant, optional
+    poles : (n,) array_like of complex, optional
+        Target poles (default: the problem's).
+    method : {"inverse", "place", "well_conditioned"}
+        :func:`optdesign.design.inverse_kalman.kalman_for_poles` (which Q >= 0 gives these poles?),
+        :func:`place_baseline`, or :func:`~optdesign.design.well_conditioned.well_conditioned_observer`
+        with fixed poles.
+    inverse_method : str
+        ``method`` of ``kalman_for_poles`` (``"auto"``, ``"sdp"``, ``"nlp"``, ``"sequential"``).
+    objective : str, optional
+        ``objective`` of the verb (``kalman_for_poles``: ``"min_trace"``...; well-conditioned:
+        ``"kappa2"``...).
+    starts, seed : int
+        Well-conditioned multi-start; seed also for ``kalman_for_poles``.
+    """
+
+    problem: str | None = None
+    plant: Plant | None = None
+    poles: tuple[complex, ...] | None = None
+    method: str = "inverse"
+    inverse_method: str = "auto"
+    objective: str | None = None
+    starts: int = 2
+    seed: int = 0
+
+    AXES: ClassVar[dict[str, str]] = {"scale": "multiplies the target poles",
+                                      "shift": "added to the real parts of the target poles"}
+    METHODS: ClassVar[tuple[str, ...]] = ("inverse", "place", "well_conditioned")
+
+    def __post_init__(self) -> None:
+        if self.method not in self.METHODS:
+            raise ValidationError(f"method must be one of {', '.join(self.METHODS)}; found {self.method!r}")
+        if self.poles is not None:
+            object.__setattr__(self, "poles", tuple(complex(z) for z in np.asarray(self.poles).ravel()))
+        plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")
+        as_poles("poles", self.target(), plant.n)
+
+    def check_point(self, **point: Any) -> None:
+        """Validate a point without solving."""
+        for k in point:
+            if k not in self.AXES:
+                raise ValidationError(f"unknown parameter {k!r} in the point; a pole-target designer takes "
+                                      f"scale, shift")
+        self.target(**point)
+
+    def target(self, *, scale: float = 1.0, shift: float = 0.0) -> NDArray[np.complex128]:
+        """The target poles of a point."""
+        if self.poles is not None:
+            base = np.asarray(self.poles, dtype=complex)
+        else:
+            if self.problem is None:
+                raise ValidationError("PoleTargetDesigner needs poles (no problem to take them from)")
+            from .. import problems
+
+            prob = problems.load(self.problem)
+            if "poles" not in prob.targets:
+                raise ValidationError(f"problem {self.problem!r} has no target poles; give poles")
+            base = np.asarray(prob.targets["poles"], dtype=complex).ravel()
+        for name, v in (("scale", scale), ("shift", shift)):
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not math.isfinite(v):
+                raise ValidationError(f"{name} must be a finite number; found {v!r}")
+        return as_poles("poles", float(scale) * base + float(shift))
+
+    def __call__(self, *, scale: float = 1.0, shift: float = 0.0) -> DesignPoint:
+        plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")
+        target = self.target(scale=scale, shift=shift)
+        if self.method == "place":
+            res = place_baseline(plant, target)
+            vals = _gain_values(plant, res.L)
+            vals["pole_error"] = res.record()["pole_error"]
+        elif self.method == "inverse":
+            from ..design.inverse_kalman import kalman_for_poles
+
+            kw = {"objective": self.objective} if self.objective else {}
+            res = kalman_for_poles(plant, target, method=self.inverse_method, seed=self.seed, **kw)
+            vals = _gain_values(plant, res.L)
+            vals["pole_error"] = float(res.pole_error)
+            vals["trace_Q"] = float(np.trace(res.Q)) if res.Q is not None else float("nan")
+            vals["certificate"] = res.certificate.kind if res.certificate is not None else None
+            vals["solver_time"] = float(res.solver_stats.time)
+        else:
+            from ..design.well_conditioned import well_conditioned_observer
+
+            kw = {"objective": self.objective} if self.objective else {}
+            res = well_conditioned_observer(plant, poles=target, starts=self.starts, seed=self.seed, **kw)
+            vals = _gain_values(plant, res.L)
+            vals["solver_time"] = float(res.solver_stats.time)
+        return DesignPoint(res, vals, res.status, res.message, res.verification)
+
+
+#: study verbs (``design`` in a study spec) -> designer class and fixed keyword for it
+DESIGNERS: dict[str, tuple[type, dict[str, Any]]] = {
+    "well_conditioned": (RegionSweepDesigner, {}),
+    "kalman": (KalmanNoiseDesigner, {}),
+    "inverse": (PoleTargetDesigner, {"method": "inverse"}),
+    "place": (PoleTargetDesigner, {"method": "place"}),
+    "well_conditioned_poles": (PoleTargetDesigner, {"method": "well_conditioned"}),
+}

@@ -1,0 +1,370 @@
+"""The studies sub-commands: `optdesign design`, `optdesign study`, `optdesign reproduce`.
+
+Every user error (bad argument, bad spec file) is one line on stderr naming the field, exit code 2,
+no traceback.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optdesign import problems
+from optdesign.cli import main
+from optdesign.regions import Disk, HalfPlane, Sector
+from optdesign.studies.reproduce import PaperReproduction, ReproRow, paper_id, reproduce_all
+from optdesign.studies.spec import load_spec, parse_poles, parse_region
+
+
+def run(argv, capsys):
+    code = main(argv)
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def assert_one_line_error(code, err, match):
+    assert code == 2, err
+    assert err.startswith("optdesign: error: ")
+    assert err.count("\n") == 1, err
+    assert "Traceback" not in err
+    assert match in err, err
+
+
+# ------------------------------------------------------------------ design
+
+
+def test_design_inverse_json(capsys):
+    code, out, _ = run(["design", "chang_lee_1984_ex1", "--method", "inverse", "--json"], capsys)
+    d = json.loads(out)
+    assert code == 0 and d["success"] is True and d["method"] == "inverse"
+    np.testing.assert_allclose(np.ravel(d["L"]), [8.0, -6.0], atol=1e-7)  # seed 000, Example 1
+    Q = np.array(d["Q"])
+    assert np.min(np.linalg.eigvalsh(Q)) >= -1e-9 * max(1.0, np.abs(Q).max())
+    assert d["verification"]["pole_error"]["passed"] is True
+
+
+def test_design_place_and_kalman_text(capsys):
+    code, out, _ = run(["design", "pp_knv1985_ex1", "--method", "place", "--poles", "-1, -2, -3+1j, -3-1j"],
+                       capsys)
+    assert code == 0 and "status: solved" in out and "pole_error" in out
+    code, out, _ = run(["design", "pp_knv1985_ex1", "--method", "place", "--json"], capsys)
+    d = json.loads(out)
+    plant = problems.load("pp_knv1985_ex1").plant
+    poles = np.linalg.eigvals(plant.A - np.array(d["L"]) @ plant.C)
+    np.testing.assert_allclose(np.sort(poles.real), np.sort(problems.load("pp_knv1985_ex1").targets["poles"]),
+                               rtol=1e-6)
+    code, out, _ = run(["design", "compleib_he1", "--method", "kalman", "--riccati", "hamiltonian"], capsys)
+    assert code == 0 and "riccati_residual" in out and "kappa2 =" in out
+
+
+def test_design_well_conditioned_in_a_region(capsys):
+    code, out, _ = run(["design", "compleib_dis2", "--method", "well_conditioned", "--region",
+                        "halfplane:1 & sector:0.7", "--radius", "20", "--starts", "2", "--json"], capsys)
+    d = json.loads(out)
+    assert code == 0 and d["success"] is True
+    plant = problems.load("compleib_dis2").plant
+    poles = np.linalg.eigvals(plant.A - np.array(d["L"]) @ plant.C)  # recomputed here, not trusted
+    assert (HalfPlane(1.0) & Sector.from_damping(0.7) & Disk(0.0, 20.0)).contains(poles, tol=1e-6)
+    assert d["region"]["type"] == "Intersection"
+    assert d["kappa2"] >= 1.0
+
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["design", "compleib_dis2"], "the following arguments are required: --method"),
+        (["design", "compleib_dis2", "--method", "magic"], "argument --method: invalid choice: 'magic'"),
+        (["design", "no_such_problem", "--method", "kalman"], "no problem named 'no_such_problem'"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "circle:3"],
+         "--region: unknown shape 'circle'"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "sector:abc"],
+         "--region: 'abc' in 'sector:abc' is not a number"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "sector:1.2"],
+         "--region: 'sector:1.2': Sector.from_damping zeta must be in (0, 1)"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "disk:1,2,3"],
+         "--region: 'disk:1,2,3' has 3 number(s)"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "halfplane:5 & disk:1"],
+         "--region: the intersection"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "halfplane:1 &"],
+         "--region: empty member"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--zeta", "1.5"], "--zeta:"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--alpha", "fast"],
+         "argument --alpha: invalid float value: 'fast'"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--radius", "-2"],
+         "--radius must be a positive number"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--max-gain", "0"],
+         "--max-gain must be a positive number"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--starts", "0", "--alpha", "1"],
+         "--starts must be >= 1"),
+        (["design", "compleib_dis2", "--method", "well_conditioned"],
+         "needs --poles or a region (--region/--alpha/--zeta/--radius)"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--poles=-1,-2,-3", "--alpha", "1"],
+         "give either --poles (fixed poles) or a region"),
+        (["design", "compleib_dis2", "--method", "place", "--poles", "-1,-2,-3"],
+         "argument --poles: expected one argument"),  # argparse: write --poles=-1,-2,-3 (see the help)
+        (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2, x"], "--poles: 'x' is not a "
+                                                                                   "number"),
+        (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2"], "--poles"),
+        (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2+1j, -3"], "not closed under"),
+        (["design", "compleib_dis2", "--method", "place"], "problem 'compleib_dis2' has no target poles: "
+                                                           "give --poles"),
+        (["design", "compleib_dis2", "--method", "kalman", "--poles=-1,-2,-3"],
+         "--poles does not apply to --method kalman"),
+        (["design", "compleib_dis2", "--method", "place", "--alpha", "1", "--poles=-1,-2,-3"],
+         "--region/--alpha/--zeta/--radius does not apply to --method place"),
+        (["design", "compleib_dis2", "--method", "inverse", "--objective", "kappa2"],
+         "--objective: 'kappa2' is not an objective of --method inverse"),
+        (["design", "compleib_dis2", "--method", "kalman", "--max-gain", "3"],
+         "--max-gain does not apply to --method kalman"),
+        (["design", "jung_huh_ex1", "--method", "kalman"], "has no noise model"),
+        (["design", "jung_huh_ex1", "--method", "inverse", "--poles=-1,-2"], "has no measurement-noise"),
+    ],
+)
+def test_design_errors_are_one_line_exit_2(argv, match, capsys):
+    code, _, err = run(argv, capsys)
+    assert_one_line_error(code, err, match)
+
+
+def test_region_and_pole_syntax():
+    r = parse_region("halfplane:1.5 & sector:0.7 & disk:20 & strip:-30,0 & hstrip:9 & ellipse:-5,10,8")
+    assert r.contains([-2.0, -3 + 1j, -3 - 1j]) and not r.contains([-1.0])
+    assert parse_region("stable").contains([-1e-3]) and parse_region("disk:-1,0.5").contains([-1.2])
+    np.testing.assert_allclose(parse_poles("-1; -2, -3+1j, -3-1i"), [-1, -2, -3 + 1j, -3 - 1j])
+    assert parse_poles([-1, "-2+1j", "-2-1j"]).dtype == complex
+
+
+# ------------------------------------------------------------------ study
+
+GOOD_SPEC = """
+[study]
+name = "tiny"
+problem = "compleib_nn8"
+design = "well_conditioned"
+executor = "serial"
+chunksize = 2
+
+[fixed]
+radius = 10.0
+region = "hstrip:5"
+
+[grid]
+alpha = {start = 0.5, stop = 1.0, num = 2}
+zeta = [0.4, 0.8]
+
+[figure]
+x = "alpha"
+y = ["kappa2", "gain_norm"]
+series = "zeta"
+"""
+
+
+def test_study_runs_a_spec(tmp_path, capsys):
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(GOOD_SPEC)
+    code, out, err = run(["study", str(spec), "--no-progress"], capsys)
+    assert code == 0, err
+    assert "4 points, 4 successful" in out
+    rows = list(csv.DictReader((tmp_path / "tiny_results" / "tiny.csv").open()))
+    assert len(rows) == 4 and {r["zeta"] for r in rows} == {"0.4", "0.8"}
+    assert all(r["success"] == "True" for r in rows)
+    assert all(float(r["max_real_pole"]) <= -float(r["alpha"]) + 1e-6 for r in rows)
+    png = tmp_path / "tiny_results" / "tiny_kappa2_gain_norm.png"
+    assert png.stat().st_size > 10_000
+    data = json.loads((tmp_path / "tiny_results" / "tiny.json").read_text())
+    assert len(data["records"]) == 4 and data["meta"]["design"] == "well_conditioned"
+    # JSON summary, output folder overridden, another executor
+    code, out, _ = run(["study", str(spec), "--json", "--out", str(tmp_path / "o2"), "--executor", "threads",
+                        "--workers", "2", "--no-progress"], capsys)
+    summary = json.loads(out)
+    assert code == 0 and summary["points"] == 4 and summary["successful"] == 4
+    assert Path(summary["csv"]).parent == tmp_path / "o2"
+
+
+def test_study_spec_other_designs(tmp_path):
+    spec = tmp_path / "noise.toml"
+    spec.write_text("""
+[study]
+problem = "compleib_he1"
+design = "kalman"
+executor = "serial"
+[grid]
+q = {start = 0.01, stop = 100.0, num = 3, log = true}
+[figure]
+x = "q"
+y = "eta"
+logx = true
+""")
+    from optdesign.studies.spec import run_spec
+
+    res = run_spec(spec, progress=False)
+    assert res.table.n_success == 3 and res.table.column("q").tolist() == pytest.approx([0.01, 1.0, 100.0])
+    assert res.figures[0].name == "noise_eta.png"
+    spec2 = tmp_path / "target.toml"
+    spec2.write_text("""
+[study]
+problem = "chang_lee_1984_ex1"
+design = "inverse"
+executor = "serial"
+[grid]
+scale = [0.5, 1.0]
+shift = [0.0, 6.0]
+""")
+    t = run_spec(spec2, progress=False).table
+    # a target pole moved into the right half-plane is infeasible for every Kalman filter
+    assert [r["success"] for r in t] == [True, False, True, False]
+    assert {r["certificate"] for r in t if not r["success"]} == {"unstable_target"}
+
+
+BAD_SPECS = [
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = [1.0]\n[extra]\na = "
+     "1\n",
+     "tiny.toml: extra: unknown section"),
+    ("[grid]\nalpha = [1.0]\n", "tiny.toml: study: missing [study] section"),
+    ("[study]\ndesign = 'well_conditioned'\n[grid]\nalpha = [1.0]\n", "tiny.toml: study.problem: missing"),
+    ("[study]\nproblem = 'nope'\ndesign = 'well_conditioned'\n[grid]\nalpha = [1.0]\n",
+     "study.problem: no problem named 'nope'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'magic'\n[grid]\nalpha = [1.0]\n",
+     "study.design: must be one of well_conditioned"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\nexecutor = 'gpu'\n[grid]\nalpha = "
+     "[1.0]\n",
+     "study.executor: must be one of"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\nworkers = 0\n[grid]\nalpha = [1.0]\n",
+     "study.workers: must be an integer >= 1"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\nspeed = 3\n[grid]\nalpha = [1.0]\n",
+     "study.speed: unknown field"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\ncolour = 3\n[grid]\nalpha = "
+     "[1.0]\n",
+     "fixed.colour: unknown argument for design 'well_conditioned'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nregion = 'blob:1'\n[grid]\n"
+     "alpha = [1.0]\n", "fixed.region: unknown shape 'blob'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nobjective = 'speed'\n[grid]\n"
+     "alpha = [1.0]\n", "fixed.objective: objective must be one of"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n", "grid: missing or empty [grid]"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nq = [1.0]\n",
+     "grid.q: unknown axis for design 'well_conditioned'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = {start = 1, stop = "
+     "2, num = 'ten'}\n",
+     "grid.alpha.num: must be an integer >= 1; found 'ten'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = {start = 1, num = 3}\n",
+     "grid.alpha.stop: missing"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = []\n",
+     "grid.alpha: empty list of values"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nzeta = [0.5, 1.5]\n",
+     "grid.zeta: zeta (damping ratio) must be in (0, 1)"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nradius = 1.0\n[grid]\nalpha "
+     "= [5.0]\n",
+     "grid.alpha: the intersection"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = [1.0]\n[figure]\ny = "
+     "'speed'\n",
+     "figure.y: 'speed' is not a result column"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = [1.0]\n[figure]\nx = "
+     "'zeta'\n",
+     "figure.x: must be an axis of the grid"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = "
+     "[1.0]\n[figure]\nkind = 'pie'\n",
+     "figure.kind: must be 'line' or 'heatmap'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = "
+     "[1.0]\n[figure]\nfile = 'a.txt'\n",
+     "figure.file: must be a file name ending in .png"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[grid]\nalpha = [1.0, 2.0]\nzeta = "
+     "[0.3, 0.6]\n"
+     "[figure]\nx = 'alpha'\n", "figure.series: axis 'zeta' also varies"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'kalman'\n[grid]\nq = [1.0, -1.0]\n", "grid.q: q must be"),
+    ("[study]\nproblem = 'jung_huh_ex1'\ndesign = 'kalman'\n[grid]\nq = [1.0]\n", "study.problem: plant"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'inverse'\n[grid]\nscale = [1.0]\n",
+     "study.problem: problem 'compleib_nn8' has no target poles"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'inverse'\n[fixed]\nmethod = 'place'\n[grid]\nscale = "
+     "[1.0]\n",
+     "fixed.method: is set by design = 'inverse'"),
+    ("[study\nproblem = 1\n", "tiny.toml: invalid TOML"),
+]
+
+
+@pytest.mark.parametrize("text, match", BAD_SPECS)
+def test_bad_spec_files_give_one_line_naming_the_field(text, match, tmp_path, capsys):
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(text)
+    code, _, err = run(["study", str(spec)], capsys)
+    assert_one_line_error(code, err, match)
+
+
+def test_study_missing_file_and_bad_workers(tmp_path, capsys):
+    code, _, err = run(["study", str(tmp_path / "absent.toml")], capsys)
+    assert_one_line_error(code, err, "absent.toml: no such spec file")
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(GOOD_SPEC)
+    code, _, err = run(["study", str(spec), "--workers", "0"], capsys)
+    assert_one_line_error(code, err, "--workers must be >= 1")
+    code, _, err = run(["study", str(spec), "--executor", "cloud"], capsys)
+    assert_one_line_error(code, err, "argument --executor: invalid choice: 'cloud'")
+
+
+def test_example_spec_is_valid():
+    spec = load_spec(Path(__file__).resolve().parents[1] / "examples" / "study_alpha_sector.toml")
+    assert spec.design == "well_conditioned" and len(spec.points) >= 12 and spec.figures
+
+
+# ------------------------------------------------------------------ reproduce
+
+
+def _fake_paper(ok: bool):
+    mod = types.ModuleType("fake_paper")
+
+    def reproduce(outdir, *, quick=False):
+        if not ok:
+            raise RuntimeError("the fake paper\nbroke")
+        from optdesign.studies.reproduce import pyplot
+
+        plt = pyplot()
+        fig, ax = plt.subplots()
+        ax.plot([0, 1], [0, 1], label="y = x")
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
+        ax.legend()
+        path = Path(outdir) / "fake_fig.png"
+        fig.savefig(path)
+        rows = (ReproRow("ex 1", "K", "8, -6", "8, -6", True), ReproRow("ex 2", "Q | R", "1.5", "1.2", False,
+                                                                         "printed value is a typo"))
+        return PaperReproduction("000", "fake", rows, (path,))
+
+    mod.reproduce = reproduce
+    return mod
+
+
+def test_reproduce_reports_missing_and_failing_papers(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "optdesign.studies.paper000", _fake_paper(True))
+    monkeypatch.setitem(sys.modules, "optdesign.studies.paper001", _fake_paper(False))
+    monkeypatch.setitem(sys.modules, "optdesign.studies.paper004", None)  # import fails: "missing"
+    out = tmp_path / "repro"
+    code, text, err = run(["reproduce", "000", "seed001", "4", "--out", str(out), "--quick"], capsys)
+    assert code == 1 and "Traceback" not in err + text
+    assert "seed 001: failed: RuntimeError: the fake paper broke" in text
+    assert "seed 004: missing" in text
+    assert (out / "fake_fig.png").is_file()
+    md = (out / "summary.md").read_text()
+    assert "| 000 " in md and "**NO**" in md and "Q \\| R" in md and "[fake_fig.png](fake_fig.png)" in md
+    rows = list(csv.DictReader((out / "summary.csv").open()))
+    assert [(r["paper"], r["status"]) for r in rows] == [("000", "ok"), ("000", "ok"), ("001", "failed"),
+                                                         ("004", "missing")]
+    assert rows[1]["agrees"] == "no" and rows[1]["note"] == "printed value is a typo"
+
+
+def test_reproduce_all_writes_real_figures(tmp_path):
+    pytest.importorskip("optdesign.studies.paper002")
+    s = reproduce_all(tmp_path, papers=["002"], quick=True)
+    assert s.ok, s.overview()
+    assert s.figures and all(f.is_file() and f.stat().st_size > 10_000 for f in s.figures)
+    assert s.markdown.read_text().count("| ") > 10
+
+
+def test_reproduce_errors(capsys):
+    code, _, err = run(["reproduce", "007"], capsys)
+    assert_one_line_error(code, err, "unknown paper '007'; expected one of 000, 001, 002, 003, 004")
+    names = (1, "2", "003", "seed004", "paper000")
+    assert [paper_id(x) for x in names] == ["001", "002", "003", "004", "000"]

@@ -1,0 +1,326 @@
+"""Sweeps: grids, tables, failures recorded, executors (in-process, threads, processes, Dask) giving
+identical results, parameter re-use in the region designer, progress bar only on a terminal."""
+
+from __future__ import annotations
+
+import io
+import json
+import logging
+import math
+import os
+import sys
+import time
+
+import numpy as np
+import pytest
+from conftest import FULL
+
+from optdesign.errors import ProblemNotFoundError, ValidationError
+from optdesign.regions import Disk, HalfPlane, Sector
+from optdesign.results import Status
+from optdesign.studies import InlineExecutor, RegionSweepDesigner, SweepTable, grid, record_of, sweep
+from optdesign.studies.designers import clear_cache
+from optdesign.studies.sweep import default_chunksize
+
+# ------------------------------------------------------------------ module-level design functions
+# (picklable: process pools and Dask workers import them from this module or receive them by value)
+
+
+def square(a, b=0.0):
+    if a == 3:
+        raise ZeroDivisionError("a = 3 is\nnot allowed")
+    return {"status": "optimal", "success": a >= 0, "y": a * a + b}
+
+
+def slow_square(a):
+    time.sleep(0.25)
+    return {"status": "optimal", "success": True, "y": a * a}
+
+
+def sleepy(a):
+    time.sleep(30.0)
+    return {"status": "optimal", "success": True}
+
+
+def crash_on_two(a):
+    if a == 2:
+        os._exit(3)  # a worker process dying (e.g. a segfault in a native solver)
+    return {"status": "optimal", "success": True, "y": a}
+
+
+# a fast COMPleib plant (DIS2: n = 3, p = 2, unstable) for the region designer
+DESIGNER = RegionSweepDesigner(problem="compleib_dis2", radius=20.0)
+N_ALPHA, N_ZETA = (40, 25) if FULL else (3, 3)
+# zeta descending: along a chunk the sector widens (the region gets looser)
+POINTS = grid(alpha=np.linspace(0.5, 3.0, N_ALPHA), zeta=np.linspace(0.8, 0.3, N_ZETA))
+CHUNK = N_ZETA  # one chunk per alpha: warm starts run along zeta
+
+
+# ------------------------------------------------------------------ grid / records
+
+
+def test_grid_is_the_product_last_axis_fastest():
+    g = grid(alpha=np.array([1.0, 2.0]), zeta=(0.5, 0.6, 0.7), name="x")
+    assert len(g) == 6
+    assert g[0] == {"alpha": 1.0, "zeta": 0.5, "name": "x"} and g[1]["zeta"] == 0.6 and g[3]["alpha"] == 2.0
+    assert type(g[0]["alpha"]) is float  # numpy scalars become Python scalars
+    assert grid(a=range(3), b=(x for x in "pq")) == [{"a": i, "b": c} for i in range(3) for c in "pq"]
+
+
+@pytest.mark.parametrize("axes, match", [({}, "at least one axis"), ({"a": []}, "axis 'a' is empty")])
+def test_grid_errors(axes, match):
+    with pytest.raises(ValidationError, match=match):
+        grid(**axes)
+
+
+def test_record_of_uses_record_and_renames_solver_time():
+    class R:
+        status = Status.OPTIMAL
+        success = True
+
+        def record(self):
+            return {"kappa2": np.float64(2.5), "time": 0.1, "L": np.eye(2), "status": Status.OPTIMAL}
+
+    rec = record_of(R())
+    assert rec == {"kappa2": 2.5, "solver_time": 0.1, "status": "optimal", "success": True}
+    assert type(rec["kappa2"]) is float
+    assert record_of({"a": 1, "b": [1, 2]}) == {"a": 1}
+    assert record_of(3.0) == {"value": 3.0}
+
+
+# ------------------------------------------------------------------ sweep basics and failures
+
+
+def test_sweep_records_failures_without_crashing():
+    t = sweep(square, grid(a=[0, 1, 2, 3, -1]), executor="serial")
+    assert len(t) == 5 and t.inputs == ("a",)
+    assert t.column("y")[:3].tolist() == [0.0, 1.0, 4.0]
+    bad = t[3]
+    assert bad["success"] is False and bad["status"] == "error"
+    assert bad["error"].startswith("ZeroDivisionError: a = 3 is not allowed at test_sweep.py:")
+    assert "\n" not in bad["error"]
+    assert t[4]["success"] is False and t[4]["error"] is None  # ran, but did not succeed
+    assert [r["a"] for r in t.failures] == [3, -1] and t.n_success == 3
+    assert "5 points, 3 successful, 2 failed (1 with errors)" in t.summary()
+
+
+def test_sweep_accepts_axes_and_any_executor_object():
+    t = sweep(square, {"a": [1, 2], "b": [10.0]}, executor=InlineExecutor())
+    assert t.column("y").tolist() == [11.0, 14.0]
+    assert t.meta["executor"] == "InlineExecutor"
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"points": []}, "at least one point"),
+        ({"points": [1, 2]}, "point 0 must be a dict"),
+        ({"points": "a"}, "points must be a sequence"),
+        ({"design_fn": 3}, "design_fn must be callable"),
+        ({"chunksize": 0}, "chunksize must be an integer >= 1"),
+        ({"timeout": -1}, "timeout must be a positive number"),
+        ({"workers": 0}, "workers must be an integer >= 1"),
+        ({"executor": "gpu"}, "executor must be a concurrent.futures.Executor"),
+        ({"executor": object()}, "must have a submit"),
+        ({"design_fn": lambda a: a, "executor": "processes"}, "design_fn must be picklable"),
+    ],
+)
+def test_sweep_argument_errors(kwargs, match):
+    args = {"design_fn": square, "points": grid(a=[1]), "executor": "serial"}
+    args.update(kwargs)
+    with pytest.raises(ValidationError, match=match):
+        sweep(args.pop("design_fn"), args.pop("points"), **args)
+
+
+def test_inline_executor_refuses_after_shutdown():
+    ex = InlineExecutor()
+    assert ex.submit(pow, 2, 3).result() == 8
+    ex.shutdown()
+    with pytest.raises(RuntimeError, match="after shutdown"):
+        ex.submit(pow, 2, 3)
+
+
+def test_default_chunksize_depends_on_the_points_only():
+    assert [default_chunksize(n) for n in (1, 9, 16, 17, 100, 1000, 10**6)] == [1, 1, 1, 2, 7, 32, 32]
+
+
+def test_a_dying_worker_is_recorded_not_raised():
+    t = sweep(crash_on_two, grid(a=[0, 1, 2, 3]), executor="processes", workers=2, chunksize=1)
+    assert len(t) == 4
+    assert t[2]["success"] is False and "task failed in the executor" in t[2]["error"]
+    assert "BrokenProcessPool" in t[2]["error"]
+
+
+def test_timeout_records_unfinished_points_and_stops_the_pool():
+    t0 = time.perf_counter()
+    t = sweep(sleepy, grid(a=[1, 2]), executor="processes", workers=2, chunksize=1, timeout=2.0)
+    assert time.perf_counter() - t0 < 20.0  # the 30 s workers were terminated
+    assert all(not r["success"] and r["error"].startswith("timed out") for r in t)
+    assert t.meta["timed_out"] is True
+
+
+# ------------------------------------------------------------------ table I/O
+
+
+def test_table_csv_json_pivot_and_diff(tmp_path):
+    t = sweep(square, grid(a=[0, 1, 2], b=[0.5, 1.5]), executor="serial")
+    t.records[0]["kappa2"] = math.inf
+    back = SweepTable.from_csv(t.to_csv(tmp_path / "t.csv"), inputs=t.inputs)
+    assert back.diff(t, ignore=("time", "worker", "error")) == []
+    assert back.column("kappa2")[0] == math.inf
+    data = json.loads(t.to_json(tmp_path / "t.json"))
+    assert data["records"][0]["kappa2"] == "inf" and data["inputs"] == ["a", "b"]
+    xs, ys, Z = t.pivot("a", "b", "y")
+    assert xs.tolist() == [0, 1, 2] and ys.tolist() == [0.5, 1.5]
+    assert Z[1, 2] == 2 * 2 + 1.5
+    other = sweep(square, grid(a=[0, 1, 2], b=[0.5, 1.5]), executor="serial")
+    other.records[4]["y"] = 99.0
+    d = t.diff(other)
+    assert d == ["record 0 column 'kappa2': inf vs None", "record 4 column 'y': 4.5 vs 99.0"]
+    with pytest.raises(ValidationError, match="no column 'nope'"):
+        t.column("nope")
+
+
+# ------------------------------------------------------------------ progress bar
+
+
+def test_progress_bar_quiet_when_not_a_terminal(capsys):
+    t = sweep(slow_square, grid(a=range(6)), executor="serial", progress=True)  # ~1.5 s
+    assert len(t) == 6
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_bar_shown_on_a_terminal_after_a_second(monkeypatch):
+    pytest.importorskip("tqdm")
+
+    class FakeTTY(io.StringIO):
+        def isatty(self):
+            return True
+
+    fake = FakeTTY()
+    monkeypatch.setattr(sys, "stderr", fake)
+    sweep(slow_square, grid(a=range(2)), executor="serial", progress=True)  # 0.5 s: no bar
+    assert fake.getvalue() == ""
+    sweep(slow_square, grid(a=range(6)), executor="serial", progress=True)  # 1.5 s: a bar
+    assert "sweep" in fake.getvalue() and "pt" in fake.getvalue()
+
+
+# ------------------------------------------------------------------ region designer: re-use, verification
+
+
+def test_region_designer_reuses_its_nlp_and_verifies_every_point():
+    clear_cache()
+    session = DESIGNER.start_chunk()
+    first = session(alpha=1.0, zeta=0.5)
+    second = session(alpha=1.2, zeta=0.5)
+    assert first.success and second.success
+    assert first.solver_stats.extra["nlp_builds"] >= 1
+    assert second.solver_stats.extra["nlp_builds"] == 0  # re-solved with new parameter values
+    assert second.starts[0].origin == "warm start"
+    region = HalfPlane(1.2) & Sector.from_damping(0.5) & Disk(0.0, 20.0)
+    # independent check of the answer: poles of A - L C with numpy, inside the point's region
+    plant = DESIGNER._plant()
+    poles = np.linalg.eigvals(plant.A - second.L @ plant.C)
+    assert region.contains(poles, tol=1e-6)
+    assert np.max(poles.real) <= -1.2 + 1e-6
+    assert {"region_margin", "eig_residual", "kappa2_agreement"} <= {c.name for c in second.verification}
+    # rebuild mode: same algorithm, a fresh NLP for every point
+    rebuilt = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, reuse=False)(alpha=1.2, zeta=0.5)
+    assert rebuilt.solver_stats.extra["nlp_builds"] >= 1
+    assert rebuilt.success and rebuilt.kappa2 >= 1.0
+
+
+def test_region_designer_point_errors_are_recorded():
+    pts = [{"alpha": 1.0, "zeta": 1.5}, {"alpha": 25.0, "zeta": 0.5}, {"alpha": 1.0, "beta": 2.0}]
+    t = sweep(DESIGNER, pts, executor="serial")
+    assert [r["success"] for r in t] == [False, False, False]
+    assert "zeta (damping ratio) must be in (0, 1)" in t[0]["error"]
+    assert t[1]["error"].startswith("EmptyRegionError")  # Re s <= -25 and |s| <= 20: no pole fits
+    assert "unknown parameter 'beta'" in t[2]["error"]
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"objective": "trace"}, "objective must be one of"),
+        ({"zeta": 1.0}, r"zeta \(damping ratio\) must be in \(0, 1\)"),
+        ({"radius": -1.0}, "radius must be > 0"),
+        ({"kappa2_max": 0.5}, "kappa2_max must be >= 1"),
+        ({"starts": 0}, "starts must be an integer >= 1"),
+        ({"placement": "never"}, "placement must be 'always' or 'fallback'"),
+        ({"initial_gain": np.ones((2, 2))}, r"initial_gain must be a finite \(3, 2\) array"),
+        ({"problem": None}, "exactly one of problem"),
+    ],
+)
+def test_region_designer_construction_errors(kwargs, match):
+    args = {"problem": "compleib_dis2", "radius": 20.0}
+    args.update(kwargs)
+    with pytest.raises(ValidationError, match=match):
+        RegionSweepDesigner(**args)
+
+
+def test_region_designer_unknown_problem():
+    with pytest.raises(ProblemNotFoundError, match="no problem named 'no_such_problem'"):
+        RegionSweepDesigner(problem="no_such_problem")
+
+
+# ------------------------------------------------------------------ identical results on every executor
+
+
+@pytest.fixture(scope="module")
+def reference_table():
+    """The grid evaluated in-process (the reference for the other executors)."""
+    clear_cache()
+    return sweep(DESIGNER, POINTS, executor="serial", chunksize=CHUNK)
+
+
+def test_reference_sweep_succeeds_and_is_physically_sensible(reference_table):
+    t = reference_table
+    assert t.n_success == len(POINTS), [r["error"] or r["status"] for r in t.failures]
+    assert np.all(t.column("max_real_pole") <= -t.column("alpha") + 1e-6)
+    assert np.all(t.column("kappa2") >= 1.0 - 1e-12)
+    K = t.column("kappa2").reshape(N_ALPHA, N_ZETA)
+    # along a chunk the region gets looser and the previous design stays feasible: never worse
+    assert np.all(np.diff(K, axis=1) <= 1e-9 * K[:, 1:])
+    # DIS2 admits a normal A - LC (kappa2 = 1, with a complex pair) when the sector is wide and the
+    # decay small; a narrow sector with a fast decay forbids it (so the starts must include complex
+    # pole pairs for the sector to matter at all)
+    assert K[0, -1] == pytest.approx(1.0, abs=1e-6) and K[-1, 0] > 1.01
+
+
+@pytest.mark.parametrize("executor", ["processes", "threads"])
+def test_identical_results_on_local_pools(reference_table, executor):
+    t = sweep(DESIGNER, POINTS, executor=executor, workers=2, chunksize=CHUNK)
+    assert t.diff(reference_table) == []
+    if executor == "processes":
+        assert os.getpid() not in {r["worker"] for r in t}  # really ran in the pool's processes
+
+
+@pytest.fixture(scope="module")
+def dask_client():
+    """A 2-worker Dask LocalCluster for this module (started once, always shut down)."""
+    distributed = pytest.importorskip("distributed", reason="dask.distributed is part of the test extra")
+    cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                       dashboard_address=None, silence_logs=logging.ERROR)
+    client = distributed.Client(cluster, timeout=120)
+    try:
+        client.wait_for_workers(2, timeout=120)
+        yield client
+    finally:
+        client.close(timeout=30)
+        cluster.close(timeout=30)
+
+
+def test_identical_results_on_a_dask_local_cluster(reference_table, dask_client):
+    t = sweep(DESIGNER, POINTS, executor=dask_client.get_executor(pure=False), chunksize=CHUNK, timeout=600)
+    assert t.meta["executor"] == "dask"
+    assert t.diff(reference_table) == []
+    workers = {r["worker"] for r in t}
+    assert os.getpid() not in workers and None not in workers
+
+
+def test_dask_client_is_accepted_and_failures_come_back(dask_client):
+    pts = [{"alpha": 1.0, "zeta": 0.6}, {"alpha": 1.0, "zeta": 2.0}]
+    t = sweep(DESIGNER, pts, executor=dask_client, chunksize=1, timeout=600)
+    assert t[0]["success"] is True
+    assert t[1]["success"] is False and "zeta (damping ratio)" in t[1]["error"]
