@@ -283,6 +283,25 @@ BAD_SPECS = [
      "[1.0]\n",
      "fixed.method: is set by design = 'inverse'"),
     ("[study\nproblem = 1\n", "tiny.toml: invalid TOML"),
+    # field types are checked up front, not discovered as a failure at every point
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\ninitial_gain = 'x'\n[grid]\n"
+     "alpha = [1.0]\n", "fixed.initial_gain: initial_gain must be a finite (3, 2) array of numbers"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\ninitial_gain = [[1, 2], [3]]\n"
+     "[grid]\nalpha = [1.0]\n", "fixed.initial_gain: initial_gain must be a finite"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nwarm_start = 'yes'\n[grid]\n"
+     "alpha = [1.0]\n", "fixed.warm_start: warm_start must be true or false; found 'yes'"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nreuse = 'no'\n[grid]\n"
+     "alpha = [1.0]\n", "fixed.reuse: reuse must be true or false"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\noptions = {'ipopt.tol' = "
+     "[1]}\n[grid]\nalpha = [1.0]\n", "fixed.options: options: 'ipopt.tol' must map to a string or a number"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nradius = 10.0\n[grid]\n"
+     "alpha = [1.0]\nradius = [5.0, 20.0]\n", "grid.radius: is also given in [fixed]"),
+    ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\ninverse_method = 'magic'\n[grid]\n"
+     "scale = [1.0]\n", "fixed.inverse_method: inverse_method must be one of auto, sdp"),
+    ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\nstarts = 'x'\n[grid]\n"
+     "scale = [1.0]\n", "fixed.starts: starts must be an integer >= 1; found 'x'"),
+    ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\nobjective = 'kappa2'\n[grid]\n"
+     "scale = [1.0]\n", "fixed.objective: objective must be one of min_trace"),
 ]
 
 
@@ -368,3 +387,18 @@ def test_reproduce_errors(capsys):
     assert_one_line_error(code, err, "unknown paper '007'; expected one of 000, 001, 002, 003, 004")
     names = (1, "2", "003", "seed004", "paper000")
     assert [paper_id(x) for x in names] == ["001", "002", "003", "004", "000"]
+
+
+def test_reproduce_and_study_out_folder_errors_name_the_flag(tmp_path, capsys, monkeypatch):
+    afile = tmp_path / "afile"
+    afile.write_text("x")
+    code, _, err = run(["reproduce", "000", "--out", str(afile / "sub")], capsys)
+    assert_one_line_error(code, err, f"--out {afile / 'sub'}: cannot create the folder")
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(GOOD_SPEC)
+    code, _, err = run(["study", str(spec), "--out", str(afile)], capsys)
+    assert_one_line_error(code, err, f"--out {afile}: cannot create the folder")
+    # without matplotlib, reproduce says what to install instead of failing every paper
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    code, _, err = run(["reproduce", "000", "--out", str(tmp_path / "r")], capsys)
+    assert_one_line_error(code, err, "needs matplotlib: pip install 'optdesign[plot]'")

@@ -16,6 +16,7 @@ import pytest
 from conftest import FULL
 
 from optdesign.errors import ProblemNotFoundError, ValidationError
+from optdesign.results import Check, Verification
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.results import Status
 from optdesign.studies import InlineExecutor, RegionSweepDesigner, SweepTable, grid, record_of, sweep
@@ -82,8 +83,19 @@ def test_record_of_uses_record_and_renames_solver_time():
             return {"kappa2": np.float64(2.5), "time": 0.1, "L": np.eye(2), "status": Status.OPTIMAL}
 
     rec = record_of(R())
-    assert rec == {"kappa2": 2.5, "solver_time": 0.1, "status": "optimal", "success": True}
+    assert rec == {"kappa2": 2.5, "solver_time": 0.1, "status": "optimal", "success": True, "reason": None}
     assert type(rec["kappa2"]) is float
+    # an unsuccessful result says why, in one line: its first failed check, then its message
+    failed = Verification.of([Check.at_most("pole_error", 0.5, 1e-8, "poles"), Check.at_most("x", 0, 1)])
+
+    class Bad:
+        status = Status.ITERATION_LIMIT
+        success = False
+        verification = failed
+        message = "IPOPT stopped\n  after 3000 iterations"
+
+    why = record_of(Bad())["reason"]
+    assert why == "failed check pole_error = 0.5 (must be <= 1e-08); IPOPT stopped after 3000 iterations"
     assert record_of({"a": 1, "b": [1, 2]}) == {"a": 1}
     assert record_of(3.0) == {"value": 3.0}
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 from typing import Any
 
 import numpy as np
@@ -351,6 +352,8 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise CLIError(f"--workers must be >= 1; found {args.workers}")
     spec = load_spec(args.spec)
+    if args.out is not None:
+        _check_out_dir(args.out)
     res = run_spec(spec, executor=args.executor, workers=args.workers, progress=not args.no_progress,
                    output=args.out)
     t = res.table
@@ -366,11 +369,29 @@ def cmd_study(args: argparse.Namespace) -> int:
         errors = [r for r in t.records if r.get("error")]
         if errors:
             print(f"first error: {errors[0]['error']}")
+        failed = [r for r in t.records if not r.get("error") and not r.get("success")]
+        if failed:
+            at = ", ".join(f"{k} = {failed[0].get(k)}" for k in spec.axes)
+            print(f"first unsuccessful point ({at}): {failed[0].get('status')}: "
+                  f"{failed[0].get('reason') or 'no reason recorded'}")
         print(f"results: {res.csv}")
         print(f"         {res.json}")
         for f in res.figures:
             print(f"figure:  {f}")
     return 0 if t.n_success else 1
+
+
+def _check_out_dir(out: str) -> None:
+    """``--out``: the folder must exist or be creatable, and be writable (one-line error otherwise)."""
+    from pathlib import Path
+
+    path = Path(out)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CLIError(f"--out {out}: cannot create the folder ({exc.strerror or exc})") from None
+    if not path.is_dir() or not os.access(path, os.W_OK):
+        raise CLIError(f"--out {out}: not a writable folder")
 
 
 # --------------------------------------------------------------------------- reproduce
@@ -396,6 +417,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         papers = [paper_id(p) for p in args.papers] or None
     except ValidationError as exc:
         raise CLIError(str(exc)) from None
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise CLIError("reproduce writes figures and needs matplotlib: pip install 'optdesign[plot]'") from None
+    _check_out_dir(args.out)
     summary = reproduce_all(args.out, papers=papers, quick=args.quick)
     print(summary.overview())
     print(f"summary: {summary.markdown}")

@@ -366,17 +366,27 @@ class RegionSweepDesigner:
                                   f"{type(self.region).__name__}")
         if self.placement not in ("always", "fallback"):
             raise ValidationError(f"placement must be 'always' or 'fallback'; found {self.placement!r}")
-        for name in ("starts", "seed"):
-            v = getattr(self, name)
-            lo = 1 if name == "starts" else 0
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
-                raise ValidationError(f"{name} must be an integer >= {lo}; found {v!r}")
+        _check_int("starts", self.starts, 1)
+        _check_int("seed", self.seed, 0)
+        _check_bool("warm_start", self.warm_start)
+        _check_bool("reuse", self.reuse)
         self._check_values(self.defaults(), where="")
         if self.pole_scale is not None:
             as_positive_float("pole_scale", self.pole_scale)
+        if self.options is not None:
+            if not isinstance(self.options, Mapping):
+                raise ValidationError(f"options must be a mapping of IPOPT options; found "
+                                      f"{type(self.options).__name__}")
+            for k, v in self.options.items():
+                if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, (str, int, float)):
+                    raise ValidationError(f"options: {k!r} must map to a string or a number; found {v!r}")
         plant = _plant_of(self.problem, self.plant, "RegionSweepDesigner")
         if self.initial_gain is not None:
-            L0 = np.array(self.initial_gain, dtype=float)
+            try:
+                L0 = np.array(self.initial_gain, dtype=float)
+            except (TypeError, ValueError):
+                raise ValidationError(f"initial_gain must be a finite ({plant.n}, {plant.p}) array of numbers; "
+                                      f"found {self.initial_gain!r}") from None
             if L0.shape != (plant.n, plant.p) or not np.all(np.isfinite(L0)):
                 raise ValidationError(f"initial_gain must be a finite ({plant.n}, {plant.p}) array; found "
                                       "shape "
@@ -840,6 +850,15 @@ class KalmanNoiseDesigner:
 
 
 # --------------------------------------------------------------------------- pole-target designer
+def _check_int(name: str, v: Any, lo: int) -> None:
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
+        raise ValidationError(f"{name} must be an integer >= {lo}; found {v!r}")
+
+
+def _check_bool(name: str, v: Any) -> None:
+    if not isinstance(v, (bool, np.bool_)):
+        raise ValidationError(f"{name} must be true or false; found {v!r}")
+
 
 
 @dataclass(frozen=True)
@@ -864,6 +883,10 @@ class PoleTargetDesigner:
         ``"kappa2"``...).
     starts, seed : int
         Well-conditioned multi-start; seed also for ``kalman_for_poles``.
+    reuse : bool
+        ``method="inverse"``: re-use the fixed-gain SDP (cvxpy parameters) across the points of a
+        worker (default) or rebuild it for every point
+        (:func:`optdesign.design.inverse_kalman.sdp_reuse`).
     """
 
     problem: str | None = None
@@ -874,14 +897,30 @@ class PoleTargetDesigner:
     objective: str | None = None
     starts: int = 2
     seed: int = 0
+    reuse: bool = True
 
     AXES: ClassVar[dict[str, str]] = {"scale": "multiplies the target poles",
                                       "shift": "added to the real parts of the target poles"}
     METHODS: ClassVar[tuple[str, ...]] = ("inverse", "place", "well_conditioned")
 
     def __post_init__(self) -> None:
+        from ..design.inverse_kalman import METHODS as INVERSE_METHODS
+        from ..design.inverse_kalman import OBJECTIVES as INVERSE_OBJECTIVES
+        from ..formulate.well_conditioned import OBJECTIVES as WC_OBJECTIVES
+
         if self.method not in self.METHODS:
             raise ValidationError(f"method must be one of {', '.join(self.METHODS)}; found {self.method!r}")
+        if self.inverse_method not in INVERSE_METHODS:
+            raise ValidationError(f"inverse_method must be one of {', '.join(INVERSE_METHODS)}; found "
+                                  f"{self.inverse_method!r}")
+        if self.objective is not None:
+            allowed = {"inverse": INVERSE_OBJECTIVES, "well_conditioned": WC_OBJECTIVES}.get(self.method, ())
+            if self.objective not in allowed:
+                raise ValidationError(f"objective must be one of {', '.join(allowed) or '(none)'} for method "
+                                      f"{self.method!r}; found {self.objective!r}")
+        _check_int("starts", self.starts, 1)
+        _check_int("seed", self.seed, 0)
+        _check_bool("reuse", self.reuse)
         if self.poles is not None:
             object.__setattr__(self, "poles", tuple(complex(z) for z in np.asarray(self.poles).ravel()))
         plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")
@@ -924,8 +963,11 @@ class PoleTargetDesigner:
         elif self.method == "inverse":
             from ..design.inverse_kalman import kalman_for_poles
 
+            from ..design.inverse_kalman import sdp_reuse
+
             kw = {"objective": self.objective} if self.objective else {}
-            res = kalman_for_poles(plant, target, method=self.inverse_method, seed=self.seed, **kw)
+            with sdp_reuse(self.reuse):
+                res = kalman_for_poles(plant, target, method=self.inverse_method, seed=self.seed, **kw)
             vals = _gain_values(plant, res.L)
             vals["pole_error"] = float(res.pole_error)
             vals["trace_Q"] = float(np.trace(res.Q)) if res.Q is not None else float("nan")

@@ -241,6 +241,7 @@ def _figure_family(outdir: Path, fam, members, s1) -> Path:
     ax[0].plot(x, fam["q12"], ":", label="Q12 = -30 - P22")
     ax[0].set_xscale("log")
     ax[0].set_xlabel("P22 (free)")
+    ax[0].set_ylabel("entries of Q (trace, Q22, Q12)")
     ax[0].set_title("Example 1: the family of Q (L = [8, -6])")
     ax[1].plot(x, fam["lambda_min"], color="k")
     ax[1].axhline(0, color="0.6", lw=0.8)
@@ -272,8 +273,9 @@ def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int) -> Path:
             if pts.size == 0:
                 continue
             for j in range(pts.shape[1]):
-                ax.plot(pts[:, j].real, pts[:, j].imag, "-", color=f"C{k - 1}",
-                        label=f"step {k} ({res.steps[k - 1].kind})" if j == 0 else None)
+                # earlier steps drawn wider, so a later step along the same path leaves them visible
+                ax.plot(pts[:, j].real, pts[:, j].imag, "-", color=f"C{k - 1}", lw=max(1.2, 5.0 - 1.8 * (k - 1)),
+                        alpha=0.85, label=f"step {k} ({res.steps[k - 1].kind})" if j == 0 else None)
         eig = np.linalg.eigvals(plant.A)
         ax.plot(eig.real, eig.imag, "kx", ms=8, label="eig(A)")
         ax.plot(res.target.real, res.target.imag, "o", mfc="none", mec="r", ms=9, label="targets")

@@ -276,6 +276,8 @@ def _figures(outdir: Path, sims, printed) -> list[Path]:
             ax.set_title(title, fontsize=8)
             if row == 1:
                 ax.set_xlabel("t [s]")
+            if col == 0:
+                ax.set_ylabel(f"{key} noise: error, innovation")
             ax.legend(fontsize=7, loc="upper right")
     fig.suptitle("Seed 003: the generalized observer does not reject output noise from the state estimate; "
                  "an output-disturbance (noise-rejecting) observer does (same poles)", fontsize=9)

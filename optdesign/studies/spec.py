@@ -474,7 +474,7 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         if k not in axes_allowed:
             raise _err(source, f"grid.{k}", f"unknown axis for design {design!r}; expected one of "
                                             f"{', '.join(axes_allowed)}")
-        if k in constant_point:
+        if k in fixed:
             raise _err(source, f"grid.{k}", "is also given in [fixed]")
         axes[k] = _axis_values(source, k, v)
     for k, v in constant_point.items():
@@ -588,7 +588,13 @@ def _label(col: str, width: int = 34) -> str:
 def _title(text: str, note: str) -> str:
     import textwrap
 
-    return "\n".join(textwrap.wrap(text, 70) + ([note.strip()] if note else []))
+    # never break inside a parenthesized group such as "(|s| <= 10)": protect its spaces
+    depth, chars = 0, []
+    for c in text:
+        depth += (c == "(") - (c == ")")
+        chars.append("\u00a0" if c == " " and depth > 0 else c)
+    lines = [ln.replace("\u00a0", " ") for ln in textwrap.wrap("".join(chars), 70)]
+    return "\n".join(lines + ([note.strip()] if note else []))
 
 
 def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: str = "") -> Path:

@@ -112,6 +112,9 @@ _SCALAR = (int, float, bool, str, np.integer, np.floating, np.bool_)
 def record_of(result: Any) -> dict[str, Any]:
     """Flatten a design result into scalar columns (status, success, numeric and str fields).
 
+    An unsuccessful result gets a ``reason`` column (its first failed check and its message, one
+    line); it is None for successful ones.
+
     Uses ``result.record()`` when the result defines it; otherwise every scalar field of a
     dataclass (or mapping) is taken, plus ``success`` and ``status``.  A ``time`` entry of the
     result (solver time) is renamed ``solver_time``: the sweep's ``time`` column is the wall time
@@ -135,12 +138,25 @@ def record_of(result: Any) -> dict[str, Any]:
         if k not in flat and hasattr(result, k):
             v = getattr(result, k)
             flat[k] = getattr(v, "value", v)
+    if "reason" not in flat and "success" in flat:
+        flat["reason"] = None if flat["success"] else _reason(result)
     stats = out.get("solver_stats", getattr(result, "solver_stats", None))
     if "time" in flat:
         flat["solver_time"] = flat.pop("time")
     elif hasattr(stats, "time"):
         flat["solver_time"] = float(stats.time)
     return flat
+
+
+def _reason(result: Any) -> str:
+    """Why a result is not a success, in one line: its first failed check and its message."""
+    ver = getattr(result, "verification", None)
+    failed = list(getattr(ver, "failed", ()) or ())
+    head = ""
+    if failed:
+        c = failed[0]
+        head = f"failed check {c.name} = {c.value:.3g} (must be {c.sense} {c.tolerance:.3g}); "
+    return (head + " ".join(str(getattr(result, "message", "")).split()))[:300]
 
 
 def _one_line(exc: BaseException) -> str:
