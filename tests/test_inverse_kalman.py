@@ -8,9 +8,11 @@ on random feasible targets, and every error path.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
-from conftest import FULL, random_observable_plant
+from conftest import random_observable_plant
 
 from optdesign import (
     InverseKalmanResult,
@@ -39,6 +41,11 @@ from optdesign.formulate.inverse_kalman import (
     fixed_gain_maps,
     spectral_terms,
 )
+
+
+#: random targets of the cross-validation: the issue's 200 (about 55 s of CPU on the reference
+#: machine, 70 s wall under load -- within budget, so it is not reduced by default)
+CV_COUNT = 200
 
 
 def _ex1_plant():
@@ -145,10 +152,38 @@ def test_example2_every_method_reaches_minus8_minus5():
     assert pole_error(_are(plant, printed).poles, target) > 0.5
 
 
-def test_example2_sdp_needs_one_output():
+def _scipy_are_poles(plant, Q):
+    """Direct scipy ARE solve (not optdesign's filter_are): the gain and the filter poles."""
+    import scipy.linalg as sl
+
+    A, C, R = plant.A, plant.C, plant.R
+    if plant.dt is None:
+        P = sl.solve_continuous_are(A.T, C.T, Q, R)
+        L = P @ C.T @ np.linalg.inv(R)
+    else:
+        P = sl.solve_discrete_are(A.T, C.T, Q, R)
+        L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+    return L, np.linalg.eigvals(A - L @ C)
+
+
+@pytest.mark.parametrize("objective", ["min_trace", "feasibility"])
+def test_example2_sdp_with_two_outputs_reaches_minus8_minus5(objective):
+    """method='sdp' with p = 2: L from the NLP, Q from the fixed-gain SDP at that L (the
+    objective's optimum over the gain's family -- never worse than the NLP's own Q)."""
     prob = problems.load("chang_lee_1984_ex2")
-    with pytest.raises(ValidationError, match="single output"):
-        kalman_for_poles(prob.plant, prob.targets["poles"], method="sdp")
+    plant, target = prob.plant, prob.targets["poles"]
+    res = kalman_for_poles(plant, target, method="sdp", objective=objective)
+    assert res.method == "sdp" and res.status.is_solved and res.details["L_source"] == "the NLP"
+    _assert_valid(res, plant, target)
+    L, poles = _scipy_are_poles(plant, res.Q)
+    assert pole_error(poles, [-8.0, -5.0]) < 1e-8
+    np.testing.assert_allclose(L, res.L, rtol=1e-8, atol=1e-10)
+    nlp = kalman_for_poles(plant, target, method="nlp", objective=objective)
+    if objective == "min_trace":
+        assert res.objective_value <= nlp.objective_value * (1 + 1e-9)
+    else:
+        assert res.objective_value >= nlp.objective_value * (1 - 1e-9)
+    assert "fixed-gain SDP" in res.message and "from the NLP" in res.message
 
 
 # ---------------------------------------------------------- double integrator (issue 3)
@@ -188,6 +223,22 @@ def test_double_integrator_infeasible_target_has_a_certificate():
     assert "return-difference" in res.message
     with pytest.raises(Exception, match="return-difference"):
         res.raise_for_status()
+
+
+def test_double_integrator_infeasible_target_nlp_has_the_frequency_certificate_too():
+    """method='nlp' with one output: the poles fix L, so the return-difference certificate is
+    computed at that gain, as on the SDP path."""
+    prob = problems.load("double_integrator_poles_m0p2pm3j")
+    plant, target, ref = prob.plant, prob.targets["poles"], prob.references
+    res = kalman_for_poles(plant, target, method="nlp")
+    assert res.status == Status.INFEASIBLE and res.method == "nlp" and res.L is None
+    cert = res.certificate
+    assert cert.kind == "return_difference" and "return-difference" in cert.reason
+    assert cert.omega == pytest.approx(ref["worst_omega"], rel=1e-6)
+    assert cert.min_eigenvalue == pytest.approx(ref["return_difference_sq_min"] - 1.0, rel=1e-6)
+    assert cert.margin == pytest.approx(0.4**2 - 2 * 9.04, rel=1e-6)
+    assert cert.circle is not None and not cert.circle.passed
+    np.testing.assert_allclose(np.sort_complex(cert.closest_poles), [-1.6 - 1.6j, -1.6 + 1.6j], atol=1e-5)
 
 
 def test_unstable_target_is_infeasible_not_an_exception():
@@ -238,6 +289,60 @@ def test_is_kalman_optimal_discrete_uses_the_innovation_weighted_inequality():
     assert res.optimal and res.circle.passed and res.circle.V_source == "T(0)^-1 R"
 
 
+def test_is_kalman_optimal_accepts_gains_of_rank_deficient_Q():
+    """Kalman gains of rank-one Q (n 4..8, p 1..3, continuous and discrete) are boundary gains
+    (max smallest eigenvalue of the family = 0) where the margin SDP comes out slightly
+    negative (audit: -1.6e-6, -1.9e-6, -1.2e-7 with ||Q|| 5-11, for 3 of these 40): never
+    "not optimal" -- the polished certificate reproduces L."""
+    rng = np.random.default_rng(9)  # the audit's draws
+    seen = set()
+    for t in range(40):
+        n, p = int(rng.integers(4, 9)), int(rng.integers(1, 4))
+        dt = None if t % 2 == 0 else 0.1
+        plant = random_observable_plant(rng, n, p, dt=dt, noise=False)
+        plant = plant.replace(R=np.diag(rng.uniform(0.5, 2.0, p)))
+        g = rng.standard_normal((n, 1))
+        kf = filter_are(plant.replace(Q=g @ g.T))
+        res = is_kalman_optimal(plant, kf.L)
+        where = f"t={t} n={n} p={p} dt={dt}"
+        assert res.optimal and bool(res) and res.success, f"{where}: {res.message}"
+        assert res.certificate is None and res.margin >= -1e-8 * max(1.0, np.linalg.norm(res.Q, 2))
+        L, _ = _scipy_are_poles(plant, res.Q)
+        np.testing.assert_allclose(L, kf.L, rtol=1e-7, atol=1e-9 * np.linalg.norm(kf.L), err_msg=where)
+        assert np.linalg.eigvalsh(res.Q)[0] >= -1e-10 * np.linalg.norm(res.Q, 2)
+        seen.add((p, dt is None))
+    assert len(seen) == 6  # every p in 1..3, continuous and discrete
+
+
+def test_is_kalman_optimal_is_inconclusive_not_infeasible_without_a_certificate(monkeypatch):
+    """If no polished Q verifies while the return-difference inequality holds, the answer is
+    "inconclusive" (numerical_error), never a false "not optimal"; optimal needs verification."""
+    from optdesign.design import inverse_kalman as ik
+
+    rng = np.random.default_rng(4)
+    plant = random_observable_plant(rng, 4, 2, noise=False).replace(R=np.eye(2))
+    g = rng.standard_normal((4, 1))
+    kf = filter_are(plant.replace(Q=g @ g.T))
+    monkeypatch.setattr(ik, "_optimality_certificate", lambda *a, **k: None)
+    res = is_kalman_optimal(plant, kf.L)
+    assert res.status == Status.NUMERICAL_ERROR and not res.optimal and not res and not res.success
+    assert res.certificate is None and res.circle.passed
+    assert "inconclusive" in res.message and "return-difference inequality holds" in res.message
+    # a clearly non-optimal gain is still "not optimal" (no Q needed: its frequency certificate)
+    di = problems.load("double_integrator_poles_m1_m3").plant
+    no = is_kalman_optimal(di, [[0.4], [9.04]])
+    assert no.status == Status.INFEASIBLE and no.certificate.kind == "return_difference"
+    # bool() and optimal need the verification to pass
+    from optdesign.results import Check, Verification
+
+    monkeypatch.undo()
+    ok = is_kalman_optimal(di, [[4.0], [3.0]])
+    assert ok.optimal and bool(ok)
+    failing = Verification.of([Check.at_most("riccati_residual", 1.0, 1e-8, "a failed check")])
+    fake = dataclasses.replace(ok, verification=failing)
+    assert not fake.optimal and not bool(fake) and not fake.success
+
+
 def test_is_kalman_optimal_errors():
     di = problems.load("double_integrator_poles_m1_m3").plant
     with pytest.raises(DimensionError, match="L has the wrong shape"):
@@ -280,6 +385,67 @@ def test_spectral_identity_is_singular_at_the_filter_poles(rng, dt):
     G2 = np.linalg.solve((s2 * np.eye(4) - plant.A).T, plant.C.T.astype(complex)).T
     sv = np.linalg.svd(plant.R + G1 @ W @ G2.T, compute_uv=False)
     assert sv[-1] > 1e-6 * sv[0]
+
+
+@pytest.mark.parametrize("objective", ["min_trace", "feasibility", "nearest"])
+def test_parametric_sdp_rebound_equals_a_fresh_build(objective):
+    """One fixed-gain SDP re-bound to another gain (cvxpy parameters, DPP) solves the same
+    problem as one built for that gain; a solve of the re-bound problem leaves no stale values."""
+    from optdesign.solvers.cvxpy_backend import solve_cvxpy
+
+    rng = np.random.default_rng(7)
+    dt = None
+    plant = random_observable_plant(rng, 4, 1, dt=dt)
+    gains = [filter_are(plant.replace(Q=F @ F.T + 0.1 * np.eye(4))).L
+             for F in (rng.standard_normal((4, 4)) for _ in range(3))]
+    Qn = np.eye(4) if objective == "nearest" else None
+    reused = build_fixed_gain_sdp(plant.A, plant.C, gains[0], plant.R, dt=dt, objective=objective,
+                                  Q_nominal=Qn)
+    assert reused.problem.is_dpp()
+    for L in gains:
+        reused.set_gain(L, Qn)
+        assert reused.P.value is None
+        fresh = build_fixed_gain_sdp(plant.A, plant.C, L, plant.R, dt=dt, objective=objective, Q_nominal=Qn)
+        r1, r2 = solve_cvxpy(reused.problem), solve_cvxpy(fresh.problem)
+        assert r1.status.is_solved and r2.status.is_solved, (r1.message, r2.message)
+        assert reused.scale == pytest.approx(fresh.scale, rel=1e-15)
+        assert r1.objective == pytest.approx(r2.objective, rel=1e-6, abs=1e-9)
+        if objective == "nearest":  # strictly convex: one optimum (the others may have a face of them)
+            np.testing.assert_allclose(reused.scale * reused.Q.value, fresh.scale * fresh.Q.value,
+                                       atol=1e-6 * fresh.scale)
+        # the solution really belongs to this gain: relations (C) / (D) hold for it
+        gain_residual, q_of_P = fixed_gain_maps(plant.A, plant.C, L, plant.R, dt)
+        P = reused.scale * reused.P.value
+        assert np.linalg.norm(gain_residual(P)) <= 1e-6 * max(1.0, np.linalg.norm(L))
+    with pytest.raises(ValidationError, match=r"L must have shape \(4, 1\)"):
+        reused.set_gain(np.ones((4, 2)), Qn)
+    # discrete time: built for one gain, and says so when asked for another
+    dplant = random_observable_plant(rng, 3, 1, dt=0.1)
+    L = filter_are(dplant).L
+    dsdp = build_fixed_gain_sdp(dplant.A, dplant.C, L, dplant.R, dt=0.1, objective=objective, Q_nominal=Qn
+                                if Qn is None else np.eye(3))
+    dsdp.set_gain(L, None if Qn is None else 2 * np.eye(3))
+    with pytest.raises(ValidationError, match="built for one gain"):
+        dsdp.set_gain(L + 1.0, None if Qn is None else np.eye(3))
+
+
+def test_kalman_for_poles_reuses_its_sdp_and_agrees_with_rebuilding():
+    from optdesign.design import inverse_kalman as ik
+
+    plant = _ex1_plant()
+    targets = [np.array([-5.0, -8.0]) * s for s in (1.0, 1.5, 2.0)]
+    ik._SDP_CACHE.entries = None
+    reused = [kalman_for_poles(plant, t, method="sdp") for t in targets]
+    assert len(ik._SDP_CACHE.entries) >= 1  # built once for this plant and objective ...
+    n_entries = len(ik._SDP_CACHE.entries)
+    kalman_for_poles(plant, targets[0], method="sdp")
+    assert len(ik._SDP_CACHE.entries) == n_entries  # ... and found again
+    with ik.sdp_reuse(False):
+        rebuilt = [kalman_for_poles(plant, t, method="sdp") for t in targets]
+    assert ik._SDP_REUSE[0] is True
+    for a, b in zip(reused, rebuilt, strict=True):
+        assert a.success and b.success
+        np.testing.assert_allclose(a.Q, b.Q, rtol=1e-7, atol=1e-7)
 
 
 def test_formulations_build_without_solving():
@@ -326,18 +492,81 @@ def test_input_structure_reachable_and_diagonal_recovered(rng):
         np.testing.assert_allclose(np.diag(res.Qw), qw, rtol=1e-7)
 
 
-def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng):
+def _brute_force_closest(gplant, target, structure, rng):
+    """Reference closest pole error for a noise of G's structure, by a method of its own: a
+    dense log grid (one or two parameters) or a large random sample (the 3-parameter Qw of an
+    "input" structure with m = 2), then Nelder-Mead from the five best points."""
+    from scipy.optimize import linear_sum_assignment, minimize
+
+    G = np.asarray(gplant.G)
+    m = G.shape[1]
+    scale = np.maximum(1.0, np.abs(target))
+
+    def distance(poles):  # pole_error's definition, written out (the search's inner loop)
+        cost = np.abs(poles[:, None] - target[None, :]) / scale[None, :]
+        r, c = linear_sum_assignment(cost)
+        return float(np.max(cost[r, c]))
+
+    def W(x):
+        if structure == "diagonal":
+            return np.diag(np.exp(x))
+        F = np.zeros((m, m))
+        F[np.tril_indices(m)] = x
+        return F @ F.T
+
+    def f(x):
+        try:
+            _, poles = _scipy_are_poles(gplant, G @ W(x) @ G.T)
+        except (np.linalg.LinAlgError, ValueError):
+            return np.inf
+        return distance(poles) if np.all(poles.real < 0) else np.inf
+
+    if structure == "diagonal":
+        axis = np.linspace(np.log(1e-6), np.log(1e6), 241 if m == 1 else 41)
+        pts = [np.array(x) for x in (np.array(np.meshgrid(*[axis] * m)).reshape(m, -1).T)]
+    else:
+        k = m * (m + 1) // 2
+        pts = [rng.standard_normal(k) * np.exp(rng.uniform(-4.0, 4.0)) for _ in range(1200)]
+    vals = [f(x) for x in pts]
+    order = np.argsort(vals)[:5]
+    best = min(vals)
+    for i in order:
+        r = minimize(f, pts[i], method="Nelder-Mead",
+                     options={"xatol": 1e-10, "fatol": 1e-13, "maxfev": 2500})
+        best = min(best, r.fun)
+    return best
+
+
+@pytest.mark.parametrize("columns, structure", [(1, "diagonal"), (2, "diagonal"), (2, "input")])
+def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng, columns, structure):
+    """The closest achievable poles are really the closest: no worse than a brute-force search
+    of the noise parameters (audit: 0.742 / 0.204 / 0.204 reported against 0.730 / 0.127 /
+    0.048 before the pole-error search).  With two noise inputs the closest poles are real
+    although the target has a (nearly real) complex pair -- the pattern is not kept."""
     plant = random_observable_plant(rng, 3, 2, noise=False).replace(R=np.eye(2))
     target = filter_are(plant.replace(Q=np.eye(3) + 0.5)).poles  # full-rank Q
-    gplant = plant.replace(G=[[1.0], [0.0], [0.0]])               # noise in one state only
-    res = kalman_for_poles(gplant, target, structure="diagonal")
+    G = [[1.0], [0.0], [0.0]] if columns == 1 else [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]
+    gplant = plant.replace(G=G)                                   # no noise on the third state
+    res = kalman_for_poles(gplant, target, structure=structure)
     assert res.status == Status.INFEASIBLE and res.certificate.kind == "structure"
     cert = res.certificate
     assert cert.closest_pole_error > 1e-3 and np.all(np.isfinite(cert.closest_poles))
-    # the closest design is a real Kalman filter with noise through G only
+    # the closest design is a real Kalman filter with noise through G only, and the reported
+    # error is that of its poles
     are = _are(gplant, cert.closest_Q)
-    np.testing.assert_allclose(are.poles, np.sort_complex(cert.closest_poles), atol=1e-8)
-    assert "parameters" in cert.reason or "IPOPT" in cert.reason
+    np.testing.assert_allclose(np.sort_complex(are.poles), np.sort_complex(cert.closest_poles), atol=1e-8)
+    Gm = np.asarray(G)
+    np.testing.assert_allclose(Gm @ cert.closest_Qw @ Gm.T, cert.closest_Q, atol=1e-10)
+    assert cert.closest_pole_error == pytest.approx(pole_error(are.poles, target), rel=1e-8)
+    ref = _brute_force_closest(gplant, target, structure, np.random.default_rng(1))
+    assert cert.closest_pole_error <= ref * (1 + 1e-6) + 1e-9, (cert.closest_pole_error, ref)
+    if columns == 1:
+        assert "1 parameters for 3 pole conditions" in cert.reason
+    elif structure == "input":  # 3 parameters for 3 conditions: a square system, no spare freedom
+        assert "no spare degree of freedom" in cert.reason
+    else:
+        assert "2 parameters for 3 pole conditions" in cert.reason
+        assert np.all(np.abs(cert.closest_poles.imag) < 1e-12) and np.any(np.abs(target.imag) > 0)
 
 
 def test_single_output_structured_infeasible_uses_the_sdp():
@@ -356,88 +585,140 @@ def test_single_output_structured_infeasible_uses_the_sdp():
 
 
 # ------------------------------------------------------------- cross-validation
-def _feasible_target(rng, n, p, dt):
-    """A random plant and the poles of the Kalman filter of a random Q >= 0.
+#: the issue's pole accuracy: every method's Q must reproduce the poles to this (relative) ...
+CV_POLE_TOL = 1e-8
+#: ... and the SDP / NLP min-trace objectives must agree to this (measured: 1.8e-7 at worst)
+CV_OBJ_RTOL = 1e-6
 
-    Targets whose poles cannot even be computed to 1e-10 (the eigenvalue rounding floor of
-    A - L C, see ``_pole_tolerance``) are redrawn: no design can be checked to 1e-8 there.
-    """
+
+def _feasible_target(rng, n, p, dt, rank):
+    """A random plant and the poles of the Kalman filter of a random ``Q >= 0`` of the given
+    rank (rank-deficient Q: boundary targets, where the SDP margin is 0).  Returns
+    ``(plant, ARE result, redraws)``; a draw is redrawn only when the reference Riccati solve
+    itself fails (counted).  No target is filtered by its conditioning."""
+    redraws = 0
     while True:
         plant = random_observable_plant(rng, n, p, dt=dt, noise=False)
         plant = plant.replace(R=np.diag(rng.uniform(0.5, 2.0, p)))
-        F = rng.standard_normal((n, n)) / np.sqrt(n)
+        F = rng.standard_normal((n, rank)) / np.sqrt(rank)
         try:
             are = filter_are(plant.replace(Q=F @ F.T))
-        except RiccatiError:  # an ill-conditioned Riccati equation: not a fair reference
+        except RiccatiError:  # no reference to compare with (an unexcited unstable mode, ...)
+            redraws += 1
             continue
-        if _pole_tolerance(plant.A - are.L @ plant.C, 1e-12) <= 1e-10:
-            return plant, are
+        return plant, are, redraws
 
 
 def _cross_validate(rng, count):
-    """Every method that applies recovers a Q whose ARE reproduces the poles to 1e-8; they agree."""
-    stats = {"designs": 0, "solheim_applied": 0}
+    """Every method that applies recovers a Q whose (scipy) ARE reproduces the poles to 1e-8;
+    they agree.
+
+    The pole check is ``pole_error <= max(1e-8, floor)`` with ``floor`` the eigenvalue rounding
+    floor of ``A - L C`` (``_pole_tolerance``: ``10 eps kappa ||A - L C||``, capped at 1e-6) --
+    no pole can be computed more accurately than that; targets that need the raised floor are
+    kept and counted (``stats["floor_raised"]``), not redrawn.  With several outputs
+    ``method="sdp"`` is the NLP's gain plus the fixed-gain SDP at it: exactly the family check
+    made here (without running the NLP twice).
+    """
+    stats = {"designs": 0, "solheim_applied": 0, "solheim_applied_p>1": 0, "family_checked": 0,
+             "floor_raised": 0, "redraws": 0, "worst_pole_error": 0.0, "worst_pole_error_at_1e-8": 0.0,
+             "worst_obj_rel": 0.0, "rank_deficient": 0}
     for k in range(count):
-        n = 2 + k % 9
-        p = 1 if k % 2 == 0 else 2 + (k // 2) % 2
-        p = min(p, n)
-        dt = None if (k // 4) % 2 == 0 else 0.1
-        plant, are = _feasible_target(rng, n, p, dt)
-        target = are.poles
-        methods = ("sdp", "nlp") if p == 1 else ("nlp",)
-        res = {m: kalman_for_poles(plant, target, method=m) for m in methods}
-        for m, r in res.items():
-            assert r.success, f"{m} n={n} p={p} dt={dt}: {r.message}\n{r.verification.summary()}"
-            assert r.verification["are_resolve_poles"].value <= 1e-8
-            assert r.message
-            stats["designs"] += 1
-        if p == 1:  # the poles fix L; the min-trace members must coincide (a convex problem)
-            np.testing.assert_allclose(res["nlp"].L, res["sdp"].L, rtol=1e-6,
-                                       atol=1e-8 * np.linalg.norm(res["sdp"].L))
-            assert res["nlp"].objective_value == pytest.approx(res["sdp"].objective_value, rel=1e-5)
-            try:
-                seq = solheim(plant, target)
-            except (ValidationError, RiccatiError):  # a step without a real solution
-                seq = None
-            if seq is not None and seq.success:  # it applies when every step keeps Q >= 0
-                stats["solheim_applied"] += 1
-                np.testing.assert_allclose(seq.L, res["sdp"].L, rtol=1e-6, atol=1e-8 * np.linalg.norm(seq.L))
-                assert np.trace(seq.Q) >= res["sdp"].objective_value * (1 - 1e-7)
-        else:
-            # the NLP's gain is a Kalman gain (an SDP says so independently) ...
-            chk = is_kalman_optimal(plant, res["nlp"].L)
-            assert chk.optimal
-            # ... and its Q is the min-trace member of that gain's (convex) family: a local
-            # optimum of the NLP is the global optimum of the SDP at fixed L
-            P0, W0, rep, _ = _sdp_fixed_gain(plant, res["nlp"].L, plant.R, "full", "min_trace", None, None)
-            assert rep.status.is_solved
-            pol = _face_polish(plant.A, plant.C, res["nlp"].L, plant.R, dt, "full", None, P0, W0, 1e-9)
-            if pol is not None:  # a polished (exactly feasible) member never beats the NLP ...
-                stats["family_checked"] = stats.get("family_checked", 0) + 1
-                assert np.trace(pol[1]) >= res["nlp"].objective_value * (1 - 1e-6)
-                if rep.status == Status.OPTIMAL:  # ... and an accurate SDP optimum equals it
-                    assert np.trace(pol[1]) == pytest.approx(res["nlp"].objective_value, rel=1e-6)
-            else:  # an inaccurate SDP point may undercut, but only by its infeasibility
-                assert np.trace(W0) >= res["nlp"].objective_value * (1 - 1e-2)
+        _cross_validate_one(*_cv_target(rng, k), stats)
     return stats
+
+
+def _cv_target(rng, k):
+    """The k-th cross-validation target: ``(k, plant, ARE result, rank, redraws)``."""
+    n = 2 + k % 9
+    p = min(n, 1 if k % 2 == 0 else 2 + (k // 2) % 2)
+    dt = None if (k // 4) % 2 == 0 else 0.1
+    rank = (n, 1, max(1, n // 2))[(k // 9) % 3]
+    plant, are, redraws = _feasible_target(rng, n, p, dt, rank)
+    return k, plant, are, rank, redraws
+
+
+def _cross_validate_one(k, plant, are, rank, redraws, stats):
+    """Cross-validation of one target (see :func:`_cross_validate`); updates ``stats``."""
+    n, p, dt = plant.n, plant.p, plant.dt
+    stats["redraws"] += redraws
+    stats["rank_deficient"] += rank < n
+    target = are.poles
+    where = f"k={k} n={n} p={p} dt={dt} rank={rank}"
+    methods = ("sdp", "nlp") if p == 1 else ("nlp",)
+    res = {m: kalman_for_poles(plant, target, method=m) for m in methods}
+    for m, r in res.items():
+        assert r.success, f"{m} {where}: {r.message}\n{r.verification.summary()}"
+        assert r.message
+        L, poles = _scipy_are_poles(plant, r.Q)  # independent of optdesign's Riccati solvers
+        err = pole_error(poles, target)
+        floor = _pole_tolerance(plant.A - L @ plant.C, CV_POLE_TOL)
+        assert err <= floor, f"{m} {where}: pole error {err:.3g} > {floor:.3g}"
+        stats["worst_pole_error"] = max(stats["worst_pole_error"], err)
+        if floor > CV_POLE_TOL:
+            stats["floor_raised"] += 1
+        else:
+            stats["worst_pole_error_at_1e-8"] = max(stats["worst_pole_error_at_1e-8"], err)
+        stats["designs"] += 1
+    seq = None
+    try:
+        seq = solheim(plant, target)
+    except (ValidationError, RiccatiError):  # a step without a real solution
+        pass
+    seq_ok = seq is not None and seq.success  # it applies when every step keeps Q >= 0
+    if p == 1:  # the poles fix L; the min-trace members must coincide (a convex problem)
+        np.testing.assert_allclose(res["nlp"].L, res["sdp"].L, rtol=1e-6,
+                                   atol=1e-8 * np.linalg.norm(res["sdp"].L))
+        rel = abs(res["nlp"].objective_value - res["sdp"].objective_value) / res["sdp"].objective_value
+        stats["worst_obj_rel"] = max(stats["worst_obj_rel"], rel)
+        assert rel <= CV_OBJ_RTOL, where
+        if seq_ok:
+            stats["solheim_applied"] += 1
+            np.testing.assert_allclose(seq.L, res["sdp"].L, rtol=1e-6, atol=1e-8 * np.linalg.norm(seq.L))
+            assert np.trace(seq.Q) >= res["sdp"].objective_value * (1 - 1e-9)
+    else:
+        if seq_ok:  # another Kalman gain with these poles: the min-trace NLP must not do worse
+            stats["solheim_applied_p>1"] += 1
+            assert res["nlp"].objective_value <= np.trace(seq.Q) * (1 + 1e-9), where
+        # the NLP's gain is a Kalman gain (an SDP says so independently) ...
+        chk = is_kalman_optimal(plant, res["nlp"].L)
+        assert chk.optimal and chk.success, f"{where}: {chk.message}"
+        # ... and its Q is the min-trace member of that gain's (convex) family: a local
+        # optimum of the NLP is the global optimum of the SDP at fixed L
+        P0, W0, rep, _ = _sdp_fixed_gain(plant, res["nlp"].L, plant.R, "full", "min_trace", None, None)
+        assert rep.status.is_solved, where
+        pol = _face_polish(plant.A, plant.C, res["nlp"].L, plant.R, dt, "full", None, P0, W0, 1e-9)
+        # no allowance for an unpolished point: the SDP optimum must be reproduced exactly
+        assert pol is not None, f"{where}: the min-trace SDP point fits no face"
+        stats["family_checked"] += 1
+        tr = np.trace(pol[1])
+        rel = (tr - res["nlp"].objective_value) / res["nlp"].objective_value
+        # an exactly feasible member never beats the NLP's optimum ...
+        assert rel >= -CV_OBJ_RTOL, f"{where}: the SDP member undercuts the NLP by {-rel:.3g}"
+        if rep.status == Status.OPTIMAL:  # ... and an accurate SDP optimum equals it
+            stats["worst_obj_rel"] = max(stats["worst_obj_rel"], abs(rel))
+            assert abs(rel) <= CV_OBJ_RTOL, where
 
 
 @pytest.mark.filterwarnings("ignore:Solution may be inaccurate")
 def test_cross_validation_reduced(rng):
     stats = _cross_validate(rng, 18)
-    assert stats["designs"] >= 18
+    assert stats["designs"] >= 18 and stats["rank_deficient"] >= 9
 
 
 @pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:Solution may be inaccurate")
 def test_cross_validation_200_random_targets():
-    """The issue's 200 random feasible targets (n = 2..10, one and several outputs, continuous
-    and discrete); reduced to 40 unless OPTDESIGN_FULL=1."""
+    """The issue's 200 random feasible targets: n = 2..10, one to three outputs, continuous and
+    discrete, Q of full rank, rank one and rank n/2 (two thirds rank-deficient)."""
     rng = np.random.default_rng(3)
-    count = 200 if FULL else 40
+    count = CV_COUNT
     stats = _cross_validate(rng, count)
-    assert stats["solheim_applied"] > 0
-    assert stats.get("family_checked", 0) >= count // 4
+    assert stats["designs"] == count + count // 2       # sdp and nlp for p = 1, nlp for p > 1
+    assert stats["rank_deficient"] >= count // 2
+    assert stats["solheim_applied"] > 0 and stats["solheim_applied_p>1"] > 0
+    assert stats["family_checked"] == count // 2
+    assert stats["worst_pole_error_at_1e-8"] <= CV_POLE_TOL
 
 
 # ---------------------------------------------------------------------- error paths
@@ -467,6 +748,23 @@ def test_kalman_for_poles_error_paths():
         kalman_for_poles(Plant([[-1.0, 0.0], [0.0, -2.0]], [[1.0, 0.0]], R=[[1.0]]), [-3, -4])
     with pytest.raises(ValidationError, match="must be an optdesign.Plant"):
         kalman_for_poles(np.eye(2), [-1, -2])
+    for seed in ("x", -1, 1.5, True, None):
+        with pytest.raises(ValidationError, match=r"seed must be an integer >= 0; found"):
+            kalman_for_poles(plant, [-5, -8], seed=seed)
+
+
+@pytest.mark.parametrize("method", ["sdp", "auto"])
+def test_missing_sdp_solver_names_the_package(monkeypatch, method):
+    from optdesign.design import inverse_kalman as ik
+    from optdesign.errors import BackendUnavailableError
+    from optdesign.solvers import cvxpy_backend
+
+    monkeypatch.setattr(cvxpy_backend, "available_sdp_solvers", lambda: ())
+    monkeypatch.setattr(ik, "_SOLVERS_CACHE", [])
+    with pytest.raises(BackendUnavailableError, match="no SDP solver installed.*pip install clarabel"):
+        kalman_for_poles(_ex1_plant(), [-5, -8], method=method)
+    with pytest.raises(BackendUnavailableError, match="pip install clarabel"):
+        is_kalman_optimal(_ex1_plant(), [[8.0], [-6.0]])
 
 
 def test_sequential_method_not_applicable_is_a_failure_with_a_reason():

@@ -290,15 +290,30 @@ def _pair_invariants(Lam: NDArray, CM: NDArray, R: NDArray, Qt: NDArray,
     Discrete: the symplectic matrix of the dual DARE (``a = Lam'``, ``b = CM'``) has
     eigenvalues ``z1, z2, 1/z1, 1/z2``; return its trace and second elementary symmetric function.
     """
-    H = _H(np.eye(Lam.shape[0]), CM, R)
+    return _pair_invariants_H(Lam, _H(np.eye(Lam.shape[0]), CM, R), Qt, discrete)
+
+
+def _pair_invariants_H(Lam: NDArray, H: NDArray, Qt: NDArray, discrete: bool,
+                       aiT: NDArray | None = None) -> tuple[float, float]:
+    """:func:`_pair_invariants` with ``H = CM' R^-1 CM`` (and, discrete, ``Lam^-1``) given --
+    the inner loop of the orientation scan of :func:`_pair_diagonal`."""
+    Z = np.empty((4, 4))
     if not discrete:
-        Z = np.block([[-Lam.T, H], [Qt, Lam]])
-        return 0.5 * float(np.trace(Z @ Z)), float(np.linalg.det(Z))
-    a = Lam.T
-    aiT = np.linalg.inv(a).T
-    Z = np.block([[a + H @ aiT @ Qt, -H @ aiT], [-aiT @ Qt, aiT]])
+        Z[:2, :2] = -Lam.T
+        Z[:2, 2:] = H
+        Z[2:, :2] = Qt
+        Z[2:, 2:] = Lam
+        # tr(Z^2) / 2 = tr(Lam^2) + tr(H Q~)
+        return float(np.sum(Lam * Lam.T) + np.sum(H * Qt.T)), float(np.linalg.det(Z))
+    if aiT is None:
+        aiT = np.linalg.inv(Lam.T).T
+    HaiT = H @ aiT
+    Z[:2, :2] = Lam.T + HaiT @ Qt
+    Z[:2, 2:] = -HaiT
+    Z[2:, :2] = -aiT @ Qt
+    Z[2:, 2:] = aiT
     t1 = float(np.trace(Z))
-    return t1, 0.5 * (t1 ** 2 - float(np.trace(Z @ Z)))
+    return t1, 0.5 * (t1 ** 2 - float(np.sum(Z * Z.T)))
 
 
 def _target_invariants(mu: NDArray, discrete: bool) -> tuple[float, float]:
@@ -312,11 +327,12 @@ def _target_invariants(mu: NDArray, discrete: bool) -> tuple[float, float]:
     return float(np.real(e1)), float(np.real(e2))
 
 
-def _quadratic_roots(f, x0: float = 0.0, span: float = 1.0) -> NDArray[np.float64]:
-    """Real roots of the quadratic (or linear) function ``f`` (exact from three samples)."""
-    xs = np.array([x0 - span, x0, x0 + span])
-    ys = np.array([f(x) for x in xs])
-    c = np.polyfit(xs - x0, ys, 2)
+def _quadratic_roots(f, x0: float = 0.0, span: float = 1.0, polish: bool = True) -> NDArray[np.float64]:
+    """Real roots of the quadratic (or linear) function ``f`` (exact from three samples; with
+    ``polish``, refined by Newton steps on f itself)."""
+    y0, y1, y2 = f(x0 - span), f(x0), f(x0 + span)
+    # the interpolating quadratic of three equally spaced samples (what polyfit would return)
+    c = np.array([(y0 - 2.0 * y1 + y2) / (2.0 * span * span), (y2 - y0) / (2.0 * span), y1])
     scale = max(float(np.max(np.abs(c))), 1e-300)
     if abs(c[0]) <= 1e-13 * scale:
         if abs(c[1]) <= 1e-13 * scale:
@@ -324,6 +340,8 @@ def _quadratic_roots(f, x0: float = 0.0, span: float = 1.0) -> NDArray[np.float6
         return np.array([x0 - c[2] / c[1]])
     r = np.roots(c)
     r = r[np.abs(r.imag) <= 1e-9 * np.maximum(1.0, np.abs(r))].real + x0
+    if not polish:
+        return np.asarray(r, dtype=float)
     # one Newton polish on f itself (removes the sampling round-off)
     out = []
     for x in r:
@@ -493,17 +511,23 @@ def _pair_diagonal(st: _State, moved: tuple[complex, complex], target: tuple[com
             modes=moved_now)
     tgt = np.asarray(target, dtype=complex)
     I1, I2 = _target_invariants(tgt, disc)
-    base1, _ = _pair_invariants(Lam, CT, R, np.zeros((2, 2)), disc)
+    Hm = _H(np.eye(2), CT, R)
+    aiT = np.linalg.inv(Lam.T).T if disc else None
+
+    def inv(Qt):
+        return _pair_invariants_H(Lam, Hm, Qt, disc, aiT)
+
+    base1, _ = inv(np.zeros((2, 2)))
     span = max(1.0, float(np.max(np.abs(tgt))) ** 2)
 
-    def solutions(theta: float):
+    def solutions(theta: float, polish: bool = True):
         """Real (q1, q2) with Q~ = R_theta diag(q1, q2) R_theta' meeting both conditions."""
         c, s_ = np.cos(theta), np.sin(theta)
         Rt = np.array([[c, -s_], [s_, c]])
         E1, E2 = Rt @ np.diag([1.0, 0.0]) @ Rt.T, Rt @ np.diag([0.0, 1.0]) @ Rt.T
         # the first invariant is affine in (q1, q2): solve it for the one with the larger weight
-        g1 = _pair_invariants(Lam, CT, R, E1, disc)[0] - base1
-        g2 = _pair_invariants(Lam, CT, R, E2, disc)[0] - base1
+        g1 = inv(E1)[0] - base1
+        g2 = inv(E2)[0] - base1
         swap = abs(g2) < abs(g1)
         ga, gb = (g2, g1) if swap else (g1, g2)
         if gb == 0:
@@ -515,10 +539,10 @@ def _pair_diagonal(st: _State, moved: tuple[complex, complex], target: tuple[com
 
         def f(x):
             q1, q2 = qs(x)
-            return _pair_invariants(Lam, CT, R, q1 * E1 + q2 * E2, disc)[1] - I2
+            return inv(q1 * E1 + q2 * E2)[1] - I2
 
         out = []
-        for x in _quadratic_roots(f, 0.0, span):
+        for x in _quadratic_roots(f, 0.0, span, polish):
             q1, q2 = qs(x)
             Qt = q1 * E1 + q2 * E2
             out.append((min(q1, q2), float(np.trace(T @ Qt @ T.T)), theta, 0.5 * (Qt + Qt.T)))
@@ -529,8 +553,10 @@ def _pair_diagonal(st: _State, moved: tuple[complex, complex], target: tuple[com
     cands = solutions(0.0)
     psd = [c for c in cands if c[0] >= 0]
     if not psd:
+        # the scan compares unpolished roots (f is exactly quadratic: three samples fix it to
+        # rounding); the chosen orientation's roots are then polished
         for theta in np.linspace(0.0, np.pi, 181)[1:-1]:
-            cands += solutions(float(theta))
+            cands += solutions(float(theta), polish=False)
         psd = [c for c in cands if c[0] >= 0]
     if not cands:
         raise ValidationError(
@@ -539,6 +565,8 @@ def _pair_diagonal(st: _State, moved: tuple[complex, complex], target: tuple[com
             f"orientation); use optdesign.kalman_for_poles, which searches every Q >= 0")
     # PSD with the smallest trace of Q'_k; otherwise the least indefinite
     best = min(psd, key=lambda c: c[1]) if psd else max(cands, key=lambda c: c[0])
+    if best[2] != 0.0:  # from the scan: polish the chosen orientation's root
+        best = min(solutions(best[2]), key=lambda c: float(np.linalg.norm(c[3] - best[3])), default=best)
     _, _, theta, Qt = best
     Pt = _solve_modal_are(Lam, CT, R, Qt, disc)
     kind = "pair_diagonal" if theta == 0.0 else "pair_rotated"
