@@ -19,7 +19,7 @@ wall time; ratios ``optdesign / YT``.  Sets:
 3. the COMPleib plants of ``problems/compleib`` in region mode (poles free in ``Re s <= -alpha``,
    damping >= 0.5, ``|s| <= R``; ``alpha`` = 1.5 x the slowest open-loop decay): kappa2 of the
    design next to YT at the optimizer's poles and YT at a naive choice (the open-loop poles moved
-   into the region).
+   into the region: ``optdesign.design.well_conditioned.naive_poles``).
 
 Run: ``python benchmarks/bench_placement.py [--quick] [--skip-compleib]``; writes
 ``benchmarks/results/placement.md``.  Numbers, not pass/fail.
@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from optdesign import Plant, metrics, problems, well_conditioned_observer
+from optdesign.design.well_conditioned import naive_poles
 from optdesign.regions import Disk, HalfPlane, Sector
 
 HERE = Path(__file__).resolve().parent
@@ -97,7 +98,10 @@ def fmt(x, d=4):
 
 def bench_problem(name, plant, poles, starts):
     res = peers(plant, poles)
-    res["optdesign"] = _timed(lambda: well_conditioned_observer(plant, poles=poles, starts=starts))
+    # pole assignment as the peers do it: Byers 6 (a state-feedback benchmark) assigns unstable poles
+    res["optdesign"] = _timed(
+        lambda: well_conditioned_observer(plant, poles=poles, starts=starts, allow_unstable=True)
+    )
     rows = []
     ref = None
     for meth, (out, t, note) in res.items():
@@ -139,19 +143,6 @@ def compleib_region(plant):
     return HalfPlane(alpha) & Sector.from_damping(0.5) & Disk(0.0, 2.0 * max(rho, alpha))
 
 
-def naive_poles(plant, region):
-    """The open-loop poles moved into the region (projected, then nudged apart and inward)."""
-    w = np.linalg.eigvals(plant.A)
-    z = region.project(w)
-    x0 = region.interior_point()
-    z = z + 0.05 * (x0 - z)  # strictly inside
-    z = np.where(np.abs(z.imag) < 1e-9, z.real, z)
-    out = []
-    for k, v in enumerate(sorted(z, key=lambda v: (v.real, v.imag))):
-        out.append(v - 1e-3 * (k + 1) * abs(x0) if abs(v.imag) < 1e-9 else v)
-    return np.array(out)
-
-
 def yt_kappa(plant, poles):
     from scipy.signal import place_poles
 
@@ -170,6 +161,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-compleib", action="store_true")
     ap.add_argument("--sizes", default=None, help="comma-separated n for random plants")
     ap.add_argument("--out", default=str(HERE / "results" / "placement.md"))
+    ap.add_argument("--note", default="", help="a sentence added to the report header")
     args = ap.parse_args(argv)
     lines = [
         "# Well-conditioned pole placement vs scipy / python-control",
@@ -179,6 +171,10 @@ def main(argv=None) -> int:
         "(shared 2-core machine: times are indicative).  `ratio` = kappa2 / kappa2(scipy YT).",
         "",
     ]
+    if args.sizes:
+        lines += [f"Random plant sizes given on the command line: n = {args.sizes}.  {args.note}".rstrip(), ""]
+    elif args.note:
+        lines += [args.note, ""]
 
     # 1. benchmark problems
     lines += [
@@ -251,11 +247,12 @@ def main(argv=None) -> int:
             "mode's decay).  `YT @ opt poles`: scipy YT at the optimizer's poles; `YT @ naive`: scipy YT "
             "at the open-loop poles moved into the region.",
             "",
-            "| plant | n | p | alpha | kappa2 (optdesign) | YT @ opt poles | YT @ naive | ‖L‖ | max Re | "
-            "status | starts ok | time |",
-            "|---|---|---|---|---|---|---|---|---|---|---|---|",
+            "| plant | n | p | alpha | kappa2 (optdesign) | YT @ opt poles | YT @ naive | ratio to naive | "
+            "‖L‖ | max Re | status | starts ok | time |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         names = [n for n in problems.names() if n.startswith("compleib")]
+        n_verified, ratios, total_t = 0, [], 0.0
         for name in names:
             plant = problems.load(name).plant
             region = compleib_region(plant)
@@ -264,14 +261,30 @@ def main(argv=None) -> int:
             t = time.perf_counter() - t
             k_opt = yt_kappa(plant, d.poles) if plant.is_observable() and d.success else None
             k_naive = yt_kappa(plant, naive_poles(plant, region)) if plant.is_observable() else None
+            finite = bool(k_naive) and math.isfinite(k_naive)
+            ratio = d.kappa2 / k_naive if (d.verification.passed and finite) else None
+            n_verified += bool(d.verification.passed)
+            total_t += t
+            if ratio is not None:
+                ratios.append((ratio, name))
             alpha = region.members[0].alpha
             lines.append(
                 f"| {name} | {plant.n} | {plant.p} | {alpha:.3g} | {fmt(d.kappa2, 6)} | {fmt(k_opt, 6)} | "
-                f"{fmt(k_naive, 6)} | {fmt(d.gain_norm)} | {fmt(float(np.max(d.poles.real)))} | "
-                f"{d.status}{'' if d.success else ' (not verified)'} | {d.n_converged}/{len(d.starts)} | "
+                f"{fmt(k_naive, 6)} | {fmt(ratio)} | {fmt(d.gain_norm)} | "
+                f"{fmt(float(np.max(d.poles.real)))} | {d.status}"
+                f"{'' if d.verification.passed else ' (not verified)'} | {d.n_converged}/{len(d.starts)} | "
                 f"{t:.1f} |"
             )
             print(f"{name}: {d!r} ({t:.1f} s)", file=sys.stderr)
+        worst = max(ratios) if ratios else None
+        lines += [
+            "",
+            f"Verified designs: {n_verified} of {len(names)}; kappa2 / (YT @ naive) over the plants where "
+            f"YT at the naive poles is finite: median {np.median([r for r, _ in ratios]):.3g}, worst "
+            f"{worst[0]:.3g} ({worst[1]}); total time {total_t:.0f} s (starts=2)."
+            if ratios
+            else f"Verified designs: {n_verified} of {len(names)}.",
+        ]
         lines.append("")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -466,6 +466,24 @@ def test_sample_poles_in_thin_and_unbounded_regions():
     assert np.all(p.real >= -105.0 - 1e-9)
 
 
+def test_sample_poles_exact_real_count():
+    """n_real fixes the pattern; the default real_fraction = 0.5 rounds to all-real poles for n = 2, 3."""
+    region = HalfPlane(1.0) & Sector.from_damping(0.7) & Disk(0.0, 10.0)
+    for n in (2, 3):
+        assert np.all(region.sample_poles(n, rng=0).imag == 0)
+    for n in range(0, 9):
+        for n_real in range(n % 2, n + 1, 2):
+            p = region.sample_poles(n, rng=n_real, n_real=n_real)
+            assert int(np.sum(p.imag == 0)) == n_real and p.size == n
+            assert region.margin(p) < 0
+    # n_real overrides real_fraction
+    np.testing.assert_array_equal(region.sample_poles(4, rng=3, n_real=0, real_fraction=1.0),
+                                  region.sample_poles(4, rng=3, n_real=0))
+    for bad in (3, -2, 6, 1.0, True):
+        with pytest.raises(ValidationError, match=r"n_real must be an integer in \[0, 4\] with n - n_real"):
+            region.sample_poles(4, rng=0, n_real=bad)
+
+
 def test_stability_region():
     assert stability_region(False) == HalfPlane(0.0)
     assert stability_region(False, margin=0.5) == HalfPlane(0.5)

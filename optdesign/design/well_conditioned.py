@@ -4,10 +4,12 @@ r"""Well-conditioned observers and Kalman filters (seed 001, generalized to any 
 the error dynamics ``A - L C`` is as well conditioned as possible -- minimizing ``kappa2``
 (seed 001's principal index), ``kappa_fro`` or Huh & Stein's ``eta`` -- with the poles either
 
-* fixed (the job of ``scipy.signal.place_poles`` YT/KNV0, but minimizing kappa2 itself,
-  and accepting a pole repeated up to ``rank(C)`` times), or
+* fixed (the job of ``scipy.signal.place_poles`` YT/KNV0, but minimizing kappa2 itself; like
+  YT it accepts a pole repeated up to ``rank(C)`` times -- KNV0 takes real poles only -- and
+  above that it answers infeasible with a certificate, where YT raises), or
 * free inside a pole region (:mod:`optdesign.regions`; a discrete-time region when
-  ``plant.dt`` is set),
+  ``plant.dt`` is set; the region must lie in the closed stability region of the plant's
+  time domain),
 
 optionally with structural zeros in ``L``, a bound on ``||L||_2`` and a bound on the other
 metric (trade-off: minimize eta subject to ``kappa2 <= kappa2_max``, or the reverse).
@@ -55,16 +57,28 @@ from ..model.plant import Plant
 from ..model.regions import Region, stability_region
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
 
-__all__ = ["ObserverDesign", "StartRecord", "well_conditioned_observer", "well_conditioned_kalman"]
+__all__ = [
+    "ObserverDesign",
+    "StartRecord",
+    "well_conditioned_observer",
+    "well_conditioned_kalman",
+    "naive_poles",
+    "start_real_counts",
+    "start_real_count",
+]
 
 #: continuation stages of the free-pole NLP (the fixed-pole polish at its poles runs them all):
 #: on COMPleib AC6 stages 3 and 9 changed kappa2 by < 0.2 % at ~40 % of the time
 REGION_STAGES = (0, 6, 12)
 #: relative pole accuracy required of a fixed-pole design
 POLE_TOL = 1e-6
-#: relative agreement required between the solver's eigenbasis and numpy's kappa2
-#: (plus ``100 eps kappa2^2`` for the rounding of ill-conditioned eigenvectors)
-KAPPA_TOL = 1e-3
+#: relative eigen-residual ``||X Z - Z Lambda||_F / (||X||_F ||Z||_F)`` required of the solver's basis
+EIG_RESIDUAL_TOL = 1e-8
+#: relative agreement required between cond(solver's basis) and ``metrics.kappa2`` (numpy's
+#: eigenvectors): ``KAPPA_TOL + KAPPA_EPS_FACTOR * eps * kappa2``, capped at ``KAPPA_TOL_MAX``
+KAPPA_TOL = 1e-6
+KAPPA_EPS_FACTOR = 1e3
+KAPPA_TOL_MAX = 1e-2
 
 #: IPOPT settings of the design verbs (per stage; merged under the caller's ``options``).
 #: ``acceptable_obj_change_tol`` ends the long flat tails measured on scipy's 6x6 test case
@@ -143,7 +157,8 @@ class ObserverDesign(ResultMixin):
     solver_stats : SolverStats
         Totals over all starts; ``extra`` has ``starts``, ``converged``, ``best_start``.
     verification : Verification
-        ``pole_error`` or ``region_margin``, ``eig_residual``, ``kappa2_agreement``,
+        ``stability`` (max Re < 0, or spectral radius < 1), ``pole_error`` or ``region_margin``,
+        ``eig_residual``, ``kappa2_agreement``,
         ``mask``, ``gain_bound``, ``kappa2_bound``, ``eta_bound`` (when relevant), and for
         Kalman designs ``riccati_residual``, ``P_min_eig``, ``Q_min_eig``, ``gain_vs_riccati``.
     starts : tuple of StartRecord
@@ -283,8 +298,9 @@ def _evaluate(
     max_gain: float | None,
     kappa2_max: float | None,
     eta_max: float | None,
+    stable: bool = True,
 ) -> tuple[dict[str, Any], Verification]:
-    """Independent checks of one design (numpy/scipy only) and its metrics."""
+    """Independent checks of one design (numpy/scipy only) and its metrics (``stable``: require stability)."""
     L = cand.L
     checks: list[Check] = []
     if not np.all(np.isfinite(L)):
@@ -301,6 +317,8 @@ def _evaluate(
     X = plant.A - L @ plant.C
     poles = _sorted_poles(np.linalg.eigvals(X))
     scale = max(1.0, float(np.max(np.abs(poles))))
+    if stable:
+        checks.append(_stability_check(poles, plant.is_discrete))
     if target is not None:
         checks.append(
             Check.at_most(
@@ -324,29 +342,29 @@ def _evaluate(
     V = None
     if cand.Z is not None:
         Z, zp = cand.Z, cand.Zpoles
-        res = np.linalg.norm(X @ Z - Z * zp[None, :]) / max(np.linalg.norm(X), 1e-300)
+        res = np.linalg.norm(X @ Z - Z * zp[None, :]) / max(
+            np.linalg.norm(X) * np.linalg.norm(Z), 1e-300
+        )
         checks.append(
             Check.at_most(
                 "eig_residual",
                 res,
-                1e-7,
-                "||(A - LC) Z - Z diag(poles)||_F / ||A - LC||_F for the solver's basis",
+                EIG_RESIDUAL_TOL,
+                "||(A - LC) Z - Z diag(poles)||_F / (||A - LC||_F ||Z||_F) for the solver's basis",
             )
         )
         sv = np.linalg.svd(Z, compute_uv=False)
         kz = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
         if math.isfinite(k2):
-            # eigenvectors computed in floating point move by ~eps kappa2 each, so cond(V) by ~eps kappa2^2
-            tol = KAPPA_TOL + 100.0 * np.finfo(float).eps * k2 * k2
             checks.append(
                 Check.at_most(
                     "kappa2_agreement",
                     abs(kz - k2) / k2,
-                    tol,
-                    "solver basis cond vs metrics.kappa2 (relative)",
+                    kappa2_agreement_tol(k2),
+                    "cond(solver basis) vs metrics.kappa2 (numpy eigenvectors), relative",
                 )
             )
-        elif math.isfinite(kz) and res <= 1e-7:
+        elif math.isfinite(kz) and res <= EIG_RESIDUAL_TOL:
             # repeated pole: the basis is not unique; report the verified basis the solver found
             k2 = kz
             Zi = np.linalg.inv(Z)
@@ -372,6 +390,104 @@ def _evaluate(
     return out, Verification.of(checks)
 
 
+def kappa2_agreement_tol(kappa2: float) -> float:
+    """Relative tolerance of ``|cond(Z) - kappa2| / kappa2`` between two unit-column eigenbases.
+
+    Two exact unit-column eigenbases of a matrix with distinct eigenvalues differ by column
+    phases only, so their condition numbers are equal; the difference measured comes from
+    rounding (numpy's eigenvectors, the solver's tolerance), which grows like ``eps kappa2``.
+    The tolerance is ``KAPPA_TOL + KAPPA_EPS_FACTOR * eps * kappa2`` and never more than
+    ``KAPPA_TOL_MAX`` (1 %), whatever ``kappa2``.
+    """
+    eps = float(np.finfo(float).eps)
+    return float(min(KAPPA_TOL_MAX, KAPPA_TOL + KAPPA_EPS_FACTOR * eps * float(kappa2)))
+
+
+def _stability_check(poles: NDArray, discrete: bool) -> Check:
+    """Strict stability of the error dynamics: max Re < 0, or spectral radius < 1."""
+    if discrete:
+        rho = float(np.max(np.abs(poles))) if poles.size else 0.0
+        return Check.at_most(
+            "stability", rho, 1.0 - 1e-12, "spectral radius of A - LC < 1 (discrete time)"
+        )
+    mr = float(np.max(poles.real)) if poles.size else -1.0
+    tol = -1e-12 * max(1.0, float(np.max(np.abs(poles)))) if poles.size else 0.0
+    return Check.at_most("stability", mr, tol, "max Re eig(A - LC) < 0 (continuous time)")
+
+
+def _region_sup_modulus(region: Region) -> float:
+    """``max |z|`` over a bounded convex region (its boundary found along rays from an interior point)."""
+    x0 = region.interior_point()
+
+    def radii(thetas: NDArray) -> NDArray:
+        d = np.exp(1j * np.asarray(thetas, dtype=float))
+        hi = np.ones(d.shape)
+        for _ in range(2000):
+            inside = region.distance(x0 + hi * d) <= 0.0
+            if not inside.any():
+                break
+            hi = np.where(inside, 2.0 * hi, hi)
+        lo = np.zeros(d.shape)
+        for _ in range(60):  # bisection to ~1e-18 relative (below rounding)
+            mid = 0.5 * (lo + hi)
+            inside = region.distance(x0 + mid * d) <= 0.0
+            lo, hi = np.where(inside, mid, lo), np.where(inside, hi, mid)
+        return np.abs(x0 + hi * d)
+
+    thetas = np.linspace(0.0, math.pi, 361)  # the region is symmetric about the real axis
+    vals = radii(thetas)
+    k = int(np.argmax(vals))
+    a, b = float(thetas[max(k - 1, 0)]), float(thetas[min(k + 1, thetas.size - 1)])
+    best = float(vals[k])
+    g = 0.618033988749895
+    for _ in range(60):  # golden-section refinement of the best bracket
+        c, e = b - g * (b - a), a + g * (b - a)
+        rc, re_ = radii(np.array([c, e]))
+        best = max(best, float(rc), float(re_))
+        if rc >= re_:
+            b = e
+        else:
+            a = c
+    return best
+
+
+def _check_region_stable(region: Region, discrete: bool) -> None:
+    """A pole region must lie in the (closed) stability region of the plant's time domain.
+
+    Raises
+    ------
+    ValidationError
+        Naming how far the region reaches out (``sup Re s > 0``, or ``sup |z| > 1``).
+    """
+    if discrete:
+        sup = math.inf if not region.bounded else _region_sup_modulus(region)
+        if sup > 1.0 + 1e-9:
+            raise ValidationError(
+                f"the pole region {region!r} reaches |z| = {sup:.6g} > 1: the plant is discrete-time "
+                "(dt set) and poles there make the error dynamics unstable; use a region inside the unit "
+                "disk, e.g. region & Disk.unit(0.95)"
+            )
+        return
+    hi = float(region.real_interval()[1])
+    if hi > 0.0:
+        raise ValidationError(
+            f"the pole region {region!r} reaches Re s = {hi:.6g} > 0: the plant is continuous-time and "
+            "poles there make the error dynamics unstable (for a discrete-time design set plant.dt); "
+            "intersect the region with a stable half-plane, e.g. region & HalfPlane(alpha) with alpha > 0"
+        )
+
+
+def _check_target_stable(target: NDArray, discrete: bool) -> None:
+    bad = target[np.abs(target) >= 1.0] if discrete else target[target.real >= 0.0]
+    if bad.size:
+        what = "|z| < 1 (discrete time)" if discrete else "Re s < 0 (continuous time)"
+        raise ValidationError(
+            f"poles must give stable error dynamics, {what} (allow_unstable=True accepts them); "
+            "found unstable poles "
+            + ", ".join(f"{z.real:.6g}" if z.imag == 0 else f"{complex(z):.6g}" for z in bad)
+        )
+
+
 # --------------------------------------------------------------------------- solving
 
 
@@ -395,10 +511,19 @@ def _run_start(
             nlp.warm_start(last_good)
         rep = solve_opti(nlp.opti, options, configure=not nlp.solver_ready)
         nlp.solver_ready = True
-        L = nlp.gain(rep.value)
+        stage = type(nlp).__name__ + ("" if J is None else f" J={J}")
+        try:
+            L = nlp.gain(rep.value)
+        except RuntimeError as exc:  # CasADi cannot evaluate the iterate (e.g. after a failed restoration)
+            history.append(_solver_error_candidate(nlp.plant, rep, exc, stage))
+            if last_good is None and len(history) >= 2:
+                break
+            if last_good is None:
+                nlp.set_initial_gain(L0)
+            continue
         try:
             Z, zp = nlp.basis(rep.value)
-        except (ValueError, np.linalg.LinAlgError, FloatingPointError):
+        except (ValueError, np.linalg.LinAlgError, FloatingPointError, RuntimeError):
             Z, zp = None, None
         cand = _Candidate(
             L,
@@ -409,7 +534,7 @@ def _run_start(
             rep.message,
             int(rep.stats.iterations or 0),
             float(rep.stats.time),
-            stage=type(nlp).__name__ + ("" if J is None else f" J={J}"),
+            stage=stage,
         )
         history.append(cand)
         ok, _ = check(cand)
@@ -420,6 +545,30 @@ def _run_start(
                 break
             nlp.set_initial_gain(L0)  # retry the next stage from the same start
     return history
+
+
+def _solver_error_candidate(plant: Plant, rep, exc: Exception, stage: str) -> _Candidate:
+    """A failed candidate (NaN gain, status solver_error) for an iterate CasADi could not evaluate."""
+    first = str(exc).strip().splitlines()
+    why = first[-1] if first else repr(exc)
+    return _Candidate(
+        np.full((plant.n, plant.p), np.nan),
+        None,
+        None,
+        Status.SOLVER_ERROR,
+        rep.stats.native_status,
+        f"{rep.message}; the solution could not be evaluated ({type(exc).__name__}: {why[:200]})",
+        int(rep.stats.iterations or 0),
+        float(rep.stats.time),
+        stage=stage,
+    )
+
+
+def _rank_key(obj: float, v: Verification, c: _Candidate, idx: int = 0) -> tuple[int, float, int]:
+    """Verified and solved first, then verified (e.g. an iteration limit), then the rest; by objective."""
+    solved = Status(c.status).is_solved
+    rank = 0 if (v.passed and solved) else 1 if v.passed else 2
+    return (rank, obj if math.isfinite(obj) else float("inf"), idx)
 
 
 def _solve_starts(starts_list, runner, objective, evaluate):
@@ -436,7 +585,7 @@ def _solve_starts(starts_list, runner, objective, evaluate):
             scored.append((_metric_of(objective, m), m, v, c))
         ok = [x for x in scored if x[2].passed]
         pool = ok if ok else scored[-1:]
-        obj, m, v, cand = min(pool, key=lambda x: x[0] if math.isfinite(x[0]) else float("inf"))
+        obj, m, v, cand = min(pool, key=lambda x: _rank_key(x[0], x[2], x[3]))
         cand = _Candidate(
             cand.L, cand.Z, cand.Zpoles, cand.status, cand.native, cand.message, it, t, cand.stage
         )
@@ -460,14 +609,7 @@ def _solve_starts(starts_list, runner, objective, evaluate):
 
 
 def _pick(evaluated):
-    def key(e):
-        obj, idx, m, v, c = e
-        solved = Status(c.status).is_solved
-        rank = 0 if (v.passed and solved) else 1 if v.passed else 2
-        o = obj if math.isfinite(obj) else float("inf")
-        return (rank, o, idx)
-
-    return min(evaluated, key=key)
+    return min(evaluated, key=lambda e: _rank_key(e[0], e[3], e[4], e[1]))
 
 
 def _result_from(
@@ -559,6 +701,28 @@ def _infeasible(plant, objective, reason: str, certificate: dict, target=None, r
     )
 
 
+def _better_yt(plant: Plant, poles: NDArray, L0: NDArray, region: Region) -> NDArray:
+    """The better-conditioned of two YT runs (place_observer's tolerances and scipy's defaults).
+
+    YT's iterations do not decrease kappa2 monotonically: on COMPleib TG1 at the naive poles scipy's
+    defaults (rtol 1e-3, 30 sweeps) give kappa2 9.8e5, ``rtol=1e-6, maxiter=100`` 5.2e6.
+    """
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            L1 = place_observer(plant, poles, method="YT", rtol=1e-3, maxiter=30)
+    except (ValueError, np.linalg.LinAlgError):
+        return L0
+    if not np.all(np.isfinite(L1)):
+        return L0
+
+    def key(L):  # inside the region first, then kappa2
+        X = plant.A - L @ plant.C
+        return (not region.contains(np.linalg.eigvals(X)), metrics.kappa2(X))
+
+    return L1 if key(L1) < key(L0) else L0
+
+
 def _placement_start(plant: Plant, poles: NDArray, method: str) -> NDArray | None:
     try:
         with warnings.catch_warnings():
@@ -589,6 +753,7 @@ def well_conditioned_observer(
     solver: str = "ipopt",
     scaling: bool = True,
     options: dict[str, Any] | None = None,
+    allow_unstable: bool = False,
 ) -> ObserverDesign:
     """Observer gain whose error dynamics ``A - L C`` have a well-conditioned eigenbasis.
 
@@ -598,10 +763,14 @@ def well_conditioned_observer(
         ``A`` (n, n), ``C`` (p, n); continuous, or discrete when ``plant.dt`` is set.
     region : Region, optional
         Poles free inside this region (use a discrete-time region, e.g. ``Disk.unit(0.9)``,
-        when ``plant.dt`` is set).  Unbounded regions need ``max_gain`` or a bounded member
+        when ``plant.dt`` is set).  It must lie in the closed stability region of the plant's
+        time domain (``Re s <= 0``, or ``|z| <= 1``): a region reaching outside is rejected
+        (ValidationError), not silently intersected -- intersect it yourself, e.g.
+        ``region & HalfPlane(alpha)``.  Unbounded regions need ``max_gain`` or a bounded member
         (e.g. ``& Disk(0, R)``) when the metric keeps improving as poles move away.
     poles : (n,) array_like of complex, optional
-        Fixed poles (conjugate-closed; a pole may repeat up to ``rank(C)`` times).  Give
+        Fixed poles, stable (``Re < 0``, or ``|z| < 1`` when ``plant.dt`` is set;
+        conjugate-closed; a pole may repeat up to ``rank(C)`` times).  Give
         ``region`` or ``poles``, not both; with neither, the region is the stability region
         (``HalfPlane(0)`` or the unit disk).
     objective : {"kappa2", "kappa_fro", "eta"}
@@ -616,8 +785,12 @@ def well_conditioned_observer(
         ``kappa2 <= kappa2_max``): minimizing eta alone can make kappa2 much worse.
     starts : int, default 8
         Number of multi-start runs.  Fixed poles: scipy YT, KNV0 (real poles) and random
-        parametric eigenstructure assignments; region: robust placement at poles sampled in the
-        region (:meth:`Region.sample_poles`), with varied real/complex patterns.
+        parametric eigenstructure assignments.  Region: start 0 is scipy YT at
+        :func:`naive_poles` (the open-loop poles moved into the region), start 1 the Kalman
+        gain for ``Q = I, R = I``, the others YT at poles sampled in the region
+        (:meth:`Region.sample_poles`) with the real/complex patterns of :func:`start_real_counts`
+        (the ``j``-th sampled start takes ``start_real_count(n, j)``); Kalman gains replace
+        placements when the plant is unobservable.
     seed : int, default 0
         Seed of every random choice (reproducible).
     solver : {"ipopt"}
@@ -626,13 +799,20 @@ def well_conditioned_observer(
         unchanged.
     options : dict, optional
         IPOPT options (``"ipopt.max_iter"``, ...) merged over the defaults.
+    allow_unstable : bool, default False
+        Fixed poles only: accept unstable ``poles`` (pole-assignment benchmarks, e.g. Byers 6,
+        are state-feedback problems that assign unstable poles); the verification then does not
+        require stability.  An observer with unstable error dynamics is otherwise refused.
 
     Returns
     -------
     ObserverDesign
         ``success`` is True only when the best start was solved *and* passed verification
-        (poles recomputed with numpy against the target or the region, the solver's
-        eigenbasis against ``metrics.kappa2``, mask, gain and metric bounds).  Infeasible
+        (stability and the poles recomputed with numpy against the target or the region, the
+        solver's eigenbasis against ``metrics.kappa2``, mask, gain and metric bounds).  A
+        verified design whose solver stopped early (``iteration_limit``) is returned with that
+        status (so ``success`` is False) only when no solved and verified candidate exists;
+        a solver crash is recorded as a ``solver_error`` start with its reason.  Infeasible
         questions (a pole repeated more than ``rank(C)`` times; IPOPT infeasible from every
         start) come back with ``status`` infeasible and a ``certificate``.
 
@@ -640,7 +820,8 @@ def well_conditioned_observer(
     ------
     ValidationError
         Both or wrong ``poles``/``region``, unknown objective or solver, bad mask, bounds or
-        ``starts``.
+        ``starts``; unstable fixed poles (named; unless ``allow_unstable``); a region reaching
+        outside the stability region; ``allow_unstable`` with a region.
     NotObservableError
         ``(C, A)`` is not observable (names the unobservable modes).
     NotConjugateClosedError, DimensionError
@@ -653,11 +834,12 @@ def well_conditioned_observer(
     numpy.  The problem is non-convex: the best of ``starts`` local solutions is returned
     and ``starts`` holds every run.
 
-    Fixed poles use the reduced (left-eigenvector) NLP.  In a region each start runs (A) the
-    fixed-pole NLP at the sampled poles, (B) the free-pole NLP from the placement at those
-    poles, (C) the fixed-pole NLP at B's poles, from B's gain and from scipy's YT gain there;
-    every candidate is verified and the best is kept -- so the design is never worse than
-    robust placement at its own poles (from those starts).
+    Fixed poles use the reduced (left-eigenvector) NLP.  In a region each start contributes
+    (0) its own gain, unoptimized, (A) the fixed-pole NLP at the start's poles, (B) the
+    free-pole NLP from the start, (C) the fixed-pole NLP at B's poles, from B's gain and from
+    scipy's YT gain there; every candidate is verified and the best is kept -- so the design
+    is never worse than scipy YT at :func:`naive_poles` (start 0, whenever that placement is
+    verified) nor than robust placement at its own poles (from those starts).
 
     References
     ----------
@@ -688,6 +870,12 @@ def well_conditioned_observer(
             raise ValidationError(f"kappa2_max must be >= 1 (kappa2 >= 1 always); found {kappa2_max!r}")
     if region is not None and poles is not None:
         raise ValidationError("give either poles (fixed) or region (free poles), not both")
+    if not isinstance(allow_unstable, (bool, np.bool_)):
+        raise ValidationError(f"allow_unstable must be True or False; found {allow_unstable!r}")
+    if allow_unstable and poles is None:
+        raise ValidationError(
+            "allow_unstable applies to fixed poles only; a region must lie in the stability region"
+        )
     if region is not None and not isinstance(region, Region):
         raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
     if poles is not None:
@@ -698,6 +886,8 @@ def well_conditioned_observer(
 
     if poles is not None:
         target = as_poles("poles", poles, n)
+        if not allow_unstable:
+            _check_target_stable(target, plant.is_discrete)
         rank = int(np.linalg.matrix_rank(plant.C))
         vals, counts = np.unique(np.round(target, 10), return_counts=True)
         if counts.max() > rank:
@@ -757,6 +947,7 @@ def well_conditioned_observer(
                 max_gain=max_gain,
                 kappa2_max=kappa2_max,
                 eta_max=eta_max,
+                stable=not allow_unstable,
             )
 
         def check(c):
@@ -771,6 +962,7 @@ def well_conditioned_observer(
 
     if region is None:
         region = stability_region(plant.is_discrete)
+    _check_region_stable(region, plant.is_discrete)
     if not region.bounded and max_gain is None:
         raise ValidationError(
             f"the pole region {region!r} is unbounded and no max_gain was given: kappa2 and eta can keep "
@@ -842,10 +1034,16 @@ def well_conditioned_observer(
         return _run_start(nlp, L0, objective, opts, check)
 
     def runner(L0, st):
-        # (A) the best eigenbasis at the sampled poles, (B) free poles from there,
-        # (C) the best eigenbasis at B's poles -- each verified; the best is kept
+        # (0) the start's gain itself, (A) the best eigenbasis at the sampled poles, (B) free poles
+        # from there, (C) the best eigenbasis at B's poles -- each verified; the best is kept, so a
+        # design is never worse than its start (e.g. scipy YT at the naive poles)
         P0 = np.linalg.eigvals(plant.A - L0 @ plant.C)
-        hist = fixed_at(P0, L0) if observable and region.contains(P0) else []
+        raw = _Candidate(
+            np.asarray(L0, dtype=float), None, None, Status.SOLVED, "direct",
+            "the start's gain itself (not improved by IPOPT)", 0, 0.0, stage="start gain",
+        )
+        hist = [raw]
+        hist += fixed_at(P0, L0) if observable and region.contains(P0) else []
         if st not in region_cache:
             region_cache[st] = build_observer_nlp(plant, st, fixed_poles=False, region=region, **kw)
         # the free-pole NLP from the start itself, with the whole continuation: measured on COMPleib
@@ -914,27 +1112,182 @@ def _riccati_start(plant: Plant, rng: np.random.Generator, k: int) -> NDArray:
         return np.zeros((n, p))
 
 
+def start_real_counts(n: int) -> tuple[int, ...]:
+    """Numbers of real poles of the sampled region starts, in the order they are used.
+
+    The achievable counts are ``n, n - 2, ..., n mod 2``; they are cycled through as ``n - 2``
+    (one complex pair), ``n`` (all real), ``n mod 2`` (as many pairs as possible), then the
+    others nearest ``n / 2`` first -- so that for ``n = 2, 3`` the first two sampled starts have
+    different patterns (measured on seed 001's aircraft, n = 3: the best design has a complex
+    pair, which an all-real start misses).
+
+    Parameters
+    ----------
+    n : int
+        Plant order, ``>= 0``.
+
+    Returns
+    -------
+    tuple of int
+        Distinct counts; pass the ``k``-th (cyclically) to ``Region.sample_poles(n, rng, n_real=...)``.
+
+    Raises
+    ------
+    ValidationError
+        ``n`` not a nonnegative integer.
+
+    Examples
+    --------
+    >>> start_real_counts(3), start_real_counts(6)
+    ((1, 3), (4, 6, 0, 2))
+    """
+    n = _check_int("n", n, 0)
+    counts = list(range(n, -1, -2))
+    order: list[int] = []
+    for c in [n - 2, n, n % 2] + sorted(counts, key=lambda c: (abs(c - n / 2), c)):
+        if c in counts and c not in order:
+            order.append(c)
+    return tuple(order)
+
+
+def start_real_count(n: int, k: int) -> int:
+    """The real-pole count of the ``k``-th sampled region start (``start_real_counts(n)`` cycled).
+
+    Examples
+    --------
+    >>> [start_real_count(2, k) for k in range(3)]
+    [0, 2, 0]
+    """
+    k = _check_int("k", k, 0)
+    counts = start_real_counts(n)
+    return counts[k % len(counts)]
+
+
+def naive_poles(plant: Plant, region: Region) -> NDArray[np.complex128]:
+    """A simple pole choice in a region: the open-loop poles moved into it.
+
+    The reference point of region-mode designs (the design is never worse than scipy's YT
+    placement at these poles, see :func:`well_conditioned_observer`).  Each eigenvalue of
+    ``A`` is projected onto the region (:meth:`Region.project`) and moved 5 % of the way to
+    the region's interior point ``x0`` (strictly inside, by convexity); poles within 1e-9 of
+    the real axis are made real and the ``k``-th real pole (ascending, ``k = 0, 1, ...``) is
+    shifted by ``-1e-3 (k + 1) |x0|`` when it stays inside.  Poles that still coincide (or
+    are closer than ``1e-3`` times the region's inner radius) are moved further toward ``x0``
+    until they are apart -- a pole repeated more than ``rank(C)`` times cannot be assigned
+    with a diagonalizable ``A - LC``.
+
+    Parameters
+    ----------
+    plant : Plant
+        Uses ``A`` (n, n).
+    region : Region
+        The pole region (nonempty interior).
+
+    Returns
+    -------
+    (n,) ndarray of complex
+        Conjugate-closed, distinct poles strictly inside ``region``; real poles first (ascending),
+        then pairs ``z, conj(z)`` with ``Im z > 0``.
+
+    Raises
+    ------
+    ValidationError
+        ``plant`` is not a Plant or ``region`` not a Region.
+
+    References
+    ----------
+    ``benchmarks/bench_placement.py`` (COMPleib region mode, "YT @ naive").
+    """
+    plant = _check_plant(plant)
+    if not isinstance(region, Region):
+        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    w = np.linalg.eigvals(plant.A)
+    x0 = float(region.interior_point())
+    rho = max(-float(region.distance([x0])[0]), 1e-300)  # a disk of radius rho around x0 is inside
+    tau = 1e-3 * rho  # clearance from the boundary
+    sep = 1e-4 * rho  # minimum distance between two poles
+
+    def inside(c: complex) -> bool:
+        return bool(region.distance([c])[0] < -tau)
+
+    z = region.project(w)
+    z = z + 0.05 * (x0 - z)
+    z = np.where(np.abs(z.imag) < 1e-9, z.real + 0j, z)
+    reals: list[complex] = []
+    uppers: list[complex] = []
+    for k, v in enumerate(sorted(z, key=lambda v: (v.real, v.imag))):
+        if v.imag == 0:
+            shifted = complex(v.real - 1e-3 * (k + 1) * abs(x0))
+            reals.append(shifted if inside(shifted) else complex(v.real))
+        elif v.imag > 0:  # one member per pair (the projection keeps conjugate symmetry)
+            uppers.append(complex(v))
+
+    def spread(poles: list[complex], step: complex) -> list[complex]:
+        """Move poles that (nearly) coincide with an earlier one toward x0 until they are apart."""
+        out: list[complex] = []
+        for v in poles:
+            c = v
+            for m in range(1, 1000):
+                if inside(c) and all(abs(c - a) > sep for a in out):
+                    break
+                if abs(v - x0) > 20 * sep:
+                    c = v + min(0.05 + 0.01 * m, 0.95) * (x0 - v)
+                else:  # next to x0: step inside the disk of radius rho around it
+                    c = v + ((m + 1) // 2) * sep * step * (1 if m % 2 else -1)
+            out.append(c)
+        return out
+
+    re = sorted(c.real for c in spread(reals, 1.0))
+    cp = sorted(spread(uppers, 1j), key=lambda c: (c.real, c.imag))
+    cp = [c if c.imag > 0 else complex(c.real, sep) for c in cp]
+    res = np.empty(len(re) + 2 * len(cp), dtype=complex)
+    res[: len(re)] = re
+    res[len(re) :: 2] = cp
+    res[len(re) + 1 :: 2] = np.conj(cp)
+    return res
+
+
 def _region_starts(plant, region, starts, rng, mask):
+    """Start 0: scipy YT at :func:`naive_poles`; start 1: the Kalman gain for ``Q = I, R = I``;
+    then YT at poles sampled in the region (real/complex patterns of :func:`start_real_counts`).
+
+    Measured on COMPleib (region of ``benchmarks/bench_placement.py``): AC7 ends at kappa2 22.8
+    from the Kalman start, at 3e6 from sampled poles; HE5 at 76 from the naive start.
+    """
     n = plant.n
     observable = plant.is_observable()
-    fractions = [0.5, 1.0, 0.0, 0.25, 0.75]
     out = []
+    kalman_used = False
+    n_sampled = 0
     for k in range(starts):
-        rf = fractions[k % len(fractions)]
-        P0 = region.sample_poles(n, rng, real_fraction=rf)
-        st = PoleStructure.of(P0)
-        L0 = _placement_start(plant, P0, "YT") if observable else None
-        origin = "region sample + YT"
-        if L0 is None and observable:
-            try:
-                L0 = random_gain_for_poles(plant, P0, rng)
-                origin = "region sample + random assignment"
-            except (np.linalg.LinAlgError, ValueError):
-                L0 = None
-        if L0 is None:  # detectable but unobservable (or placement failed): a Kalman gain
-            L0 = _riccati_start(plant, rng, k)
-            origin = "Kalman gain (random Q)"
+        if k == 1 and not kalman_used:
+            L0 = _riccati_start(plant, rng, 0)
             st = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
+            origin = "Kalman gain (Q = I)"
+            kalman_used = True
+        else:
+            if k == 0:
+                P0 = naive_poles(plant, region)
+                origin = "naive poles + YT"
+            else:
+                P0 = region.sample_poles(n, rng, n_real=start_real_count(n, n_sampled))
+                n_sampled += 1
+                origin = "region sample + YT"
+            st = PoleStructure.of(P0)
+            L0 = _placement_start(plant, P0, "YT") if observable else None
+            if k == 0 and L0 is not None:
+                L0 = _better_yt(plant, P0, L0, region)
+            if L0 is None and observable:
+                try:
+                    L0 = random_gain_for_poles(plant, P0, rng)
+                    origin = origin.replace("+ YT", "+ random assignment")
+                except (np.linalg.LinAlgError, ValueError):
+                    L0 = None
+            if L0 is None:  # detectable but unobservable (or placement failed): a Kalman gain
+                L0 = _riccati_start(plant, rng, 0 if not kalman_used else k)
+                origin = "Kalman gain (Q = I)" if not kalman_used else "Kalman gain (random Q)"
+                kalman_used = True
+                st = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
         if mask is not None:
             L0 = np.where(mask, L0, 0.0)
             st = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
@@ -970,7 +1323,8 @@ def well_conditioned_kalman(
         ``A, C, G`` and ``R`` (identity when absent); with ``q_structure="scalar"`` the design is
         ``Q = q Q0`` with ``Q0 = plant.Q`` (identity when absent), i.e. seed 001's ``q/r``.
     region : Region, optional
-        The filter poles must lie in it.
+        The filter poles must lie in it; it must lie in the closed stability region of the
+        plant's time domain (ValidationError otherwise, as in :func:`well_conditioned_observer`).
     objective : {"eta", "kappa2", "kappa_fro"}, default "eta"
     q_structure : {"scalar", "diagonal", "full"}
         ``Q = q Q0``; ``Q = diag(q)``; ``Q = F F'`` (lower-triangular ``F``).
@@ -994,7 +1348,8 @@ def well_conditioned_kalman(
     Raises
     ------
     ValidationError
-        Unknown objective, q_structure or solver; bad bounds; ``q_range`` not ``0 < lo <= hi``.
+        Unknown objective, q_structure or solver; bad bounds; ``q_range`` not ``0 < lo <= hi``;
+        a region reaching outside the stability region.
     NotObservableError
         ``(C, A)`` not detectable.
 
@@ -1016,6 +1371,8 @@ def well_conditioned_kalman(
     kappa2_max = None if kappa2_max is None else as_positive_float("kappa2_max", kappa2_max)
     if region is not None and not isinstance(region, Region):
         raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    if region is not None:
+        _check_region_stable(region, plant.is_discrete)
     try:
         lo, hi = (float(q_range[0]), float(q_range[1]))
     except (TypeError, ValueError, IndexError):
@@ -1107,10 +1464,17 @@ def well_conditioned_kalman(
                 knlp.opti.set_initial(knlp.theta, good[2])
             rep = solve_opti(knlp.opti, opts, configure=not knlp.obs.solver_ready)
             knlp.obs.solver_ready = True
-            L = knlp.obs.gain(rep.value)
+            try:
+                L = knlp.obs.gain(rep.value)
+                Qv = knlp.noise(rep.value)
+                Pv = np.asarray(rep.value(knlp.P), dtype=float).reshape(n, n)
+            except RuntimeError as exc:  # CasADi cannot evaluate the iterate
+                hist.append(_solver_error_candidate(base, rep, exc, "" if J is None else f"J={J}"))
+                Qv, Pv = np.full((m, m), np.nan), np.full((n, n), np.nan)
+                break
             try:
                 Z, zp = knlp.obs.basis(rep.value)
-            except (ValueError, np.linalg.LinAlgError):
+            except (ValueError, np.linalg.LinAlgError, RuntimeError):
                 Z, zp = None, None
             c = _Candidate(
                 L,
@@ -1124,8 +1488,6 @@ def well_conditioned_kalman(
                 "" if J is None else f"J={J}",
             )
             hist.append(c)
-            Qv = knlp.noise(rep.value)
-            Pv = np.asarray(rep.value(knlp.P), dtype=float).reshape(n, n)
             _, v = evaluate(c)
             if v.passed:
                 good = (
@@ -1178,6 +1540,10 @@ def well_conditioned_kalman(
 
 def _kalman_checks(plant, L, Q, P, filter_are, filter_are_residual) -> Verification:
     checks = []
+    if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
+        return Verification.of(
+            [Check.at_most("finite_noise", float("inf"), 0.0, "Q, P or L has NaN/Inf entries")]
+        )
     Qs = 0.5 * (Q + Q.T)
     Ps = 0.5 * (P + P.T)
     scaleQ = max(1.0, float(np.max(np.abs(Qs)))) if Qs.size else 1.0

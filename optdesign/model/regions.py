@@ -461,14 +461,17 @@ class Region(ABC):
         rng: np.random.Generator | int | None = None,
         real_fraction: float = 0.5,
         *,
+        n_real: int | None = None,
         window: float | None = None,
     ) -> NDArray[np.complex128]:
         """A random conjugate-closed set of ``n`` poles strictly inside the region.
 
         Used to seed multi-start NLPs.  About ``real_fraction * n`` poles are real (one
-        more or fewer to make the complex ones pair up); the others are conjugate pairs
-        with clearly nonzero imaginary parts.  Every pole has clearance ``> 1e-3 rho`` from
-        the boundary, ``rho`` being the clearance of :meth:`interior_point`.  Unbounded
+        more or fewer to make the complex ones pair up), or exactly ``n_real`` when given;
+        the others are conjugate pairs with clearly nonzero imaginary parts.  (The rounding
+        makes the default ``real_fraction = 0.5`` give all-real poles for ``n = 2`` and
+        ``n = 3``: pass ``n_real`` to choose the pattern exactly.)  Every pole has clearance
+        ``> 1e-3 rho`` from the boundary, ``rho`` being the clearance of :meth:`interior_point`.  Unbounded
         regions are sampled in a bounded window next to their finite edge, of size
         ``window`` (default: a length from the region's own parameters, e.g. ``|alpha|``
         or 1 for a half-plane).
@@ -479,6 +482,9 @@ class Region(ABC):
             Number of poles, ``>= 0``.
         rng : numpy Generator or int seed, optional
         real_fraction : float in [0, 1], default 0.5
+            Ignored when ``n_real`` is given.
+        n_real : int, optional
+            Exact number of real poles: ``0 <= n_real <= n`` with ``n - n_real`` even.
         window : float, optional
             Length scale of the sampling window for unbounded regions.
 
@@ -490,7 +496,8 @@ class Region(ABC):
         Raises
         ------
         ValidationError
-            ``n`` negative or not an integer, ``real_fraction`` outside [0, 1], ``window <= 0``.
+            ``n`` negative or not an integer, ``real_fraction`` outside [0, 1], ``n_real`` not
+            an integer in ``[0, n]`` of the parity of ``n``, ``window <= 0``.
         """
         if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
             raise ValidationError(f"sample_poles n must be a nonnegative integer; found {n!r}")
@@ -498,10 +505,23 @@ class Region(ABC):
         rf = _real_param("sample_poles", "real_fraction", real_fraction)
         if not 0.0 <= rf <= 1.0:
             raise ValidationError(f"sample_poles real_fraction must be in [0, 1]; found {rf!r}")
+        if n_real is None:
+            n_real = int(round(rf * n))
+            if (n - n_real) % 2:
+                n_real = n_real + 1 if n_real < n else n_real - 1
+        else:
+            if (
+                isinstance(n_real, (bool, np.bool_))
+                or not isinstance(n_real, (int, np.integer))
+                or not 0 <= n_real <= n
+                or (n - n_real) % 2
+            ):
+                raise ValidationError(
+                    f"sample_poles n_real must be an integer in [0, {n}] with n - n_real even "
+                    f"(complex poles come in pairs); found {n_real!r}"
+                )
+            n_real = int(n_real)
         gen = np.random.default_rng(rng)
-        n_real = int(round(rf * n))
-        if (n - n_real) % 2:
-            n_real = n_real + 1 if n_real < n else n_real - 1
         n_pairs = (n - n_real) // 2
 
         xa, xb, Y, _ = self._window(window)
