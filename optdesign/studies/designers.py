@@ -13,9 +13,10 @@ is configured once, and every point only sets the parameter values and re-solves
 
 * a *warm start* from the previous point's solution (same chunk of the sweep, see
   :mod:`optdesign.studies.sweep`), solved at the final stage of the kappa2 continuation only, and
-* ``starts`` *placement starts*: poles sampled in the point's region, a robust placement
-  (scipy YT) for the initial gain, and the full continuation -- so a point never depends on a
-  warm start alone;
+* ``starts`` *placement starts*: the first at the open-loop poles moved into the point's region
+  (:func:`~optdesign.design.well_conditioned.naive_poles`), the others at poles sampled in the
+  region (complex-pair patterns first), each with a robust placement (scipy YT) for the initial
+  gain and the full continuation -- so a point never depends on a warm start alone;
 * the previous point's design itself, when it is feasible for this point (a looser region or a
   weaker bound): so along a chunk that loosens the constraints, the answer never gets worse.
   Order the last axis of a grid from the tightest to the loosest region (e.g. ``zeta``
@@ -90,10 +91,6 @@ REGION_TOL = 1e-7
 #: pole accuracy required of placement baselines (relative, :func:`pole_error`)
 POLE_TOL = 1e-6
 
-#: real-pole fractions of successive placement starts: as many conjugate pairs as possible first, then all
-#: real, then mixed -- so that two starts already cover both extremes (with (0.5, 1.0) first, an odd n
-#: would never try a complex pair, and the damping sector would never matter)
-_FRACTIONS = (0.0, 1.0, 0.5, 0.25, 0.75)
 _CACHE_SIZE = 8
 
 
@@ -513,7 +510,7 @@ class _RegionSession:
         self.prev_cand: _Cand | None = None
 
     def __call__(self, **point: float):
-        from ..design.well_conditioned import ObserverDesign, StartRecord
+        from ..design.well_conditioned import ObserverDesign, StartRecord, naive_poles, start_real_count
         from ..formulate.well_conditioned import KAPPA2_STAGES, PoleStructure, random_gain_for_poles
         from ..solvers.casadi_backend import solve_opti
 
@@ -592,9 +589,14 @@ class _RegionSession:
         else:
             tail = []
         for k in range(d.starts if (d.placement == "always" or not warm_ok) else 0):
-            P0 = region.sample_poles(plant.n, rng, real_fraction=_FRACTIONS[k % len(_FRACTIONS)])
+            # start 0: YT at the open-loop poles moved into the region (the verb's baseline); then
+            # poles sampled in the region, complex-pair patterns first (start_real_count)
+            if k == 0:
+                P0, origin = naive_poles(plant, region), "naive poles + YT"
+            else:
+                P0 = region.sample_poles(plant.n, rng, n_real=start_real_count(plant.n, k - 1))
+                origin = "region sample + YT"
             structure = PoleStructure.of(P0)
-            origin = "region sample + YT"
             L0 = _placement(plant, P0)
             if L0 is None:
                 try:
