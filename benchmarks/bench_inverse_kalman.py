@@ -14,8 +14,10 @@ independent Riccati solve with the returned Q (``are_resolve_poles``), next to t
 of the target poles themselves (single-output pole placement is exponentially ill-conditioned in
 n, so no method can be checked below that floor).
 
-Run:  python benchmarks/bench_inverse_kalman.py [--quick] [--reps 3]
-Writes the markdown table to benchmarks/results/inverse_kalman.md.
+Run:  python benchmarks/bench_inverse_kalman.py [--quick] [--reps 3] [--sizes 2,5,10,20,30]
+Writes the markdown table to benchmarks/results/inverse_kalman.md (not with --quick).  The
+targets are drawn in sequence from one generator over all sizes 2..40, so a --sizes subset
+gets the same targets as the full run.
 """
 
 from __future__ import annotations
@@ -82,8 +84,13 @@ def main() -> str:
     ap.add_argument("--quick", action="store_true", help="n up to 10, one repetition")
     ap.add_argument("--reps", type=int, default=3, help="targets per (p, n)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--sizes", type=str, default=None,
+                    help="comma-separated subset of 2,5,10,20,30,40 to run (same targets as the full run)")
     args = ap.parse_args()
-    sizes = [2, 5, 10] if args.quick else [2, 5, 10, 20, 30, 40]
+    all_sizes = [2, 5, 10] if args.quick else [2, 5, 10, 20, 30, 40]
+    sizes = all_sizes if args.sizes is None else sorted({int(v) for v in args.sizes.split(",")})
+    if not set(sizes) <= set(all_sizes):
+        ap.error(f"--sizes must be a subset of {all_sizes}")
     reps = 1 if args.quick else args.reps
     rng = np.random.default_rng(args.seed)
     # (method, solver, outputs as a function of n, largest n)
@@ -95,7 +102,12 @@ def main() -> str:
     warm_plant, warm = random_target(np.random.default_rng(99), 2, 1)  # imports and JIT out of the timing
     for method in ("sdp", "nlp", "sequential"):
         run(method, None, warm_plant, warm.poles)
-    for n in sizes:
+    for n in all_sizes:
+        if n not in sizes:  # draw (and discard) this size's targets: later sizes get the same ones
+            for p in dict.fromkeys(pf(n) for _, _, pf, _ in configs):
+                for _ in range(reps):
+                    random_target(rng, n, p)
+            continue
         targets = {}
         done = set()
         for method, solver, pfun, nmax in configs:
@@ -145,7 +157,8 @@ def main() -> str:
             f"optdesign.classical.placement.pole_error of an independent Riccati solve with the returned Q; "
             f"rounding floor: 10 eps max_i kappa_i ||A - LC|| / |lambda_i| of the target filter (the "
             f"accuracy to which its poles can be computed at all).  'verified' counts designs passing every "
-            f"check (pole tolerance max(1e-8, floor), floor capped at 1e-6).  Machine: {platform.machine()}, "
+            f"check (pole tolerance max(1e-8, floor), floor capped at 1e-6).  Sizes run: "
+            f"{', '.join(map(str, sizes))}.  Machine: {platform.machine()}, "
             f"Python {platform.python_version()}, single-threaded BLAS, shared with other jobs.\n")
     table = "# kalman_for_poles: time and accuracy vs n\n\n" + head + "\n" + body + note
     print("\n" + table)

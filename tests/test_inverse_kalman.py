@@ -839,3 +839,53 @@ def test_spectral_sdp_route_reproduces_example1():
     _assert_valid(res, plant, target, tol=1e-10)
     np.testing.assert_allclose(res.L.ravel(), [8, -6], atol=1e-9)
     assert res.objective_value == pytest.approx(76 + 10 * (350 - np.sqrt(350**2 - 3636)) - 36, rel=1e-8)
+
+
+# ------------------------------------------------- spectral NLP with closed-form derivatives
+@pytest.mark.parametrize("structure,objective,repeated", [
+    ("full", "min_trace", False), ("full", "nearest", False), ("input", "min_trace", False),
+    ("input", "nearest", False), ("full", "min_trace", True)])
+def test_closed_form_spectral_derivatives_equal_casadi_symbolic_ones(rng, structure, objective, repeated):
+    import casadi as ca
+
+    from optdesign.formulate.inverse_kalman import build_spectral_nlpsol
+
+    n, p, m = (4, 2, 3) if not repeated else (4, 3, 4)
+    A = rng.standard_normal((n, n)) / np.sqrt(n)
+    C = rng.standard_normal((p, n))
+    G = rng.standard_normal((n, m))
+    poles = np.array([-1.0 if repeated else -2.0, -1.0, -0.5 + 1j, -0.5 - 1j])
+    k = n if structure == "full" else m
+    nlp = build_spectral_nlpsol(A, C, np.diag([1.0, 2.0, 0.5][:p]), poles, structure=structure, G=G,
+                                objective=objective, Q_nominal=np.eye(k), W0=np.eye(k), scale=2.0)
+    x, f, g = nlp.nlp["x"], nlp.nlp["f"], nlp.nlp["g"]
+    lf, lg = ca.SX.sym("lf"), ca.SX.sym("lg", g.shape[0])
+    J_ref = ca.Function("J", [x], [ca.jacobian(g, x)])
+    H_ref = ca.Function("H", [x, lf, lg], [ca.triu(ca.hessian(lf * f + ca.dot(lg, g), x)[0])])
+    none = ca.DM.zeros(0, 1)
+    for _ in range(3):
+        xv = rng.standard_normal(x.shape[0])
+        lv = rng.standard_normal(g.shape[0])
+        J = ca.densify(nlp.options["jac_g"](xv, none)[1]).full()
+        H = ca.densify(nlp.options["hess_lag"](xv, none, 0.7, lv)).full()
+        Jr = ca.densify(J_ref(xv)).full()
+        Hr = ca.densify(H_ref(xv, 0.7, lv)).full()
+        np.testing.assert_allclose(J, Jr, rtol=1e-12, atol=1e-12 * np.abs(Jr).max())
+        np.testing.assert_allclose(H, Hr, rtol=1e-12, atol=1e-12 * np.abs(Hr).max())
+
+
+@pytest.mark.parametrize("objective", ["min_trace", "nearest"])
+def test_closed_form_spectral_nlp_agrees_with_the_symbolic_one(rng, objective, monkeypatch):
+    from optdesign.design import inverse_kalman as ik
+
+    plant = random_observable_plant(rng, 6, 2, noise=False).replace(R=np.diag([1.0, 0.5]))
+    F = rng.standard_normal((6, 6)) / np.sqrt(6)
+    target = _are(plant, F @ F.T).poles
+    kw = dict(method="nlp", objective=objective, Q_nominal=np.eye(6) if objective == "nearest" else None)
+    fast = kalman_for_poles(plant, target, **kw)
+    monkeypatch.setattr(ik, "_FAST_NLP", [False])
+    slow = kalman_for_poles(plant, target, **kw)
+    assert fast.success and slow.success
+    assert {e["derivatives"] for e in fast.details["starts"]} == {"closed form"}
+    assert {e["derivatives"] for e in slow.details["starts"]} == {"symbolic"}
+    np.testing.assert_allclose(fast.objective_value, slow.objective_value, rtol=1e-6)

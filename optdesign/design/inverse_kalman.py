@@ -54,9 +54,13 @@ How an answer is computed and checked
   (``method="nlp"``, the reason in ``message``).
 * ``method="nlp"``: the spectral-identity NLP in Q alone
   (:func:`optdesign.formulate.inverse_kalman.build_spectral_nlp`) from a few starts; L and P
-  then come from one Riccati solve with the optimized Q.  Where a target is an eigenvalue of A
-  (or of its mirror) the state-space NLP is used instead.  When no start gives a verified
-  design (typical of rank-deficient targets, whose optimum is a degenerate point of
+  then come from one Riccati solve with the optimized Q.  For structures ``"full"`` /
+  ``"input"`` and objectives ``"min_trace"`` / ``"nearest"`` the constraint Jacobian and the
+  Lagrangian Hessian are evaluated in closed form
+  (:func:`optdesign.formulate.inverse_kalman.build_spectral_nlpsol`): CasADi's symbolic
+  differentiation of the same problem took most of the time per start for n >= 20.  Where a
+  target is an eigenvalue of A (or of its mirror) the state-space NLP is used instead.  When
+  no start gives a verified design (typical of rank-deficient targets, whose optimum is a degenerate point of
   ``Q = F F'``), the starts are re-run with IPOPT's adaptive barrier update and a larger
   budget, from the sequential method's Q and from seeded random covariances; then a
   least-squares form of the spectral conditions and the closest-poles search
@@ -90,17 +94,21 @@ from ..classical.placement import place_observer, pole_error
 from ..classical.riccati import filter_are, filter_are_residual
 from ..errors import OptDesignError, RiccatiError, ValidationError
 from ..formulate.inverse_kalman import (
+    FAST_OBJECTIVES,
+    FAST_STRUCTURES,
     OBJECTIVES,
     STRUCTURES,
     build_fixed_gain_sdp,
     build_pole_nlp,
     build_spectral_nlp,
+    build_spectral_nlpsol,
     build_spectral_sdp,
     fixed_gain_maps,
     spectral_terms,
 )
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from ..solvers.report import SolverReport
 
 __all__ = [
     "METHODS",
@@ -113,6 +121,10 @@ __all__ = [
 ]
 
 METHODS = ("auto", "sdp", "nlp", "sequential")
+
+#: use the closed-form-derivative spectral NLP where it applies (``[False]``: CasADi's symbolic
+#: derivatives everywhere -- for comparisons and tests)
+_FAST_NLP = [True]
 
 #: relative tolerance of the PSD checks (smallest eigenvalue >= -PSD_RTOL * norm)
 PSD_RTOL = 1e-10
@@ -1394,12 +1406,68 @@ def _eig_nlp_solve(plant, target, structure, objective, Qn, start, *, closest=Fa
     return rep, L, _sym(Q), (None if Qw is None else _sym(Qw))
 
 
+def _nlpsol_solve(nlp, options: dict | None) -> SolverReport:
+    """Run a :class:`~optdesign.formulate.inverse_kalman.SpectralNLPSol` with IPOPT (the
+    plugin and ``ipopt.`` options as for :func:`optdesign.solvers.casadi_backend.solve_opti`);
+    ``report.value`` maps the solution vector to itself (pass None)."""
+    import casadi as ca
+
+    from ..solvers.casadi_backend import DEFAULT_IPOPT_OPTIONS
+    from ..solvers.status import map_status
+
+    opts = dict(DEFAULT_IPOPT_OPTIONS)
+    opts.update(options or {})
+    opts.pop("expand", None)  # the problem is SX already
+    plugin = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
+    plugin.update(nlp.options)
+    plugin["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
+    t0 = time.perf_counter()
+    error = ""
+    try:
+        solver = ca.nlpsol("spectral", "ipopt", nlp.nlp, plugin)
+        sol = solver(x0=nlp.x0, lbg=nlp.lbg, ubg=nlp.ubg)
+        st = solver.stats()
+        xopt = np.asarray(sol["x"], dtype=float).ravel()
+        obj = float(sol["f"])
+    except RuntimeError as exc:  # pragma: no cover - defensive: nlpsol reports, never raises
+        error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+        st, xopt, obj = {}, nlp.x0, float("nan")
+    elapsed = time.perf_counter() - t0
+    native = str(st.get("return_status", "unknown"))
+    status = map_status("ipopt", native)
+    if native == "unknown" and not error:
+        status = Status.SOLVER_ERROR
+    stats = SolverStats(backend="ipopt", native_status=native, time=elapsed,
+                        iterations=int(st["iter_count"]) if "iter_count" in st else None,
+                        extra={"objective": obj, "derivatives": "closed form",
+                               **({"error": error} if error else {})})
+    msg = f"ipopt: {native}" + (f" ({error})" if error else "")
+    return SolverReport(status=status, stats=stats, value=lambda _=None: xopt, objective=obj, message=msg)
+
+
 def _spectral_solve(plant, target, structure, objective, Qn, W0, terms, *, options=None, soft=False):
-    """The spectral-identity NLP from the decision covariance ``W0``."""
+    """The spectral-identity NLP from the decision covariance ``W0``.
+
+    Structures ``"full"`` / ``"input"`` with objectives ``"min_trace"`` / ``"nearest"`` run
+    with closed-form derivatives (:func:`build_spectral_nlpsol`: no symbolic differentiation,
+    which dominated the time for n >= 20); the others by CasADi's symbolic derivatives
+    (:func:`build_spectral_nlp`).
+    """
     from ..solvers.casadi_backend import solve_opti
 
     Wm = np.diag(np.ravel(W0)) if structure == "diagonal" else np.asarray(W0)
     scale = max(1.0, float(np.linalg.norm(Wm)))
+    if not soft and structure in FAST_STRUCTURES and objective in FAST_OBJECTIVES and _FAST_NLP[0]:
+        nlp = build_spectral_nlpsol(plant.A, plant.C, np.asarray(plant.R, dtype=float), target,
+                                    dt=plant.dt, structure=structure, G=plant.G, objective=objective,
+                                    Q_nominal=Qn, W0=W0, scale=scale, terms=terms)
+        opts = {"ipopt.max_iter": 500}
+        opts.update(options or {})
+        rep = _nlpsol_solve(nlp, opts)
+        Wd = nlp.decision(rep.value())
+        if structure == "full":
+            return rep, _sym(Wd), None
+        return rep, _sym(plant.G @ Wd @ plant.G.T), _sym(Wd)
     nlp = build_spectral_nlp(plant.A, plant.C, np.asarray(plant.R, dtype=float), target, dt=plant.dt,
                              structure=structure, G=plant.G, objective=objective, Q_nominal=Qn, W0=W0,
                              scale=scale, terms=terms, soft=soft)
@@ -1529,7 +1597,7 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
         state["last_rep"] = rep
         entry = {"start": k, "kind": start["kind"], "status": rep.status.value,
                  "native": rep.stats.native_status, "iterations": rep.stats.iterations,
-                 "time": rep.stats.time}
+                 "time": rep.stats.time, "derivatives": rep.stats.extra.get("derivatives", "symbolic")}
         details["starts"].append(entry)
         if not rep.status.is_solved:
             return
