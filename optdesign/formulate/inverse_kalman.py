@@ -262,6 +262,38 @@ def _scale_of(L: NDArray, R: NDArray, extra: NDArray | None = None) -> float:
     return s if s > 0 and np.isfinite(s) else 1.0
 
 
+def _noise_structure_and_objective(cp, Q, structure: str, G: NDArray | None, objective: str, nominal,
+                                   cons: list):
+    """The part the fixed-gain and spectral SDPs share: the structure of the noise (``Q`` free,
+    ``Q = G Qw G'`` or ``Q = G diag(qw) G'``), its PSD constraint and the objective.
+
+    ``nominal`` is the (scaled) ``Q_nominal`` of ``"nearest"`` -- an array or a cvxpy parameter
+    of the decision covariance's shape.  Appends to ``cons``; returns ``(Qw, t, objective)``
+    (``Qw`` None for ``"full"``, ``t`` the margin variable of ``"feasibility"`` or None).
+    """
+    Qw = t = None
+    if structure == "full":
+        dec = Q
+    else:
+        m = G.shape[1]
+        if structure == "input":
+            Qw = cp.Variable((m, m), symmetric=True, name="Qw")
+            dec = Qw
+        else:
+            Qw = cp.Variable(m, name="qw")
+            dec = cp.diag(Qw)
+        D = Q - G @ dec @ G.T
+        cons += [cp.upper_tri(D) == 0, cp.diag(D) == 0]
+    if objective == "feasibility":
+        t = cp.Variable(name="t")
+        cons.append(Qw >= t if structure == "diagonal" else dec - t * np.eye(dec.shape[0]) >> 0)
+        return Qw, t, cp.Maximize(t)
+    cons.append(Qw >= 0 if structure == "diagonal" else dec >> 0)
+    if objective == "min_trace":
+        return Qw, t, cp.Minimize(cp.trace(Q))
+    return Qw, t, cp.Minimize(cp.norm(dec - nominal, "fro"))
+
+
 def build_fixed_gain_sdp(
     A: NDArray, C: NDArray, L: NDArray, R: NDArray, *, dt: float | None = None,
     structure: str = "full", G: NDArray | None = None, objective: str = "min_trace",
@@ -331,38 +363,11 @@ def build_fixed_gain_sdp(
     Qe = 0.5 * (Qe + Qe.T)
     D = Q - Qe
     cons += [gres == 0, cp.upper_tri(D) == 0, cp.diag(D) == 0]
-    Qw = t = None
-    if structure == "full":
-        dec = Q
-    else:
-        m = G.shape[1]
-        if structure == "input":
-            Qw = cp.Variable((m, m), symmetric=True, name="Qw")
-            W = Qw
-        else:
-            Qw = cp.Variable(m, name="qw")
-            W = cp.diag(Qw)
-        E = Q - G @ W @ G.T
-        cons += [cp.upper_tri(E) == 0, cp.diag(E) == 0]
-        dec = W
-    k = dec.shape[0]
-    if objective == "feasibility":
-        t = cp.Variable(name="t")
-        if structure == "diagonal":
-            cons.append(Qw >= t)
-        else:
-            cons.append(dec - t * np.eye(k) >> 0)
-        obj = cp.Maximize(t)
-    else:
-        if structure == "diagonal":
-            cons.append(Qw >= 0)
-        else:
-            cons.append(dec >> 0)
-        if objective == "min_trace":
-            obj = cp.Minimize(cp.trace(Q))
-        else:
-            params["Q_nominal"] = cp.Parameter((k, k), symmetric=True, name="Q_nominal")
-            obj = cp.Minimize(cp.norm(dec - params["Q_nominal"], "fro"))
+    nominal = None
+    if objective == "nearest":
+        k = n if structure == "full" else G.shape[1]
+        nominal = params["Q_nominal"] = cp.Parameter((k, k), symmetric=True, name="Q_nominal")
+    Qw, t, obj = _noise_structure_and_objective(cp, Q, structure, G, objective, nominal, cons)
     sdp = FixedGainSDP(problem=cp.Problem(obj, cons), P=P, Q=Q, Qw=Qw, t=t, scale=1.0,
                        structure=structure, objective=objective, params=params, A=A, C=C, R=R,
                        dt=dt)
@@ -955,29 +960,8 @@ def build_spectral_sdp(
     s = s if (np.isfinite(s) and s > 0) else 1.0
     Q = cp.Variable((n, n), symmetric=True, name="Q")
     cons = [E @ cp.vec(Q, order="F") * s + off == 0]
-    Qw = t = None
-    if structure == "full":
-        dec = Q
-    else:
-        m = G.shape[1]
-        if structure == "input":
-            Qw = cp.Variable((m, m), symmetric=True, name="Qw")
-            Wd = Qw
-        else:
-            Qw = cp.Variable(m, name="qw")
-            Wd = cp.diag(Qw)
-        D = Q - G @ Wd @ G.T
-        cons += [cp.upper_tri(D) == 0, cp.diag(D) == 0]
-        dec = Wd
-    k = dec.shape[0]
-    if objective == "feasibility":
-        t = cp.Variable(name="t")
-        cons.append(Qw >= t if structure == "diagonal" else dec - t * np.eye(k) >> 0)
-        obj = cp.Maximize(t)
-    else:
-        cons.append(Qw >= 0 if structure == "diagonal" else dec >> 0)
-        obj = cp.Minimize(cp.trace(Q)) if objective == "min_trace" else \
-            cp.Minimize(cp.norm(dec - np.asarray(Q_nominal) / s, "fro"))
+    nominal = None if Q_nominal is None else np.asarray(Q_nominal) / s
+    Qw, t, obj = _noise_structure_and_objective(cp, Q, structure, G, objective, nominal, cons)
     return SpectralSDP(problem=cp.Problem(obj, cons), Q=Q, Qw=Qw, t=t, coefficients=E, offset=off,
                        scale=s, structure=structure, objective=objective)
 
