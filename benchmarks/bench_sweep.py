@@ -127,7 +127,7 @@ def part_b(problem: str, points: list[dict], chunk: int, use_dask: bool) -> list
         from distributed import Client, LocalCluster
 
         t0 = time.perf_counter()
-        with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None,
+        with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0",
                           silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
             startup = time.perf_counter() - t0
             on_dask = sweep(designer, points, executor=client, chunksize=chunk)

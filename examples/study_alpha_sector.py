@@ -58,7 +58,7 @@ def main(use_dask: bool = False) -> None:
     if use_dask:
         from distributed import Client, LocalCluster
 
-        with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None,
+        with LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=":0",
                           silence_logs=logging.ERROR) as cluster, Client(cluster) as client:
             on_dask = sweep(designer, points, executor=client, chunksize=4)
         diff = on_dask.diff(table)

@@ -313,7 +313,7 @@ def dask_client():
     """A 2-worker Dask LocalCluster for this module (started once, always shut down)."""
     distributed = pytest.importorskip("distributed", reason="dask.distributed is part of the test extra")
     cluster = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=logging.ERROR)
+                                       dashboard_address=":0", silence_logs=logging.ERROR)
     client = distributed.Client(cluster, timeout=120)
     try:
         client.wait_for_workers(2, timeout=120)

@@ -688,7 +688,7 @@ def _dask_client(spec: StudySpec, workers: int | None):
         return Client(spec.scheduler, timeout=60), None
     import logging
 
-    cluster = LocalCluster(n_workers=workers or 2, threads_per_worker=1, dashboard_address=None,
+    cluster = LocalCluster(n_workers=workers or 2, threads_per_worker=1, dashboard_address=":0",
                            silence_logs=logging.ERROR)
     return Client(cluster, timeout=60), cluster
 
