@@ -117,15 +117,23 @@ def test_root_is_the_installed_package_data():
 def test_package_data_globs_cover_every_problem_file():
     cfg = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
     assert cfg["tool"]["setuptools"]["package-dir"]["optdesign._problem_data"] == "problems"
-    globs = cfg["tool"]["setuptools"]["package-data"]["optdesign._problem_data"]
+    data = cfg["tool"]["setuptools"]["package-data"]
+    packages = cfg["tool"]["setuptools"]["packages"]
 
     def covered(rel: str) -> bool:  # setuptools globs: '*' does not cross '/'
         parts = rel.split("/")
-        return any(
-            len(g.split("/")) == len(parts)
-            and all(fnmatch.fnmatch(a, b) for a, b in zip(parts, g.split("/"), strict=True))
-            for g in globs
-        )
+        # a file is shipped by the data package of its folder (each group folder is listed as
+        # the package optdesign._problem_data.<group>) or by a deeper glob of a parent package
+        for k in range(len(parts)):
+            pkg = ".".join(["optdesign._problem_data", *parts[:k]])
+            if pkg not in packages:
+                continue
+            sub = parts[k:]
+            if any(len(g.split("/")) == len(sub)
+                   and all(fnmatch.fnmatch(a, b) for a, b in zip(sub, g.split("/"), strict=True))
+                   for g in data.get(pkg, ())):
+                return True
+        return False
 
     rels = [f.relative_to(SRC).as_posix() for f in _files()] + ["README.md"]
     missing = [r for r in rels if not covered(r)]
