@@ -1,7 +1,8 @@
 """Benchmark: the fixed-gain SDP of ``kalman_for_poles`` re-used through cvxpy parameters vs rebuilt.
 
 A study over prescribed-pole targets (``PoleTargetDesigner``, ``design = "inverse"`` in a spec) solves
-the same plant's fixed-gain SDP for many gains (``PoleTargetDesigner(reuse=...)`` switches it).  In continuous time the gain enters the SDP only
+the same plant's fixed-gain SDP for many gains (``PoleTargetDesigner(reuse=...)`` switches it).
+In continuous time the gain enters the SDP only
 through cvxpy ``Parameter`` s (DPP), so optdesign keeps one problem per plant and thread and re-binds
 the parameters (``optdesign.design.inverse_kalman.sdp_reuse``); ``reuse=False`` rebuilds (and
 re-canonicalizes) it for every point.  Measured per point: the whole verb (placement of the unique
@@ -104,8 +105,9 @@ def main() -> str:
                   for a, b in zip(r0, r1, strict=True) if a.success and b.success), default=float("nan"))
         rows.append((label, len(targets), 1e3 * np.median(t0), 1e3 * np.median(t1), 1e3 * np.median(s0),
                      1e3 * np.median(s1), ok0, ok1, dq))
-        print(f"{label}: verb {rows[-1][2]:.1f} -> {rows[-1][3]:.1f} ms/design, SDP solve {rows[-1][4]:.1f} -> "
-              f"{rows[-1][5]:.1f} ms, verified {ok0}/{ok1}, max rel |Q diff| {dq:.1e}", flush=True)
+        r = rows[-1]
+        print(f"{label}: verb {r[2]:.1f} -> {r[3]:.1f} ms/design, SDP solve {r[4]:.1f} -> "
+              f"{r[5]:.1f} ms, verified {ok0}/{ok1}, max rel |Q diff| {dq:.1e}", flush=True)
     head = ("| plant | targets | verb, rebuilt (ms/design) | verb, re-used (ms/design) | speed-up | "
             "SDP solve call, rebuilt (ms) | SDP solve call, re-used (ms) | verified (rebuilt / re-used) | "
             "max relative Q difference |\n|---|---|---|---|---|---|---|---|---|")

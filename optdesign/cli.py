@@ -69,7 +69,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         size = f"n={p.plant.n} p={p.plant.p}" if p.plant is not None else "(no plant)"
         rows.append((n, p.kind, size, p.title))
     if args.json:
-        _print_json([dict(zip(("name", "kind", "size", "title"), r)) for r in rows])
+        _print_json([dict(zip(("name", "kind", "size", "title"), r, strict=True)) for r in rows])
         return 0
     w = [max(len(r[k]) for r in rows) for k in range(3)]
     for r in rows:

@@ -76,12 +76,12 @@ class Check:
     detail: str = ""
 
     @classmethod
-    def at_most(cls, name: str, value: float, tolerance: float, detail: str = "") -> "Check":
+    def at_most(cls, name: str, value: float, tolerance: float, detail: str = "") -> Check:
         v = float(value)
         return cls(name, v, float(tolerance), bool(v <= tolerance and not math.isnan(v)), "<=", detail)
 
     @classmethod
-    def at_least(cls, name: str, value: float, tolerance: float, detail: str = "") -> "Check":
+    def at_least(cls, name: str, value: float, tolerance: float, detail: str = "") -> Check:
         v = float(value)
         return cls(name, v, float(tolerance), bool(v >= tolerance and not math.isnan(v)), ">=", detail)
 
@@ -98,7 +98,7 @@ class Verification:
     checks: tuple[Check, ...] = ()
 
     @classmethod
-    def of(cls, checks: Iterable[Check]) -> "Verification":
+    def of(cls, checks: Iterable[Check]) -> Verification:
         return cls(tuple(checks))
 
     @property
@@ -125,7 +125,7 @@ class Verification:
     def __len__(self) -> int:
         return len(self.checks)
 
-    def __add__(self, other: "Verification") -> "Verification":
+    def __add__(self, other: Verification) -> Verification:
         return Verification(self.checks + tuple(other.checks))
 
     def summary(self) -> str:

@@ -42,7 +42,6 @@ from optdesign.formulate.inverse_kalman import (
     spectral_terms,
 )
 
-
 #: random targets of the cross-validation: the issue's 200 (about 55 s of CPU on the reference
 #: machine, 70 s wall under load -- within budget, so it is not reduced by default)
 CV_COUNT = 200

@@ -16,9 +16,8 @@ import pytest
 from conftest import FULL
 
 from optdesign.errors import ProblemNotFoundError, ValidationError
-from optdesign.results import Check, Verification
 from optdesign.regions import Disk, HalfPlane, Sector
-from optdesign.results import Status
+from optdesign.results import Check, Status, Verification
 from optdesign.studies import InlineExecutor, RegionSweepDesigner, SweepTable, grid, record_of, sweep
 from optdesign.studies.designers import clear_cache
 from optdesign.studies.sweep import default_chunksize

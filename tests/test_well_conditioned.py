@@ -28,6 +28,13 @@ from optdesign import (
 )
 from optdesign.classical import kalman_2x2_eta
 from optdesign.classical.placement import place_observer, pole_error
+from optdesign.design import well_conditioned as wc
+from optdesign.design.well_conditioned import (
+    kappa2_agreement_tol,
+    naive_poles,
+    start_real_count,
+    start_real_counts,
+)
 from optdesign.formulate.well_conditioned import (
     KAPPA2_STAGES,
     NLPScaling,
@@ -35,13 +42,6 @@ from optdesign.formulate.well_conditioned import (
     build_observer_nlp,
     random_gain_for_poles,
     real_modal_basis,
-)
-from optdesign.design import well_conditioned as wc
-from optdesign.design.well_conditioned import (
-    kappa2_agreement_tol,
-    naive_poles,
-    start_real_count,
-    start_real_counts,
 )
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.solvers.casadi_backend import solve_opti

@@ -1582,7 +1582,6 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
     dof = _decision_size(plant, structure) - plant.n
     details["degrees_of_freedom"] = dof
     best = fallback = last_rep = None
-    best_time = 0.0
     starts = _start_covariances(plant, target, structure, Qn, seed, nstarts, solver) if dof >= 0 else []
     state = {"best": None, "fallback": None, "last_rep": None, "best_time": 0.0}
 

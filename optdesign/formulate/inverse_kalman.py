@@ -1191,7 +1191,7 @@ def build_spectral_nlpsol(
         idx = sorted({int(i) for i, _, _ in terms_q} | {int(j) for _, j, _ in terms_q})
         jr += [q] * len(idx)
         jc += idx
-    for (size, cols, *_), rr in zip(blocks, rows, strict=True):
+    for (_size, cols, *_), rr in zip(blocks, rows, strict=True):
         wc = np.concatenate(cols)
         cc = np.concatenate([np.arange(nF), wc])
         for r in rr:
@@ -1323,7 +1323,7 @@ def build_spectral_nlpsol(
                 x0[cols[0]], x0[cols[1]] = v.real, v.imag
     else:
         x0[:nF] = np.eye(k)[I, J]
-        for size, cols, *_ in blocks:
+        for _size, cols, *_ in blocks:
             x0[cols[0][0]] = 1.0
     zeros = np.zeros(ng)
     return SpectralNLPSol(nlp={"x": x, "f": f, "g": g}, options={"jac_g": jac_fun, "hess_lag": hess_fun},

@@ -6,7 +6,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from .._validate import as_matrix, as_positive_float, as_square, check_pd, check_psd
 from ..errors import BackendUnavailableError, NotObservableError, ValidationError
@@ -261,14 +261,14 @@ class Plant:
             )
 
     # ------------------------------------------------------------ conversion
-    def replace(self, **changes: Any) -> "Plant":
+    def replace(self, **changes: Any) -> Plant:
         """A new plant with some fields replaced (re-validated)."""
         kw = {f.name: getattr(self, f.name) for f in fields(self)}
         kw.update(changes)
         return Plant(**kw)
 
     @classmethod
-    def from_control(cls, sys, *, G=None, Q=None, R=None, name: str | None = None) -> "Plant":
+    def from_control(cls, sys, *, G=None, Q=None, R=None, name: str | None = None) -> Plant:
         """Build a plant from a python-control ``StateSpace`` (python-control is optional).
 
         ``sys.B`` becomes the control input B; ``sys.dt`` of 0 or None means continuous time.

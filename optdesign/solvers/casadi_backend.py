@@ -55,7 +55,7 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
     SolverReport
         ``value(expr)`` evaluates at the solution, or at the last iterate on failure.
     """
-    casadi = import_casadi()
+    import_casadi()  # a clear BackendUnavailableError when CasADi is missing
     if configure:
         opts = dict(DEFAULT_IPOPT_OPTIONS)
         opts.update(options or {})

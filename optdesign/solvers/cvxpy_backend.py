@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import BackendUnavailableError, ValidationError
-from ..results import SolverStats, Status
+from ..results import SolverStats
 from .report import SolverReport
 from .status import map_status
 

@@ -420,7 +420,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     try:
         import matplotlib  # noqa: F401
     except ImportError:
-        raise CLIError("reproduce writes figures and needs matplotlib: pip install 'optdesign[plot]'") from None
+        raise CLIError("reproduce writes figures and needs matplotlib: "
+                       "pip install 'optdesign[plot]'") from None
     _check_out_dir(args.out)
     summary = reproduce_all(args.out, papers=papers, quick=args.quick)
     print(summary.overview())

@@ -382,8 +382,8 @@ class RegionSweepDesigner:
             try:
                 L0 = np.array(self.initial_gain, dtype=float)
             except (TypeError, ValueError):
-                raise ValidationError(f"initial_gain must be a finite ({plant.n}, {plant.p}) array of numbers; "
-                                      f"found {self.initial_gain!r}") from None
+                raise ValidationError(f"initial_gain must be a finite ({plant.n}, {plant.p}) array of "
+                                      f"numbers; found {self.initial_gain!r}") from None
             if L0.shape != (plant.n, plant.p) or not np.all(np.isfinite(L0)):
                 raise ValidationError(f"initial_gain must be a finite ({plant.n}, {plant.p}) array; found "
                                       "shape "
@@ -963,9 +963,7 @@ class PoleTargetDesigner:
             vals = _gain_values(plant, res.L)
             vals["pole_error"] = res.record()["pole_error"]
         elif self.method == "inverse":
-            from ..design.inverse_kalman import kalman_for_poles
-
-            from ..design.inverse_kalman import sdp_reuse
+            from ..design.inverse_kalman import kalman_for_poles, sdp_reuse
 
             kw = {"objective": self.objective} if self.objective else {}
             with sdp_reuse(self.reuse):

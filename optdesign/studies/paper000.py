@@ -274,7 +274,8 @@ def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int) -> Path:
                 continue
             for j in range(pts.shape[1]):
                 # earlier steps drawn wider, so a later step along the same path leaves them visible
-                ax.plot(pts[:, j].real, pts[:, j].imag, "-", color=f"C{k - 1}", lw=max(1.5, 6.0 - 4.0 * (k - 1)),
+                ax.plot(pts[:, j].real, pts[:, j].imag, "-", color=f"C{k - 1}",
+                        lw=max(1.5, 6.0 - 4.0 * (k - 1)),
                         alpha=0.85, label=f"step {k} ({res.steps[k - 1].kind})" if j == 0 else None)
         eig = np.linalg.eigvals(plant.A)
         ax.plot(eig.real, eig.imag, "kx", ms=8, label="eig(A)")
