@@ -22,14 +22,12 @@ gets the same targets as the full run.
 
 from __future__ import annotations
 
-import os
-
-# single-threaded BLAS: stable timings on a shared machine (OpenBLAS threads oversubscribe it)
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("OMP_NUM_THREADS", "1")
+# isort: off
+from _common import random_observable_plant  # first: single-threaded BLAS before numpy
+# isort: on
 
 import argparse  # noqa: E402
-import platform
+import platform  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -40,6 +38,7 @@ import numpy as np  # noqa: E402
 from optdesign import Plant, kalman_for_poles  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
 from optdesign.errors import OptDesignError  # noqa: E402
+from optdesign.metrics import eigenvalue_rounding_floor  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "inverse_kalman.md"
 
@@ -49,11 +48,7 @@ def random_target(rng: np.random.Generator, n: int, p: int, tries: int = 50):
     or None when no draw gives a Riccati equation scipy can solve (single-output plants of
     order 30-40 are numerically unobservable: their filter ARE has no accurate solution)."""
     for _ in range(tries):
-        A = rng.standard_normal((n, n)) / np.sqrt(n)
-        C = rng.standard_normal((p, n))
-        plant = Plant(A, C, R=np.eye(p))
-        if not plant.is_observable():
-            continue
+        plant = random_observable_plant(rng, n, p, noise=True)
         F = rng.standard_normal((n, n)) / np.sqrt(n)
         try:
             are = filter_are(plant.replace(Q=F @ F.T), residual_tol=1e-6)
@@ -61,14 +56,6 @@ def random_target(rng: np.random.Generator, n: int, p: int, tries: int = 50):
             continue
         return plant, are
     return None
-
-
-def rounding_floor(F: np.ndarray) -> float:
-    """``10 eps max_i kappa_i ||F||_F / max(1, |lambda_i|)``: how accurately the poles of F can be
-    computed at all (uncapped; the library's verification caps its tolerance at 1e-6)."""
-    lam, V = np.linalg.eig(F)
-    kappa = np.linalg.norm(V, axis=0) * np.linalg.norm(np.linalg.inv(V), axis=1)
-    return float(10 * np.finfo(float).eps * np.max(kappa * np.linalg.norm(F) / np.maximum(1.0, np.abs(lam))))
 
 
 def run(method: str, solver: str | None, plant: Plant, poles) -> dict:
@@ -126,7 +113,7 @@ def main() -> str:
                              "status": "no target: the filter ARE of a random plant is not solvable"})
                 print(f"n={n:2d} p={p} {label:18s} no solvable random target", flush=True)
                 continue
-            floor = [rounding_floor(plant.A - are.L @ plant.C) for plant, are in targets[p]]
+            floor = [eigenvalue_rounding_floor(plant.A - are.L @ plant.C) for plant, are in targets[p]]
             if statistics.median(floor) > 1e-3:
                 rows.append({"method": label, "p": p, "n": n, "time": float("nan"), "ok": "-",
                              "err_med": float("nan"), "err_max": float("nan"),

@@ -27,6 +27,10 @@ Run: ``python benchmarks/bench_placement.py [--quick] [--skip-compleib]``; write
 
 from __future__ import annotations
 
+# isort: off
+from _common import random_observable_plant  # first: single-threaded BLAS before numpy
+# isort: on
+
 import argparse
 import math
 import sys
@@ -36,9 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from optdesign import Plant, metrics, problems, well_conditioned_observer
-from optdesign.design.well_conditioned import naive_poles
-from optdesign.regions import Disk, HalfPlane, Sector
+from optdesign import metrics, problems, well_conditioned_observer
+from optdesign.design.well_conditioned import naive_poles, suggested_region
 
 HERE = Path(__file__).resolve().parent
 
@@ -61,15 +64,18 @@ def _timed(fn):
     return out, time.perf_counter() - t, ""
 
 
-def peers(plant, poles):
-    """{method: (L or None, seconds, note)} for the peer methods."""
+def scipy_gain(plant, poles, method="YT"):
+    """scipy's ``place_poles`` on the dual: the observer gain (n, p)."""
     from scipy.signal import place_poles
 
+    return place_poles(plant.A.T, plant.C.T, poles, method=method).gain_matrix.T
+
+
+def peers(plant, poles):
+    """{method: (L or None, seconds, note)} for the peer methods."""
     out = {}
     for m in ("YT", "KNV0"):
-        out[f"scipy {m}"] = _timed(
-            lambda m=m: place_poles(plant.A.T, plant.C.T, poles, method=m).gain_matrix.T
-        )
+        out[f"scipy {m}"] = _timed(lambda m=m: scipy_gain(plant, poles, m))
     try:
         import control
     except ImportError:
@@ -124,35 +130,11 @@ def random_poles(rng, n):
     return np.concatenate([np.sort(re), np.ravel(np.column_stack([pairs, pairs.conj()]))])
 
 
-def random_plant(rng, n, p):
-    while True:
-        A = rng.standard_normal((n, n)) / math.sqrt(n)
-        C = rng.standard_normal((p, n))
-        plant = Plant(A, C)
-        if plant.is_observable():
-            return plant
-
-
-def compleib_region(plant):
-    w = np.linalg.eigvals(plant.A)
-    rho = float(np.max(np.abs(w)))
-    alpha = 1.5 * max(float(np.min(np.abs(w.real))), 0.01 * rho)
-    un = plant.unobservable_modes()
-    if un.size:
-        alpha = min(alpha, 0.9 * float(np.min(-un.real)))
-    return HalfPlane(alpha) & Sector.from_damping(0.5) & Disk(0.0, 2.0 * max(rho, alpha))
-
 
 def yt_kappa(plant, poles):
-    from scipy.signal import place_poles
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            L = place_poles(plant.A.T, plant.C.T, poles, method="YT").gain_matrix.T
-        return metrics.kappa2(plant.A - L @ plant.C)
-    except Exception:  # noqa: BLE001
-        return None
+    """kappa2 of scipy YT at these poles, or None when YT refuses them."""
+    m = _metrics(plant, _timed(lambda: scipy_gain(plant, poles))[0])
+    return None if m is None else m["kappa2"]
 
 
 def main(argv=None) -> int:
@@ -172,7 +154,8 @@ def main(argv=None) -> int:
         "",
     ]
     if args.sizes:
-        lines += [f"Random plant sizes given on the command line: n = {args.sizes}.  {args.note}".rstrip(), ""]
+        sizes_note = f"Random plant sizes given on the command line: n = {args.sizes}.  {args.note}"
+        lines += [sizes_note.rstrip(), ""]
     elif args.note:
         lines += [args.note, ""]
 
@@ -223,7 +206,7 @@ def main(argv=None) -> int:
     rng = np.random.default_rng(2024)
     for n in sizes:
         p = max(2, n // 4)
-        plant = random_plant(rng, n, p)
+        plant = random_observable_plant(rng, n, p)
         P = random_poles(rng, n)
         starts = 2 if n <= 10 else 1
         rows, ref = bench_problem(f"n={n}", plant, P, starts=starts)
@@ -255,7 +238,7 @@ def main(argv=None) -> int:
         n_verified, ratios, total_t = 0, [], 0.0
         for name in names:
             plant = problems.load(name).plant
-            region = compleib_region(plant)
+            region = suggested_region(plant)
             t = time.perf_counter()
             d = well_conditioned_observer(plant, region=region, starts=2)
             t = time.perf_counter() - t

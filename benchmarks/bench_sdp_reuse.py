@@ -18,10 +18,9 @@ Writes benchmarks/results/sdp_reuse.md.  Numbers, not pass/fail.
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# isort: off
+from _common import random_observable_plant  # first: single-threaded BLAS before numpy
+# isort: on
 
 import argparse  # noqa: E402
 import platform  # noqa: E402
@@ -36,14 +35,6 @@ from optdesign.classical.riccati import filter_are  # noqa: E402
 from optdesign.design import inverse_kalman as ik  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "sdp_reuse.md"
-
-
-def random_plant(rng: np.random.Generator, n: int) -> Plant:
-    """A random observable single-output plant (spectral radius ~1)."""
-    while True:
-        plant = Plant(rng.standard_normal((n, n)) / np.sqrt(n), rng.standard_normal((1, n)), R=np.eye(1))
-        if plant.is_observable():
-            return plant
 
 
 def run(plant: Plant, targets: list[np.ndarray], reuse: bool):
@@ -87,7 +78,7 @@ def main() -> str:
     ex1 = problems.load("chang_lee_1984_ex1").plant.replace(G=None, Q=None)
     cases = [("chang_lee_1984_ex1 (n = 2)", ex1)]
     for n in (5, 10, 20):
-        cases.append((f"random, n = {n}, p = 1", random_plant(rng, n)))
+        cases.append((f"random, n = {n}, p = 1", random_observable_plant(rng, n, 1, noise=True)))
     rows = []
     for label, plant in cases:
         n = plant.n

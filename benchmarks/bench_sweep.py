@@ -28,9 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
+import _common  # noqa: E402,F401  (single-threaded BLAS before numpy)
 import numpy as np  # noqa: E402
 
 from optdesign import problems  # noqa: E402

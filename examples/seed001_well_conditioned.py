@@ -1,11 +1,13 @@
 """Seed 001 (Jung & Huh): well-conditioned observers and Kalman filters with optdesign.
 
-Run from the repository root (headless; figures go to ``examples/figures``)::
+Run (headless; figures go to ``examples/figures``)::
 
     python examples/seed001_well_conditioned.py
 """
 
 from __future__ import annotations
+
+from pathlib import Path
 
 import numpy as np
 
@@ -66,7 +68,7 @@ def main() -> None:
     )
 
     # 6. Reproduce the paper: figures and the printed-vs-reproduced table.
-    rep = paper001.reproduce("examples/figures")
+    rep = paper001.reproduce(Path(__file__).resolve().parent / "figures")
     print("\n" + rep.table())
     print("figures:", *[str(f) for f in rep.figures], sep="\n  ")
 

@@ -6,8 +6,8 @@ The same study as ``examples/study_alpha_sector.toml`` (``optdesign study`` runs
 
 1. a :class:`~optdesign.studies.RegionSweepDesigner` for COMPleib HE1 -- its CasADi problem is built
    once per worker process, with the decay rate ``alpha`` and the damping ratio ``zeta`` as
-   ``opti.parameter`` s, and re-solved for every point (warm-started from the previous one, plus a
-   placement start); every point is verified independently (poles with numpy, region distance,
+   ``opti.parameter`` s, and re-solved for every point (warm-started from the previous one, plus
+   placement starts); every point is verified independently (poles with numpy, region distance,
    kappa2);
 2. the sweep on a local process pool, the table (CSV) and the figures;
 3. with ``--dask``: the same sweep on a 2-worker Dask LocalCluster -- identical results;

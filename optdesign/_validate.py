@@ -30,6 +30,8 @@ __all__ = [
     "check_pd",
     "as_poles",
     "as_positive_float",
+    "as_int",
+    "as_bool",
     "sym_tol",
 ]
 
@@ -172,6 +174,20 @@ def as_positive_float(name: str, value, *, allow_zero: bool = False) -> float:
         cond = ">= 0" if allow_zero else "> 0"
         raise ValidationError(f"{name} must be finite and {cond}; found {value!r}")
     return v
+
+
+def as_int(name: str, value, lo: int = 0) -> int:
+    """An integer ``>= lo`` (Python or numpy integer; bool, float and str are refused)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < lo:
+        raise ValidationError(f"{name} must be an integer >= {lo}; found {value!r}")
+    return int(value)
+
+
+def as_bool(name: str, value) -> bool:
+    """A boolean (Python or numpy bool; 0/1 and strings such as "yes" are refused)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValidationError(f"{name} must be true or false; found {value!r}")
+    return bool(value)
 
 
 def as_poles(name: str, poles: ArrayLike, n: int | None = None, *, tol: float = 1e-8) -> NDArray[np.complex128]:

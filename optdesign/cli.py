@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -37,14 +38,19 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _jsonable(x: Any) -> Any:
+    """A JSON-ready copy of ``x``: arrays as (nested) lists, complex ones as ``{"re": ..., "im": ...}``,
+    numpy scalars as Python ones, and non-finite floats as the strings ``"inf"``, ``"-inf"``,
+    ``"nan"`` (JSON has no such numbers)."""
     if isinstance(x, np.ndarray):
         if np.iscomplexobj(x):
-            return {"re": x.real.tolist(), "im": x.imag.tolist()}
-        return x.tolist()
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
+            return {"re": _jsonable(x.real.tolist()), "im": _jsonable(x.imag.tolist())}
+        return _jsonable(x.tolist())
+    if isinstance(x, (np.floating, np.integer, np.bool_)):
+        return _jsonable(x.item())
+    if isinstance(x, float):
+        return x if math.isfinite(x) else str(x)
     if isinstance(x, complex):
-        return {"re": x.real, "im": x.imag}
+        return {"re": _jsonable(x.real), "im": _jsonable(x.imag)}
     if isinstance(x, dict):
         return {str(k): _jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
@@ -124,7 +130,8 @@ Command = Callable[[argparse.Namespace], int]
 COMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None], Command]] = {}
 
 
-def register(name: str, help: str, configure: Callable[[argparse.ArgumentParser], None], run: Command) -> None:
+def register(name: str, help: str, configure: Callable[[argparse.ArgumentParser], None],
+             run: Command) -> None:
     """Add a sub-command (used by the studies layer)."""
     COMMANDS[name] = (help, configure, run)
 

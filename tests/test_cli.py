@@ -6,6 +6,7 @@ import json
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from optdesign.cli import DEFAULT_PROBLEM, main
@@ -51,6 +52,8 @@ def test_kalman_json(capsys):
         (["kalman", DEFAULT_PROBLEM, "--method", "magic"], "invalid choice: 'magic'"),
         (["frobnicate"], "invalid choice: 'frobnicate'"),
         (["list", "--kind", "no_such_kind"], "no problem matches kind='no_such_kind'"),
+        (["kalman", "carex_1.3"], "problem 'carex_1.3' has no valid plant (Control form"),
+        (["kalman", "jung_huh_ex1"], "problem 'jung_huh_ex1' has no noise model (Q and R)"),
     ],
 )
 def test_errors_are_one_line_exit_2(argv, match, capsys):
@@ -60,6 +63,18 @@ def test_errors_are_one_line_exit_2(argv, match, capsys):
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
+def test_json_output_is_strict_json():
+    """Non-finite numbers come out as strings ("inf", "nan"): JSON itself has no Infinity or NaN."""
+    from optdesign.cli import _jsonable
+
+    obj = {"a": np.array([1.0, np.inf]), "z": np.array([1 + 2j, complex(np.nan, 0)]),
+           "k": np.float64(-np.inf), "flag": np.bool_(True), "n": np.int64(3), "rows": [(0.5, float("nan"))]}
+    text = json.dumps(_jsonable(obj), allow_nan=False)  # raises if a non-finite float slipped through
+    assert json.loads(text) == {"a": [1.0, "inf"], "z": {"re": [1.0, "nan"], "im": [2.0, 0.0]}, "k": "-inf",
+                                "flag": True, "n": 3, "rows": [[0.5, "nan"]]}
+
+
 def test_console_script_entry_point():
     out = subprocess.run([sys.executable, "-m", "optdesign", "show", "nope"], capture_output=True, text=True)
-    assert out.returncode == 2 and out.stderr.startswith("optdesign: error:") and "Traceback" not in out.stderr
+    assert out.returncode == 2 and out.stderr.startswith("optdesign: error:")
+    assert "Traceback" not in out.stderr

@@ -32,7 +32,7 @@ from optdesign.classical import (
     observer_2x2_poles,
     observer_2x2_stable,
 )
-from optdesign.errors import ValidationError
+from optdesign.errors import DimensionError, ValidationError
 
 A1, A2 = 2.0, -1.0  # Example 1/2: A = [[0, 1], [2, -1]]
 
@@ -76,6 +76,9 @@ def test_complex_pole_case():
     p = observer_2x2_poles(A1, A2, 10.0, 45.0)
     assert np.allclose(np.sort_complex(p), np.sort_complex(np.linalg.eigvals(_X(A1, A2, 10.0, 45.0))))
     assert float(observer_2x2_eta(A1, A2, 10.0, 45.0)) == pytest.approx(math.sqrt(81 + 42**2) / math.sqrt(91))
+    assert float(observer_2x2_eta(A1, A2, 10.0, 45.0)) == pytest.approx(
+        metrics.eta(_X(A1, A2, 10.0, 45.0)), rel=1e-12
+    )
 
 
 @settings(max_examples=200, deadline=None)
@@ -147,6 +150,13 @@ def test_gain_region_unstable_l1_and_bad_beta():
         observer_2x2_eta("x", A2, 1.0, 1.0)
     with pytest.raises(ValidationError, match="l2 must be finite"):
         observer_2x2_eta(A1, A2, 1.0, np.inf)
+    for bad in ("x", [10.0 + 1j], [[1.0], [1.0, 2.0]]):  # not silently cast (complex) nor a bare numpy error
+        with pytest.raises(ValidationError, match="l1 must be a real number or array of real numbers"):
+            observer_2x2_poles(A1, A2, bad, 5.0)
+    with pytest.raises(DimensionError, match=r"l1 and l2 must broadcast together; found shapes \(2,\) and"):
+        observer_2x2_stable(A1, A2, [1.0, 2.0], [1.0, 2.0, 3.0])
+    with pytest.raises(ValidationError, match="q_over_r must be a real number or array"):
+        kalman_2x2_gain(A1, A2, "high")
 
 
 # ----------------------------------------------------------------------------- Kalman (eq 29-31)
@@ -193,6 +203,11 @@ def test_example2_exact_qr_set_and_printed_intervals_are_wrong():
     assert s.double_pole == pytest.approx(2.25)
     for r in s.boundary:  # each boundary is a root of eta - beta
         assert float(kalman_2x2_eta(2.0, -1.0, r)) == pytest.approx(2.0, abs=1e-9)
+        # independently of eq (29) and the closed form: scipy's ARE gain, complex-Schur eta
+        A = np.array([[0.0, 1.0], [2.0, -1.0]])
+        C = np.array([[1.0, 0.0]])
+        P = solve_continuous_are(A.T, C.T, np.diag([0.0, r]), np.eye(1))
+        assert metrics.eta(A - P @ C.T @ C) == pytest.approx(2.0, rel=1e-7)
     # membership agrees with a dense grid
     x = np.geomspace(1e-3, 1e4, 4001)
     assert np.array_equal(s.contains(x), kalman_2x2_eta(2.0, -1.0, x) <= 2.0)

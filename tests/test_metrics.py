@@ -15,6 +15,7 @@ from optdesign.metrics import (
     condition_summary,
     departure,
     eigenvalue_condition,
+    eigenvalue_rounding_floor,
     eigenvector_matrix,
     eta,
     kappa2,
@@ -238,6 +239,18 @@ def test_eigenvalue_condition(rng):
     assert np.all(s > 1e12)
     with pytest.raises(DimensionError, match="X must be square"):
         eigenvalue_condition(np.ones((1, 2)))
+
+
+def test_eigenvalue_rounding_floor():
+    """10 eps max_i s_i ||X||_F / max(1, |lambda_i|): s = sqrt(101) for [[1, 30], [0, -2]]."""
+    X = np.array([[1.0, 30.0], [0.0, -2.0]])
+    expected = 10 * np.finfo(float).eps * np.sqrt(101.0) * np.linalg.norm(X) / 1.0
+    assert eigenvalue_rounding_floor(X) == pytest.approx(expected, rel=1e-12)
+    assert eigenvalue_rounding_floor(np.diag([1e3, 2e3])) == pytest.approx(
+        10 * np.finfo(float).eps * np.linalg.norm([1e3, 2e3]) / 1e3, rel=1e-12)
+    assert eigenvalue_rounding_floor(_jordan(2)) > 1e-4  # defective: no accuracy to speak of
+    with pytest.raises(DimensionError, match="X must be square"):
+        eigenvalue_rounding_floor(np.ones((1, 2)))
 
 
 def test_complex_input():

@@ -275,6 +275,19 @@ def test_error_paths():
         solheim(disc, [0.5, 1.5])
     with pytest.raises(ValidationError, match="infinite process noise"):
         solheim(disc, [0.0, 0.2])
+    # 0.5 -> -0.5 in discrete time: p~ h = lambda / S - 1 = -2, so C P C' + R = R lambda / S < 0
+    with pytest.raises(ValidationError, match=r"step 1 \(real, moving 0\.5\) makes the innovation covariance "
+                                              r"C P C' \+ R indefinite"):
+        solheim(disc, [-0.5, 0.2])
+    # a complex pair that must move but that C does not see
+    hidden_pair = Plant([[-1.0, 2.0, 0.0], [-2.0, -1.0, 0.0], [0.0, 0.0, -3.0]], [[0.0, 0.0, 1.0]], R=[[1.0]])
+    with pytest.raises(NotObservableError, match=r"the pair -1\+2j, -1-2j is unobservable \(H_E = 0\)"):
+        solheim(hidden_pair, [-2.0 + 2.0j, -2.0 - 2.0j, -3.0])
+    # a pair step whose coefficient equations have no real root for any orientation of Q~
+    pair = Plant([[-1.2, 1.3], [-1.3, -1.2]], [[-0.65, 0.86], [-0.13, 0.67]], R=np.eye(2))
+    with pytest.raises(ValidationError, match=r"no real Q~ on the modes -1\.2\+1\.3j, -1\.2-1\.3j moves them "
+                                              r"to -5\.8\+5\.2j, -5\.8-5\.2j .* for any orientation"):
+        solheim(pair, [-5.8 + 5.2j, -5.8 - 5.2j])
 
 
 def test_unobservable_mode_that_stays_is_fine():

@@ -9,7 +9,7 @@ import pytest
 
 from optdesign.errors import BackendUnavailableError, ValidationError
 from optdesign.results import Status
-from optdesign.solvers.casadi_backend import solve_opti
+from optdesign.solvers.casadi_backend import solve_nlpsol, solve_opti
 from optdesign.solvers.cvxpy_backend import available_sdp_solvers, default_sdp_solver, solve_cvxpy
 from optdesign.solvers.status import map_status
 
@@ -52,6 +52,23 @@ def test_ipopt_iteration_limit():
     opti.set_initial(x, [-1.5, 2.0])
     rep = solve_opti(opti, {"ipopt.max_iter": 2})
     assert rep.status is Status.ITERATION_LIMIT and not rep.status.is_solved
+
+
+
+def test_nlpsol_success_infeasible_and_failure_to_run():
+    x = casadi.SX.sym("x", 2)
+    problem = {"x": x, "f": (x[0] - 1) ** 2 + (x[1] - 2) ** 2, "g": x[0] + x[1]}
+    rep = solve_nlpsol(problem, [0, 0], [-np.inf], [10.0], extra={"derivatives": "symbolic"})
+    assert rep.status == Status.OPTIMAL and rep.stats.native_status == "Solve_Succeeded"
+    np.testing.assert_allclose(rep.value(), [1.0, 2.0], atol=1e-8)
+    assert rep.stats.extra["derivatives"] == "symbolic" and rep.stats.iterations >= 1
+    bad = solve_nlpsol(problem, [0, 0], [5.0], [-5.0])  # lbg > ubg: infeasible
+    assert bad.status.is_infeasible or not bad.status.is_solved
+    # the plugin refuses an unknown option: reported (status, native name, the error), never raised
+    broken = solve_nlpsol(problem, [0.5, 0.5], [-np.inf], [10.0], plugin={"no_such_option": 1})
+    assert broken.status == Status.SOLVER_ERROR and broken.stats.native_status == "solver_error"
+    assert "no_such_option" in broken.message and broken.message.startswith("ipopt: solver_error")
+    np.testing.assert_array_equal(broken.value(), [0.5, 0.5])
 
 
 @pytest.mark.parametrize("solver", ["CLARABEL", "SCS"])

@@ -93,7 +93,8 @@ def test_design_well_conditioned_in_a_region(capsys):
          "--region: the intersection"),
         (["design", "compleib_dis2", "--method", "well_conditioned", "--region", "halfplane:1 &"],
          "--region: empty member"),
-        (["design", "compleib_dis2", "--method", "well_conditioned", "--zeta", "1.5"], "--zeta:"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--zeta", "1.5"],
+         "--zeta: Sector.from_damping zeta must be in (0, 1); found 1.5"),
         (["design", "compleib_dis2", "--method", "well_conditioned", "--alpha", "fast"],
          "argument --alpha: invalid float value: 'fast'"),
         (["design", "compleib_dis2", "--method", "well_conditioned", "--radius", "-2"],
@@ -110,7 +111,8 @@ def test_design_well_conditioned_in_a_region(capsys):
          "argument --poles: expected one argument"),  # argparse: write --poles=-1,-2,-3 (see the help)
         (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2, x"], "--poles: 'x' is not a "
                                                                                    "number"),
-        (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2"], "--poles"),
+        (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2"],
+         "--poles has the wrong length: expected 3, found 2"),
         (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2+1j, -3"], "not closed under"),
         (["design", "compleib_dis2", "--method", "place"], "problem 'compleib_dis2' has no target poles: "
                                                            "give --poles"),
@@ -124,6 +126,13 @@ def test_design_well_conditioned_in_a_region(capsys):
          "--max-gain does not apply to --method kalman"),
         (["design", "jung_huh_ex1", "--method", "kalman"], "has no noise model"),
         (["design", "jung_huh_ex1", "--method", "inverse", "--poles=-1,-2"], "has no measurement-noise"),
+        (["design", "carex_1.3", "--method", "kalman"], "problem 'carex_1.3' has no valid plant"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--alpha", "inf"],
+         "--alpha must be finite"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--alpha", "1", "--seed", "-1"],
+         "--seed must be >= 0; found -1"),
+        (["design", "compleib_dis2", "--method", "well_conditioned", "--alpha", "1", "--objective", "trace"],
+         "--objective: 'trace' is not an objective of --method well_conditioned"),
     ],
 )
 def test_design_errors_are_one_line_exit_2(argv, match, capsys):
@@ -276,7 +285,11 @@ BAD_SPECS = [
      "[0.3, 0.6]\n"
      "[figure]\nx = 'alpha'\n", "figure.series: axis 'zeta' also varies"),
     ("[study]\nproblem = 'compleib_nn8'\ndesign = 'kalman'\n[grid]\nq = [1.0, -1.0]\n", "grid.q: q must be"),
-    ("[study]\nproblem = 'jung_huh_ex1'\ndesign = 'kalman'\n[grid]\nq = [1.0]\n", "study.problem: plant"),
+    ("[study]\nproblem = 'jung_huh_ex1'\ndesign = 'kalman'\n[grid]\nq = [1.0]\n",
+     "study.problem: plant 'jung_huh_ex1' has no Q and no R"),
+    # a point whose region reaches into the right half-plane (unstable error dynamics) is refused
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nradius = 10.0\n[grid]\n"
+     "alpha = [-1.0, 1.0]\n", "grid.alpha: the pole region"),
     ("[study]\nproblem = 'compleib_nn8'\ndesign = 'inverse'\n[grid]\nscale = [1.0]\n",
      "study.problem: problem 'compleib_nn8' has no target poles"),
     ("[study]\nproblem = 'compleib_nn8'\ndesign = 'inverse'\n[fixed]\nmethod = 'place'\n[grid]\nscale = "
@@ -294,10 +307,10 @@ BAD_SPECS = [
      "alpha = [1.0]\n", "fixed.reuse: reuse must be true or false"),
     ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\noptions = {'ipopt.tol' = "
      "[1]}\n[grid]\nalpha = [1.0]\n", "fixed.options: options: 'ipopt.tol' must map to a string or a number"),
-    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nradius = 10.0\n[grid]\n"
-     "alpha = [1.0]\nradius = [5.0, 20.0]\n", "grid.radius: is also given in [fixed]"),
-    ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\ninverse_method = 'magic'\n[grid]\n"
-     "scale = [1.0]\n", "fixed.inverse_method: inverse_method must be one of auto, sdp"),
+    ("[study]\nproblem = 'compleib_nn8'\ndesign = 'well_conditioned'\n[fixed]\nradius = 10.0\n"
+     "[grid]\nalpha = [1.0]\nradius = [5.0, 20.0]\n", "grid.radius: is also given in [fixed]"),
+    ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\ninverse_method = 'magic'\n"
+     "[grid]\nscale = [1.0]\n", "fixed.inverse_method: inverse_method must be one of auto, sdp"),
     ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\nstarts = 'x'\n[grid]\n"
      "scale = [1.0]\n", "fixed.starts: starts must be an integer >= 1; found 'x'"),
     ("[study]\nproblem = 'chang_lee_1984_ex1'\ndesign = 'inverse'\n[fixed]\nobjective = 'kappa2'\n[grid]\n"

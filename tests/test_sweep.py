@@ -10,15 +10,32 @@ import math
 import os
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import FULL
 
-from optdesign.errors import ProblemNotFoundError, ValidationError
+from optdesign import Plant, problems
+from optdesign.errors import (
+    NotConjugateClosedError,
+    NotObservableError,
+    ProblemNotFoundError,
+    ValidationError,
+)
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.results import Check, Status, Verification
-from optdesign.studies import InlineExecutor, RegionSweepDesigner, SweepTable, grid, record_of, sweep
+from optdesign.studies import (
+    InlineExecutor,
+    KalmanNoiseDesigner,
+    PoleTargetDesigner,
+    RegionSweepDesigner,
+    SweepTable,
+    grid,
+    place_baseline,
+    record_of,
+    sweep,
+)
 from optdesign.studies.designers import clear_cache
 from optdesign.studies.sweep import default_chunksize
 
@@ -37,9 +54,20 @@ def slow_square(a):
     return {"status": "optimal", "success": True, "y": a * a}
 
 
-def sleepy(a):
+def sleepy(a, folder=None):
+    if folder is not None:  # say which process runs the point
+        Path(folder, f"worker{a}.pid").write_text(str(os.getpid()))
     time.sleep(30.0)
     return {"status": "optimal", "success": True}
+
+
+def _running(pid: int) -> bool:
+    """The process exists and is not a zombie (Linux ``/proc``)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
 
 
 def crash_on_two(a):
@@ -162,12 +190,21 @@ def test_a_dying_worker_is_recorded_not_raised():
     assert "BrokenProcessPool" in t[2]["error"]
 
 
-def test_timeout_records_unfinished_points_and_stops_the_pool():
+def test_timeout_records_unfinished_points_and_stops_the_pool(tmp_path):
     t0 = time.perf_counter()
-    t = sweep(sleepy, grid(a=[1, 2]), executor="processes", workers=2, chunksize=1, timeout=2.0)
-    assert time.perf_counter() - t0 < 20.0  # the 30 s workers were terminated
+    t = sweep(sleepy, grid(a=[1, 2], folder=[str(tmp_path)]), executor="processes", workers=2, chunksize=1,
+              timeout=2.0)
+    assert time.perf_counter() - t0 < 20.0  # returned long before the 30 s points could end
     assert all(not r["success"] and r["error"].startswith("timed out") for r in t)
     assert t.meta["timed_out"] is True
+    # the workers running the points were terminated, not left sleeping in the background
+    pids = [int(f.read_text()) for f in sorted(tmp_path.glob("worker*.pid"))]
+    assert len(pids) == 2 and os.getpid() not in pids
+    if Path("/proc/self/stat").is_file():
+        deadline = time.monotonic() + 10.0
+        while any(_running(pid) for pid in pids) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not any(_running(pid) for pid in pids)
 
 
 # ------------------------------------------------------------------ table I/O
@@ -210,7 +247,7 @@ def test_progress_bar_shown_on_a_terminal_after_a_second(monkeypatch):
 
     fake = FakeTTY()
     monkeypatch.setattr(sys, "stderr", fake)
-    sweep(slow_square, grid(a=range(2)), executor="serial", progress=True)  # 0.5 s: no bar
+    sweep(square, grid(a=range(2)), executor="serial", progress=True)  # well under a second: no bar
     assert fake.getvalue() == ""
     sweep(slow_square, grid(a=range(6)), executor="serial", progress=True)  # 1.5 s: a bar
     assert "sweep" in fake.getvalue() and "pt" in fake.getvalue()
@@ -273,6 +310,90 @@ def test_region_designer_construction_errors(kwargs, match):
 def test_region_designer_unknown_problem():
     with pytest.raises(ProblemNotFoundError, match="no problem named 'no_such_problem'"):
         RegionSweepDesigner(problem="no_such_problem")
+
+
+def test_region_designer_refuses_a_region_outside_the_stability_region():
+    # Re s <= 1 and |s| <= 20 allows unstable error dynamics: refused up front, as by the verb
+    with pytest.raises(ValidationError, match=r"reaches Re s = 1 > 0: the plant is continuous-time"):
+        DESIGNER.check_point(alpha=-1.0)
+    t = sweep(DESIGNER, [{"alpha": -1.0}], executor="serial")
+    assert t[0]["success"] is False and t[0]["error"].startswith("ValidationError: the pole region")
+    # with the sector the region stays in the left half-plane: a negative alpha is then harmless
+    DESIGNER.check_point(alpha=-1.0, zeta=0.5)
+
+
+# ------------------------------------------------------------------ the other designers
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"problem": "chang_lee_1984_ex1", "method": "magic"}, "method must be one of inverse, place"),
+        ({"problem": "chang_lee_1984_ex1", "inverse_method": "magic"}, "inverse_method must be one of"),
+        ({"problem": "chang_lee_1984_ex1", "method": "place", "objective": "kappa2"},
+         r"objective must be one of \(none\) for method 'place'"),
+        ({"problem": "chang_lee_1984_ex1", "starts": 0}, "starts must be an integer >= 1; found 0"),
+        ({"problem": "chang_lee_1984_ex1", "seed": -1}, "seed must be an integer >= 0; found -1"),
+        ({"problem": "chang_lee_1984_ex1", "reuse": 1}, "reuse must be true or false; found 1"),
+        ({"plant": problems.load("compleib_dis2").plant}, r"needs poles \(no problem to take them from\)"),
+        ({"problem": "compleib_dis2"}, "problem 'compleib_dis2' has no target poles; give poles"),
+    ],
+)
+def test_pole_target_designer_construction_errors(kwargs, match):
+    with pytest.raises(ValidationError, match=match):
+        PoleTargetDesigner(**kwargs)
+
+
+def test_pole_target_designer_points(monkeypatch):
+    d = PoleTargetDesigner(problem="chang_lee_1984_ex1", method="place")
+    # the problem's target poles are resolved once per process, not loaded again for every point
+    monkeypatch.setattr(problems, "load", lambda *a, **k: pytest.fail("problems.load called per point"))
+    np.testing.assert_allclose(d.target(scale=2.0, shift=1.0), [-15.0, -9.0])  # 2 * (-8, -5) + 1
+    res = d(scale=2.0)
+    assert res.success and res.record()["pole_error"] < 1e-6
+    assert res.record()["max_real_pole"] == pytest.approx(-10.0, rel=1e-9)
+    for point, match in (({"alpha": 1.0}, "unknown parameter 'alpha' in the point; a pole-target designer"),
+                         ({"scale": float("nan")}, "scale must be a finite number; found nan"),
+                         ({"shift": True}, "shift must be a finite number; found True")):
+        with pytest.raises(ValidationError, match=match):
+            d.check_point(**point)
+
+
+def test_kalman_noise_designer_errors():
+    with pytest.raises(ValidationError, match="method must be 'scipy' or 'hamiltonian'; found 'magic'"):
+        KalmanNoiseDesigner(problem="compleib_he1", method="magic")
+    with pytest.raises(ValidationError, match="plant 'jung_huh_ex1' has no Q and no R"):
+        KalmanNoiseDesigner(problem="jung_huh_ex1")
+    with pytest.raises(ValidationError, match="needs exactly one of problem"):
+        KalmanNoiseDesigner(problem="compleib_he1", plant=problems.load("compleib_he1").plant)
+    d = KalmanNoiseDesigner(problem="compleib_he1")
+    with pytest.raises(ValidationError, match="unknown parameter 's' in the point; a noise designer takes"):
+        d.check_point(s=1.0)
+    with pytest.raises(ValidationError, match="q must be finite and > 0; found 0.0"):
+        d.check_point(q=0.0)
+
+
+def test_place_baseline_verified_and_its_failures():
+    prob = problems.load("pp_knv1985_ex1")
+    plant, target = prob.plant, prob.targets["poles"]
+    res = place_baseline(plant, target)
+    assert res.success and res.status == Status.SOLVED
+    poles = np.linalg.eigvals(plant.A - res.L @ plant.C)  # recomputed here, not trusted
+    np.testing.assert_allclose(np.sort_complex(poles), np.sort_complex(target), rtol=1e-6)
+    assert res.record()["pole_error"] < 1e-6
+    # a pole repeated more than rank(C) times: scipy cannot place it -> a failed result that says why
+    bad = place_baseline(plant, [-1.0] * plant.n)
+    assert not bad.success and bad.status == Status.SOLVER_ERROR and bad.L is None
+    assert "repeated 4 times but C has rank 2" in bad.message
+    assert bad.record()["pole_error"] == math.inf and math.isnan(bad.record()["kappa2"])
+    with pytest.raises(ValidationError, match="method must be 'YT' or 'KNV0'; found 'ackermann'"):
+        place_baseline(plant, target, method="ackermann")
+    with pytest.raises(ValidationError, match="plant must be an optdesign.Plant; found ndarray"):
+        place_baseline(plant.A, target)
+    with pytest.raises(NotConjugateClosedError, match="not closed under complex conjugation"):
+        place_baseline(plant, [-1.0, -2.0, -3 + 1j, -3.0])
+    with pytest.raises(NotObservableError, match="unobservable"):
+        place_baseline(Plant(np.diag([1.0, 2.0]), [[1.0, 0.0]]), [-1.0, -2.0])
 
 
 # ------------------------------------------------------------------ identical results on every executor

@@ -5,7 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from optdesign._validate import as_matrix, as_poles, as_positive_float, as_vector, check_pd, check_psd
+from optdesign._validate import (
+    as_bool,
+    as_int,
+    as_matrix,
+    as_poles,
+    as_positive_float,
+    as_vector,
+    check_pd,
+    check_psd,
+)
 from optdesign.errors import (
     DimensionError,
     InfeasibleError,
@@ -120,3 +129,14 @@ def test_result_mixin_success_requires_verification():
     with pytest.raises(InfeasibleError, match="target infeasible") as info2:
         inf.raise_for_status()
     assert info2.value.certificate == {"omega": 3.0}
+
+
+def test_as_int_and_as_bool():
+    assert as_int("starts", 3, 1) == 3 and type(as_int("k", np.int64(2))) is int
+    for bad in (0, 1.0, True, "2", None):
+        with pytest.raises(ValidationError, match=r"starts must be an integer >= 1; found"):
+            as_int("starts", bad, 1)
+    assert as_bool("reuse", True) is True and as_bool("reuse", np.bool_(False)) is False
+    for bad in (1, 0, "yes", None):
+        with pytest.raises(ValidationError, match="reuse must be true or false; found"):
+            as_bool("reuse", bad)

@@ -26,7 +26,7 @@ from optdesign import (
     well_conditioned_kalman,
     well_conditioned_observer,
 )
-from optdesign.classical import kalman_2x2_eta
+from optdesign.classical import kalman_2x2_eta, kalman_2x2_gain, observer_2x2_kappa2
 from optdesign.classical.placement import place_observer, pole_error
 from optdesign.design import well_conditioned as wc
 from optdesign.design.well_conditioned import (
@@ -34,11 +34,13 @@ from optdesign.design.well_conditioned import (
     naive_poles,
     start_real_count,
     start_real_counts,
+    suggested_region,
 )
 from optdesign.formulate.well_conditioned import (
     KAPPA2_STAGES,
     NLPScaling,
     PoleStructure,
+    build_kalman_nlp,
     build_observer_nlp,
     random_gain_for_poles,
     real_modal_basis,
@@ -280,6 +282,10 @@ def test_region_example1_2x2():
     assert d.success, d.verification.summary()
     assert region.contains(d.poles, tol=1e-7)
     assert d.kappa2 == pytest.approx(metrics.kappa2(plant.A - d.L @ plant.C), rel=1e-6)
+    # the closed form of eq (4)-(21) agrees, and the printed bound kappa2 <= "about 4.3" = 2 + sqrt 5 holds
+    (l1,), (l2,) = d.L
+    assert d.kappa2 == pytest.approx(float(observer_2x2_kappa2(2.0, -1.0, l1, l2)), rel=1e-6)
+    assert d.kappa2 <= 2 + math.sqrt(5)
     # no pole pair sampled inside the region does better, real or complex (both patterns sampled:
     # the default real_fraction gives real poles only for n = 2)
     rng = np.random.default_rng(5)
@@ -301,7 +307,12 @@ def test_region_aircraft_beats_paper_gain():
     L_paper = np.array([[-1.2], [10.0], [10.0]])
     k_paper = metrics.kappa2(plant.A - L_paper @ plant.C)
     assert k_paper == pytest.approx(4.4639, abs=1e-4)
+    # the printed kappa2 = 4.46 from the eigenvectors themselves (numpy's, unit columns), not only metrics
+    Vp = np.linalg.eig(plant.A - L_paper @ plant.C)[1]
+    assert np.linalg.cond(Vp / np.linalg.norm(Vp, axis=0)) == pytest.approx(k_paper, rel=1e-9)
     decay = -np.max(np.linalg.eigvals(plant.A - L_paper @ plant.C).real)
+    assert decay == pytest.approx(0.328, abs=5e-4)
+    assert np.linalg.norm(L_paper, 2) == pytest.approx(14.19, abs=5e-3)
     region = HalfPlane(decay)
     for starts in (1, 2, 3):  # before the start ordering was fixed: 16.83 with 1 or 2 starts
         d = well_conditioned_observer(
@@ -309,6 +320,7 @@ def test_region_aircraft_beats_paper_gain():
         )
         assert d.success, d.verification.summary()
         assert d.kappa2 < k_paper
+        assert d.kappa2 == pytest.approx(metrics.kappa2(plant.A - d.L @ plant.C), rel=1e-9)
         assert d.kappa2 == pytest.approx(4.3135, abs=2e-3), starts  # measured
         assert d.gain_norm <= np.linalg.norm(L_paper, 2) * (1 + 1e-6)
         assert -np.max(d.poles.real) >= decay * (1 - 1e-7)
@@ -457,6 +469,8 @@ def test_kalman_example2_minimizes_eta_over_q():
     eta_grid = kalman_2x2_eta(2.0, -1.0, x)
     assert d.eta <= float(np.min(eta_grid)) * (1 + 1e-6)
     assert d.eta == pytest.approx(float(kalman_2x2_eta(2.0, -1.0, q)), rel=1e-6)
+    assert d.eta == pytest.approx(metrics.eta(plant.A - d.L @ plant.C), rel=1e-9)
+    np.testing.assert_allclose(d.L.ravel(), kalman_2x2_gain(2.0, -1.0, q), rtol=1e-6)  # eq (29), R = 1
     assert d.verification["riccati_residual"].value <= 1e-7
     assert d.verification["gain_vs_riccati"].value <= 1e-5
 
@@ -608,6 +622,27 @@ def test_builder_reuse_with_parameters():
         build_observer_nlp(plant, PoleStructure(2, 0), fixed_poles=True)
 
 
+def test_builder_errors():
+    """Every refusal of the builders (the verbs validate first, so these are reached only directly)."""
+    unobs = Plant([[-1.0, 0.0], [0.0, -2.0]], [[1.0, 0.0]])  # mode -2 unobservable
+    nlp = build_observer_nlp(unobs, PoleStructure(2, 0), fixed_poles=True)
+    with pytest.raises(ValidationError, match="call set_poles before set_initial_gain"):
+        nlp.set_initial_gain(np.zeros((2, 1)))
+    with pytest.raises(ValidationError, match=r"the pole -2\+0j leaves a 2-dimensional left null space .* "
+                                              r"unobservable mode of the plant"):
+        nlp.set_poles([-2.0, -3.0])
+    with pytest.raises(ValidationError, match=r"stage must be one of \(0, 3, 6, 9, 12\); found 4"):
+        nlp.set_stage(4)
+    with pytest.raises(ValidationError, match="objective must be one of .*; found 'trace'"):
+        build_observer_nlp(unobs, PoleStructure(2, 0), fixed_poles=True, objective="trace")
+    with pytest.raises(ValidationError, match=r"mask must have shape \(2, 1\); found \(1, 2\)"):
+        build_observer_nlp(unobs, PoleStructure(2, 0), fixed_poles=True, mask=np.ones((1, 2), bool))
+    with pytest.raises(ValidationError, match="objective must be one of .*; found 'trace'"):
+        build_kalman_nlp(unobs, PoleStructure(2, 0), objective="trace")
+    with pytest.raises(ValidationError, match="q_structure must be 'scalar', 'diagonal' or 'full'; found"):
+        build_kalman_nlp(unobs, PoleStructure(2, 0), q_structure="banded")
+
+
 def test_region_builder_parametric_decay():
     plant = problems.load("jung_huh_ex1").plant
     nlp = build_observer_nlp(
@@ -681,8 +716,19 @@ def test_errors():
         well_conditioned_observer(unobs, poles=[-3, -4])
     with pytest.raises(ValidationError, match="q_structure"):
         well_conditioned_kalman(plant, q_structure="banded")
-    with pytest.raises(ValidationError, match="q_range"):
+    with pytest.raises(ValidationError, match=r"q_range must satisfy 0 < lo <= hi < inf; found \(0.0, 1.0\)"):
         well_conditioned_kalman(plant, q_range=(0.0, 1.0))
+    for bad in (5.0, (1.0,), ("a", "b")):
+        with pytest.raises(ValidationError, match=r"q_range must be a pair \(lo, hi\)"):
+            well_conditioned_kalman(plant, q_range=bad)
+    with pytest.raises(ValidationError, match="region must be an optdesign.regions.Region; found str"):
+        well_conditioned_kalman(plant, region="lhp")
+    with pytest.raises(ValidationError, match=r"kappa2_max must be >= 1 \(kappa2 >= 1 always\); found 0.5"):
+        well_conditioned_kalman(plant, objective="eta", kappa2_max=0.5)
+    # detectable, but the noise never reaches the marginal mode 0: no start has a Riccati solution
+    unexcited = Plant([[0.0, 0.0], [0.0, -1.0]], [[1.0, 1.0]], G=[[0.0], [1.0]])
+    with pytest.raises(ValidationError, match="no Riccati solution exists for any starting noise level"):
+        well_conditioned_kalman(unexcited, starts=2)
     with pytest.raises(ValidationError, match="objective must be one of"):
         well_conditioned_kalman(plant, objective="trace")
     with pytest.raises(DimensionError, match="poles has the wrong length: expected 4, found 3"):
@@ -731,19 +777,23 @@ def _yt_best(plant, poles):
     return min(ks) if ks else None
 
 
-def compleib_region(plant):
-    """HalfPlane at 1.5x the slowest open-loop decay (>= 1 % of rho(A)), damping 0.5, |s| <= 2 max(rho, a).
-
-    An unobservable mode is an eigenvalue of every A - LC: alpha is lowered below its decay.
-    (The region of ``benchmarks/bench_placement.py``.)
-    """
-    w = np.linalg.eigvals(plant.A)
-    rho = float(np.max(np.abs(w)))
-    alpha = 1.5 * max(float(np.min(np.abs(w.real))), 0.01 * rho)
-    un = plant.unobservable_modes()
-    if un.size:
-        alpha = min(alpha, 0.9 * float(np.min(-un.real)))
-    return HalfPlane(alpha) & Sector.from_damping(0.5) & Disk(0.0, 2.0 * max(rho, alpha))
+def test_suggested_region():
+    """1.5x the slowest decay, damping 0.5, radius 2 max(rho, alpha); below an unobservable mode's decay."""
+    plant = Plant([[-0.2, 1.0], [0.0, -3.0]], [[1.0, 0.0]])
+    r = suggested_region(plant)
+    assert r.members[0].alpha == pytest.approx(0.3, rel=1e-15) and r.members[1] == Sector.from_damping(0.5)
+    assert r.members[2] == Disk(0.0, 6.0)
+    assert suggested_region(plant, decay_factor=2.0).members[0].alpha == pytest.approx(0.4, rel=1e-15)
+    unobs = Plant([[-0.2, 0.0], [0.0, -3.0]], [[0.0, 1.0]])  # -0.2 unobservable: alpha 0.9 * 0.2
+    assert suggested_region(unobs).members[0].alpha == pytest.approx(0.18)
+    with pytest.raises(ValidationError, match="for continuous-time plants"):
+        suggested_region(Plant([[0.5]], [[1.0]], dt=0.1))
+    with pytest.raises(ValidationError, match="are not stable: no observer is stable"):
+        suggested_region(Plant([[0.2, 0.0], [0.0, -3.0]], [[0.0, 1.0]]))
+    with pytest.raises(ValidationError, match="decay_factor"):
+        suggested_region(plant, decay_factor=-1.0)
+    with pytest.raises(ValidationError, match="plant must be an optdesign.Plant"):
+        suggested_region("he1")
 
 
 @pytest.mark.slow
@@ -751,7 +801,7 @@ def compleib_region(plant):
 def test_compleib_region_designs(name):
     """A verified design for every plant, never worse than scipy YT at the naive poles."""
     plant = problems.load(name).plant
-    region = compleib_region(plant)
+    region = suggested_region(plant)
     d = well_conditioned_observer(plant, region=region, starts=2 if FULL else 1)
     if name in COMPLEIB_UNREACHABLE:
         assert not d.success and not d.verification.passed

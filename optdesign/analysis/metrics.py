@@ -71,6 +71,7 @@ __all__ = [
     "condition_summary",
     "coincidence_tol",
     "eigenvalue_condition",
+    "eigenvalue_rounding_floor",
 ]
 
 _EPS = float(np.finfo(float).eps)
@@ -265,6 +266,35 @@ def eigenvalue_condition(X: ArrayLike) -> tuple[NDArray[np.complex128], NDArray[
         except np.linalg.LinAlgError:
             pass
     return w * scale, s
+
+
+def eigenvalue_rounding_floor(X: ArrayLike) -> float:
+    """How accurately the eigenvalues of ``X`` can be computed at all, relatively:
+    ``10 eps max_i s_i ||X||_F / max(1, |lambda_i|)`` with ``s_i`` the eigenvalue condition numbers
+    (:func:`eigenvalue_condition`).
+
+    No design can be verified to better than its poles can be computed; a check of pole accuracy
+    below this level would test rounding, not the design.
+
+    Parameters
+    ----------
+    X : (n, n) array_like
+
+    Returns
+    -------
+    float
+        ``>= 0``; ``inf`` for a (numerically) defective X.
+
+    Raises
+    ------
+    DimensionError, NotFiniteError
+    """
+    w, s = eigenvalue_condition(X)
+    if w.size == 0:
+        return 0.0
+    rel = s * float(np.linalg.norm(np.asarray(X))) / np.maximum(1.0, np.abs(w))
+    floor = 10.0 * _EPS * float(np.max(rel))
+    return floor if np.isfinite(floor) else float("inf")
 
 
 def kappa2(X: ArrayLike, *, tol: float | None = None) -> float:

@@ -51,7 +51,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_positive_float
-from ..errors import ValidationError
+from ..errors import DimensionError, ValidationError
 
 __all__ = [
     "kappa2_from_eta_2x2",
@@ -81,10 +81,26 @@ def _real(name: str, x) -> float:
 
 
 def _arr(name: str, x) -> NDArray[np.float64]:
-    a = np.asarray(x, dtype=float)
+    try:
+        a = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):  # strings, complex numbers, ragged sequences
+        raise ValidationError(f"{name} must be a real number or array of real numbers; found {x!r}") from None
     if not np.all(np.isfinite(a)):
         raise ValidationError(f"{name} must be finite; found a NaN or Inf entry")
     return a
+
+
+def _companion_and_gains(a1, a2, l1, l2) -> tuple[float, float, NDArray[np.float64], NDArray[np.float64]]:
+    """Validated ``a1, a2`` (scalars) and ``l1, l2`` broadcast together."""
+    a1, a2 = _real("a1", a1), _real("a2", a2)
+    l1, l2 = _arr("l1", l1), _arr("l2", l2)
+    try:
+        l1, l2 = np.broadcast_arrays(l1, l2)
+    except ValueError:
+        raise DimensionError(
+            f"l1 and l2 must broadcast together; found shapes {l1.shape} and {l2.shape}"
+        ) from None
+    return a1, a2, l1, l2
 
 
 def kappa2_from_eta_2x2(eta: ArrayLike) -> NDArray[np.float64]:
@@ -129,8 +145,7 @@ def observer_2x2_poles(a1: float, a2: float, l1: ArrayLike, l2: ArrayLike) -> ND
     (..., 2) ndarray of complex
         ``(a2 - l1 + sqrt(D)) / 2`` and ``(a2 - l1 - sqrt(D)) / 2``, ``D = (a2 + l1)^2 + 4 (a1 - l2)``.
     """
-    a1, a2 = _real("a1", a1), _real("a2", a2)
-    l1, l2 = np.broadcast_arrays(_arr("l1", l1), _arr("l2", l2))
+    a1, a2, l1, l2 = _companion_and_gains(a1, a2, l1, l2)
     D = (a2 + l1) ** 2 + 4.0 * (a1 - l2)
     r = np.sqrt(D.astype(complex))
     return np.stack([(a2 - l1 + r) / 2.0, (a2 - l1 - r) / 2.0], axis=-1)
@@ -160,8 +175,7 @@ def observer_2x2_eta(a1: float, a2: float, l1: ArrayLike, l2: ArrayLike) -> NDAr
     ----------
     Seed 001, eq (4)-(21).
     """
-    a1, a2 = _real("a1", a1), _real("a2", a2)
-    l1, l2 = np.broadcast_arrays(_arr("l1", l1), _arr("l2", l2))
+    a1, a2, l1, l2 = _companion_and_gains(a1, a2, l1, l2)
     s = a2 + l1
     c = a1 - l2
     D = s * s + 4.0 * c
@@ -183,8 +197,7 @@ def jung_huh_eq21_printed(a1: float, a2: float, l1: ArrayLike, l2: ArrayLike) ->
     Kept only to document the paper's error: it is not eta (wrong sign of the 1; and it is
     ``nan`` for complex poles, where the square root has a negative argument).
     """
-    a1, a2 = _real("a1", a1), _real("a2", a2)
-    l1, l2 = np.broadcast_arrays(_arr("l1", l1), _arr("l2", l2))
+    a1, a2, l1, l2 = _companion_and_gains(a1, a2, l1, l2)
     D = (a2 + l1) ** 2 + 4.0 * (a1 - l2)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.abs(a1 - l2 + 1.0) / np.sqrt(D)
@@ -192,8 +205,7 @@ def jung_huh_eq21_printed(a1: float, a2: float, l1: ArrayLike, l2: ArrayLike) ->
 
 def observer_2x2_stable(a1: float, a2: float, l1: ArrayLike, l2: ArrayLike) -> NDArray[np.bool_]:
     """Constraint 1 of seed 001 (eq 20): ``l1 - a2 > 0`` and ``l2 - a1 - a2 l1 > 0`` (Hurwitz)."""
-    a1, a2 = _real("a1", a1), _real("a2", a2)
-    l1, l2 = np.broadcast_arrays(_arr("l1", l1), _arr("l2", l2))
+    a1, a2, l1, l2 = _companion_and_gains(a1, a2, l1, l2)
     return (l1 - a2 > 0) & (l2 - a1 - a2 * l1 > 0)
 
 

@@ -90,7 +90,7 @@ from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, Status, Verification
 from .placement import pole_error
-from .riccati import filter_are, filter_are_residual, hamiltonian_are, symplectic_dare
+from .riccati import _sort_poles, filter_are, filter_are_residual, hamiltonian_are, symplectic_dare
 
 __all__ = ["solheim", "SolheimResult", "SolheimStep", "COMPLEX_TO_REAL"]
 
@@ -366,10 +366,10 @@ def _solve_modal_are(Lam: NDArray, CM: NDArray, R: NDArray, Qt: NDArray, discret
 class _State:
     """Running sums of the sequential method."""
 
-    def __init__(self, plant: Plant, R: NDArray):
+    def __init__(self, plant: Plant):
         self.A = plant.A.copy()
         self.C = plant.C
-        self.R = R.copy()
+        self.R = plant.R.copy()
         self.discrete = plant.is_discrete
         n, p = plant.n, plant.p
         self.L = np.zeros((n, p))
@@ -396,18 +396,19 @@ class _State:
             Kt = Pt @ np.linalg.solve(R, CM).T
             R_next = R
         K = M @ Kt
+        Qk = M @ Qt @ M.T
         A_after = A - K @ C
         placed = np.linalg.eigvals(Lam - Kt @ CM)
         placed = placed[np.lexsort((-placed.imag, -placed.real))]
         self.steps.append(SolheimStep(
             kind=kind, moved=np.asarray(moved, dtype=complex), placed=placed.astype(complex), basis=M,
-            Lambda=Lam, H=_H(M, C, R), q_tilde=Qt, P_tilde=Pt, K_tilde=Kt, K=K, Q=M @ Qt @ M.T,
+            Lambda=Lam, H=_H(M, C, R), q_tilde=Qt, P_tilde=Pt, K_tilde=Kt, K=K, Q=Qk,
             P=Pk, A_after=A_after, R=R.copy(), note=note,
         ))
         self.A = A_after
         self.R = R_next
         self.L = self.L + K
-        self.Q = self.Q + M @ Qt @ M.T
+        self.Q = self.Q + Qk
         self.P = self.P + Pk
 
 
@@ -418,11 +419,7 @@ def _real_step(st: _State, lam: float, S: float, note: str = "") -> None:
         raise NotObservableError(
             f"solheim: eigenvalue {_fmt(lam_k)} cannot be moved to {_fmt(S)}: it is unobservable "
             f"(h = m'C'R^-1Cm = {h:.3g})", modes=[lam_k])
-    if st.discrete:
-        if S == 0.0:
-            raise ValidationError(
-                f"solheim: the target pole 0 (moving {_fmt(lam_k)}) needs an infinite process noise in "
-                f"discrete time (the moved pole is lambda / (1 + p~ h)); choose a nonzero target")
+    if st.discrete:  # S != 0: solheim() rejects a zero target (the moved pole is lambda / (1 + p~ h))
         p = (lam_k / S - 1.0) / h
         q = p * (1.0 - lam_k * S)
     else:
@@ -717,7 +714,7 @@ def solheim(plant: Plant, poles: ArrayLike, *, complex_to_real: str = "paper") -
             f"found {', '.join(_fmt(z) for z in bad)}")
     if disc and np.any(target == 0):
         raise ValidationError("solheim: a discrete-time target pole at 0 needs an infinite process noise")
-    st = _State(plant, plant.R)
+    st = _State(plant)
     for kind, moved, tgt in _order(_plan(np.linalg.eigvals(plant.A), target)):
         if kind == "r2r":
             _real_step(st, float(moved[0].real), float(tgt[0].real))
@@ -739,8 +736,7 @@ def solheim(plant: Plant, poles: ArrayLike, *, complex_to_real: str = "paper") -
 def _finish(plant: Plant, target: NDArray, st: _State) -> SolheimResult:
     A, C, R = plant.A, plant.C, plant.R
     L, Q, P = st.L, 0.5 * (st.Q + st.Q.T), 0.5 * (st.P + st.P.T)
-    poles = np.linalg.eigvals(A - L @ C)
-    poles = poles[np.lexsort((poles.imag, poles.real))]
+    poles = _sort_poles(np.linalg.eigvals(A - L @ C))
     perr = pole_error(poles, target)
     nq = max(1.0, float(np.linalg.norm(Q, 2)))
     qmin = float(np.linalg.eigvalsh(Q)[0]) if Q.size else 0.0

@@ -81,6 +81,7 @@ from __future__ import annotations
 import dataclasses
 import threading
 import time
+import warnings
 from collections import OrderedDict
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -89,15 +90,22 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_matrix, as_poles, as_positive_float, as_square, check_pd, check_symmetric
+from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, check_symmetric
+from ..analysis.metrics import eigenvalue_rounding_floor
+from ..analysis.robustness import _resolve_R
 from ..classical.placement import place_observer, pole_error
-from ..classical.riccati import filter_are, filter_are_residual
+from ..classical.riccati import _fmt, filter_are, filter_are_residual
+from ..classical.riccati import _sort_poles as _sorted_poles
 from ..errors import OptDesignError, RiccatiError, ValidationError
 from ..formulate.inverse_kalman import (
     FAST_OBJECTIVES,
     FAST_STRUCTURES,
     OBJECTIVES,
     STRUCTURES,
+    _check_choice,
+    _chol_factor,
+    _psd_part,
+    _tril_index,
     build_fixed_gain_sdp,
     build_pole_nlp,
     build_spectral_nlp,
@@ -108,7 +116,6 @@ from ..formulate.inverse_kalman import (
 )
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
-from ..solvers.report import SolverReport
 
 __all__ = [
     "METHODS",
@@ -360,11 +367,6 @@ class KalmanOptimalityResult(ResultMixin):
 
 
 # ============================================================================ helpers
-def _fmt(z: complex) -> str:
-    z = complex(z)
-    return f"{z.real:.6g}" if z.imag == 0 else f"{z.real:.6g}{z.imag:+.6g}j"
-
-
 def _stable(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
     z = np.asarray(z, dtype=complex)
     return np.abs(z) < 1.0 if discrete else z.real < 0.0
@@ -379,11 +381,6 @@ def _rel(x: NDArray, y: NDArray) -> float:
     return 0.0 if d == 0 else d / max(1.0, float(np.linalg.norm(y)))
 
 
-def _sorted_poles(z: NDArray) -> NDArray[np.complex128]:
-    z = np.asarray(z, dtype=complex)
-    return z[np.lexsort((z.imag, z.real))]
-
-
 def _lstsq(M: NDArray, b: NDArray) -> NDArray:
     """Minimum-norm least squares by a complete orthogonal factorization (LAPACK gelsy: as
     accurate here as the SVD-based gelsd and much faster, notably with oversubscribed BLAS)."""
@@ -392,18 +389,29 @@ def _lstsq(M: NDArray, b: NDArray) -> NDArray:
     return lstsq(M, b, lapack_driver="gelsy", check_finite=False)[0]
 
 
-def _duplication(n: int) -> tuple[NDArray, list[tuple[int, int]]]:
+def _duplication(n: int) -> NDArray:
     """D with vec(P) = D svec(P) (column-major vec, svec = lower-triangle entries)."""
-    idx = [(i, j) for j in range(n) for i in range(j, n)]
-    D = np.zeros((n * n, len(idx)))
-    for c, (i, j) in enumerate(idx):
-        D[j * n + i, c] = 1.0
-        D[i * n + j, c] = 1.0
-    return D, idx
+    I, J = _tril_index(n)
+    D = np.zeros((n * n, I.size))
+    cols = np.arange(I.size)
+    D[J * n + I, cols] = 1.0
+    D[I * n + J, cols] = 1.0
+    return D
 
 
 def _lower_rows(n: int) -> NDArray[np.intp]:
-    return np.array([j * n + i for j in range(n) for i in range(j, n)], dtype=np.intp)
+    """Positions of the svec entries in the column-major vec."""
+    I, J = _tril_index(n)
+    return J * n + I
+
+
+def _commutation(k: int, r: int) -> NDArray:
+    """K with vec(V') = K vec(V) for a (k, r) matrix V."""
+    K = np.zeros((k * r, k * r))
+    for i in range(k):
+        for j in range(r):
+            K[i * r + j, j * k + i] = 1.0
+    return K
 
 
 def _vec(X: NDArray) -> NDArray:
@@ -426,13 +434,13 @@ def _face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
         Fc = A - L @ C
         Mg = np.kron(C, Fc)                       # vec(F P C')
         Mq = np.eye(n * n) - np.kron(Fc, Fc)      # vec(P - F P F')
-    Dn, _ = _duplication(n)
+    Dn = _duplication(n)
     rows = _lower_rows(n)
     MgP = Mg @ Dn
     MqP = (Mq @ Dn)[rows]
     cg = -_vec(gain_residual(np.zeros((n, n))))   # MgP svec(P) = cg
     cq = _vec(q_of_P(np.zeros((n, n))))[rows]     # q(P) = cq + MqP svec(P)
-    svecP0 = _vec(P0)[_lower_rows(n)]
+    svecP0 = _vec(P0)[rows]
     Gm = np.eye(n) if structure == "full" else G
     candidates: list[tuple[float, NDArray, NDArray]] = []
     if structure == "diagonal":
@@ -460,8 +468,7 @@ def _face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
             Uf = face
             r = Uf.shape[1]
             GU = Gm @ Uf
-            Dr, _ = _duplication(r)
-            Mw = (np.kron(GU, GU) @ Dr)[rows] if r else np.zeros((rows.size, 0))
+            Mw = (np.kron(GU, GU) @ _duplication(r))[rows] if r else np.zeros((rows.size, 0))
             Wr = Uf.T @ _sym(np.asarray(W0, dtype=float)) @ Uf
             z0w = _vec(Wr)[_lower_rows(r)] if r else np.zeros(0)
         # unknowns z = [svec P, w]:  MgP svecP = cg ;  cq + MqP svecP - Mw w = 0
@@ -483,7 +490,7 @@ def _face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
             Wdec = wd
         else:
             r = face.shape[1]
-            Wr = (_duplication(r)[0] @ w).reshape(r, r, order="F") if r else np.zeros((0, 0))
+            Wr = (_duplication(r) @ w).reshape(r, r, order="F") if r else np.zeros((0, 0))
             ok = bool(np.linalg.eigvalsh(Wr)[0] > 0) if r else True
             Wdec = _sym(face @ Wr @ face.T) if r else np.zeros((face.shape[0],) * 2)
         if ok and structure != "diagonal" and face.shape[1] and 1e-14 < res < 1e-3:
@@ -515,10 +522,7 @@ def _gn_refine(MgP, MqP, cg, cq, Gm, Dn, P0, V0, rhs, iters: int = 8):
     k, r = V0.shape
     low = _lower_rows(n)
     nP = Dn.shape[1]
-    K = np.zeros((k * r, k * r))  # commutation: vec(V') = K vec(V)
-    for i in range(k):
-        for j in range(r):
-            K[i * r + j, j * k + i] = 1.0
+    K = _commutation(k, r)
     x = np.concatenate([_vec(P0)[low], _vec(V0)])
     norm_rhs = float(np.linalg.norm(rhs)) + 1.0
 
@@ -528,14 +532,14 @@ def _gn_refine(MgP, MqP, cg, cq, Gm, Dn, P0, V0, rhs, iters: int = 8):
         return P, V
 
     def resid(x):
-        P, V = unpack(x)
+        _, V = unpack(x)
         r1 = MgP @ x[:nP] - cg
         r2 = cq + MqP @ x[:nP] - _vec(Gm @ V @ V.T @ Gm.T)[low]
         return np.concatenate([r1, r2])
 
     best = (float(np.linalg.norm(resid(x))) / norm_rhs, x)
     for _ in range(iters):
-        P, V = unpack(x)
+        _, V = unpack(x)
         GV = Gm @ V
         JV = -(np.kron(GV, Gm) + np.kron(Gm, GV) @ K)[low]
         J = np.block([[MgP, np.zeros((MgP.shape[0], k * r))], [MqP, JV]])
@@ -561,12 +565,13 @@ def _noise_of(structure: str, G: NDArray | None, Wdec: NDArray) -> tuple[NDArray
 
 
 def _project_psd(X: NDArray) -> NDArray:
-    w, V = np.linalg.eigh(_sym(X))
-    return _sym((V * np.maximum(w, 0.0)) @ V.T)
+    return _sym(_psd_part(X))
 
 
 def _refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int = 6) -> NDArray:
     """Newton steps on ``eig(A - L C) = target`` (min-norm corrections); keeps the best L."""
+    from scipy.optimize import linear_sum_assignment
+
     best, best_err = L, pole_error(np.linalg.eigvals(A - L @ C), target)
     if best_err == 0.0:
         return L
@@ -578,8 +583,6 @@ def _refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int
             Y = np.linalg.inv(X).conj().T  # left eigenvectors, y_i^H x_i = 1
         except np.linalg.LinAlgError:
             return best
-        from scipy.optimize import linear_sum_assignment
-
         cost = np.abs(lam[:, None] - target[None, :])
         r, c = linear_sum_assignment(cost)
         rows, rhs = [], []
@@ -619,20 +622,10 @@ POLE_FLOOR_CAP = 1e-6
 
 def _pole_tolerance(F: NDArray, tol: float) -> float:
     """``max(tol, min(floor, POLE_FLOOR_CAP))``: the floor is the rounding level of the
-    eigenvalues of F itself, ``10 eps max_i kappa_i ||F||_F / max(1, |lambda_i|)`` with
-    ``kappa_i`` the eigenvalue condition numbers -- no gain can be verified to better than its
-    poles can be computed; the cap keeps the check meaningful for (nearly) defective poles."""
-    lam, V = np.linalg.eig(F)
-    try:
-        Y = np.linalg.inv(V)
-        kappa = np.linalg.norm(V, axis=0) * np.linalg.norm(Y, axis=1)
-        rel = kappa * np.linalg.norm(F) / np.maximum(1.0, np.abs(lam))
-        floor = 10 * np.finfo(float).eps * float(np.max(rel))
-    except np.linalg.LinAlgError:
-        floor = float("inf")
-    if not np.isfinite(floor):
-        floor = float("inf")
-    return max(tol, min(floor, POLE_FLOOR_CAP))
+    eigenvalues of F itself (:func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`) --
+    no gain can be verified to better than its poles can be computed; the cap keeps the check
+    meaningful for (nearly) defective poles."""
+    return max(tol, min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP))
 
 
 def _placed_gain(plant: Plant, target: NDArray) -> NDArray:
@@ -654,22 +647,16 @@ def _placed_gain(plant: Plant, target: NDArray) -> NDArray:
     return _refine_gain(plant.A, plant.C, L0, target)
 
 
-def _verify(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
-            structure: str, tol: float) -> tuple[Verification, NDArray]:
-    """Independent checks of a design (numpy eigenvalues, residual, re-solved ARE, PSD)."""
-    A, C = plant.A, plant.C
-    F = A - L @ C
-    poles = _sorted_poles(np.linalg.eigvals(F))
+def _kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, what: str):
+    """The checks that ``(L, P, Q)`` is a steady-state Kalman filter of ``plant`` (with its R):
+    ``riccati_residual``, ``Q_min_eig``, ``P_min_eig`` and ``are_resolve_gain`` (an independent
+    Riccati solve with Q must return L).  Returns ``(checks, are)``; ``are`` is None when that
+    solve failed (then ``are_resolve_gain`` is a failed check)."""
     nq = max(1.0, float(np.linalg.norm(Q, 2)))
     npn = max(1.0, float(np.linalg.norm(P, 2)))
-    ptol = _pole_tolerance(F, tol)
-    pdetail = "max relative distance of eig(A - L C) (numpy) to the targets"
-    if ptol > tol:
-        pdetail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
     checks = [
-        Check.at_most("pole_error", pole_error(poles, target), ptol, pdetail),
         Check.at_most("riccati_residual", filter_are_residual(plant, P, Qs=Q), RESIDUAL_TOL,
-                      "relative residual of the filter ARE for the returned P with the returned Q"),
+                      f"relative residual of the filter ARE for the returned P with {what}"),
         Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / nq, -PSD_RTOL,
                        "smallest eigenvalue of Q / max(1, ||Q||)"),
         Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / npn, -PSD_RTOL,
@@ -677,14 +664,31 @@ def _verify(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Q
     ]
     try:
         are = _independent_are(plant.replace(G=None, Q=_project_psd(Q)))
-        checks.append(Check.at_most("are_resolve_gain", _rel(are.L, L), GAIN_TOL,
-                                    "||L_are - L|| / max(1, ||L||), L_are from an independent "
-                                    "filter_are with Q"))
+    except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
+        checks.append(Check.at_most("are_resolve_gain", float("inf"), GAIN_TOL, f"filter_are failed: {exc}"))
+        return checks, None
+    checks.append(Check.at_most("are_resolve_gain", _rel(are.L, L), GAIN_TOL,
+                                f"||L_are - L|| / max(1, ||L||), L_are from an independent "
+                                f"filter_are with {what}"))
+    return checks, are
+
+
+def _verify(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
+            structure: str, tol: float) -> tuple[Verification, NDArray]:
+    """Independent checks of a design (numpy eigenvalues, residual, re-solved ARE, PSD)."""
+    A, C = plant.A, plant.C
+    F = A - L @ C
+    poles = _sorted_poles(np.linalg.eigvals(F))
+    ptol = _pole_tolerance(F, tol)
+    pdetail = "max relative distance of eig(A - L C) (numpy) to the targets"
+    if ptol > tol:
+        pdetail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
+    kalman, are = _kalman_checks(plant, L, P, Q, "the returned Q")
+    checks = [Check.at_most("pole_error", pole_error(poles, target), ptol, pdetail), *kalman]
+    if are is not None:
         checks.append(Check.at_most("are_resolve_poles", pole_error(are.poles, target),
                                     _pole_tolerance(A - are.L @ C, tol),
                                     "poles of the independent filter_are solve vs the targets"))
-    except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
-        checks.append(Check.at_most("are_resolve_gain", float("inf"), GAIN_TOL, f"filter_are failed: {exc}"))
     if structure != "full" and Qw is not None:
         G = plant.G
         mis = _rel(G @ Qw @ G.T, Q)
@@ -777,6 +781,25 @@ def _fixed_gain_sdp(plant: Plant, L: NDArray, R: NDArray, structure: str, object
 _SDP_RETRIES = ((None, None), ("CLARABEL", {"static_regularization_constant": 1e-7}), ("SCS", None))
 
 
+def _sdp_attempts(solver: str | None):
+    """``(solver name, options)`` to try in turn: the requested (or default) solver, then the
+    installed alternatives of :data:`_SDP_RETRIES` -- Clarabel with stronger regularization
+    always, SCS only when no solver was requested.  Raises BackendUnavailableError (naming the
+    package) when no SDP solver is installed."""
+    avail = _sdp_solvers()
+    if not avail:
+        from ..solvers.cvxpy_backend import default_sdp_solver
+
+        default_sdp_solver()  # raises BackendUnavailableError naming the package
+    first = (solver or avail[0]).upper()
+    for alt, opts in _SDP_RETRIES:
+        name = first if alt is None else alt
+        if alt is not None and (name not in avail or (solver is not None and name != first)
+                                or (name == first and opts is None)):
+            continue
+        yield name, opts
+
+
 def _sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, objective: str,
                     Qn: NDArray | None, solver: str | None):
     """Solve the fixed-gain SDP.  Returns ``(P, Wdec, report, sdp)`` (physical units) or
@@ -788,21 +811,9 @@ def _sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, object
     """
     from ..solvers.cvxpy_backend import solve_cvxpy
 
-    avail = _sdp_solvers()
-    if not avail:
-        from ..solvers.cvxpy_backend import default_sdp_solver
-
-        default_sdp_solver()  # raises BackendUnavailableError naming the package
-    first = (solver or avail[0]).upper()
     attempts = []
     rep = sdp = None
-    for alt, opts in _SDP_RETRIES:
-        name = first if alt is None else alt
-        forced_other = solver is not None and name != first
-        if alt is not None and (name not in avail or forced_other):
-            continue
-        if alt is not None and name == first and opts is None:
-            continue
+    for name, opts in _sdp_attempts(solver):
         sdp = _fixed_gain_sdp(plant, L, R, structure, objective, Qn)
         rep = solve_cvxpy(sdp.problem, name, opts)
         attempts.append(f"{name.lower()}{'' if not opts else ' ' + str(opts)}: {rep.stats.native_status}")
@@ -811,15 +822,14 @@ def _sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, object
     rep.stats.extra["attempts"] = attempts
     if not rep.status.is_solved or sdp.P.value is None:
         return None, None, rep, sdp
-    s = sdp.scale
-    P0 = s * np.asarray(sdp.P.value)
-    if structure == "full":
-        W0 = s * np.asarray(sdp.Q.value)
-    elif structure == "input":
-        W0 = s * np.asarray(sdp.Qw.value)
-    else:
-        W0 = s * np.asarray(sdp.Qw.value).ravel()
-    return P0, W0, rep, sdp
+    return sdp.scale * np.asarray(sdp.P.value), _sdp_decision(sdp, structure), rep, sdp
+
+
+def _sdp_decision(sdp, structure: str) -> NDArray:
+    """The decision covariance of a solved SDP in physical units: Q (``"full"``), Qw
+    (``"input"``) or the vector qw (``"diagonal"``)."""
+    W = sdp.scale * np.asarray((sdp.Q if structure == "full" else sdp.Qw).value)
+    return W.ravel() if structure == "diagonal" else W
 
 
 def _margin(plant: Plant, L: NDArray, R: NDArray, structure: str, solver: str | None):
@@ -831,11 +841,6 @@ def _margin(plant: Plant, L: NDArray, R: NDArray, structure: str, solver: str | 
 
 
 # ============================================================================ public verbs
-def _check_choice(name: str, value, allowed) -> None:
-    if value not in allowed:
-        raise ValidationError(f"{name} must be one of {tuple(allowed)}; found {value!r}")
-
-
 def _nominal(plant: Plant, structure: str, objective: str, Q_nominal) -> NDArray | None:
     if Q_nominal is None:
         if objective != "nearest":
@@ -936,8 +941,7 @@ def kalman_for_poles(
     _check_choice("objective", objective, OBJECTIVES)
     _check_choice("structure", structure, STRUCTURES)
     tol = as_positive_float("tol", tol)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValidationError(f"seed must be an integer >= 0; found {seed!r}")
+    seed = as_int("seed", seed, 0)
     if plant.R is None:
         raise ValidationError("kalman_for_poles needs the measurement-noise covariance R: the plant has no R")
     target = as_poles("poles", poles, plant.n)
@@ -1018,8 +1022,8 @@ def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L
         t_star, Pm, Wm, rep_m = _margin(plant, L, R, structure, solver)
         details["margin_report"] = rep_m
         if Pm is None and rep_m.status.is_infeasible:
-            return _infeasible_fixed_gain(plant, target, common, L, R, float("nan"), rep, rep_m, Qn, solver,
-                                          tol, seed, t_start, details)
+            return _infeasible_fixed_gain(plant, target, common, L, R, float("nan"), rep_m, Qn, seed, t_start,
+                                          details)
         if Pm is None and P0 is None:
             return _empty(common, rep_m.status if not rep_m.status.is_solved else Status.NUMERICAL_ERROR,
                           f"the SDP failed: {rep.message}; the feasibility SDP failed too: {rep_m.message}",
@@ -1028,8 +1032,8 @@ def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L
         if Pm is not None:
             wscale = max(1.0, float(np.max(np.abs(Wm))))
             if t_star < -1e-7 * wscale:
-                return _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep, rep_m, Qn, solver,
-                                              tol, seed, t_start, details)
+                return _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, t_start,
+                                              details)
             pol = _polished(plant, L, R, structure, Pm, Wm)
             if pol is not None or P0 is None:
                 what = ("returned " + rep.stats.native_status) if P0 is None else \
@@ -1180,10 +1184,7 @@ def _spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None
             continue
         k = U.shape[0]
         V = U[:, :r] * np.sqrt(np.maximum(lam[:r], 0.0))
-        K = np.zeros((k * r, k * r))
-        for i in range(k):
-            for j in range(r):
-                K[i * r + j, j * k + i] = 1.0
+        K = _commutation(k, r)
 
         def resid(V):
             return E @ _vec(Gm @ V @ V.T @ Gm.T) + off
@@ -1211,14 +1212,8 @@ def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
     from ..solvers.cvxpy_backend import solve_cvxpy
 
     structure, objective = common["structure"], common["objective"]
-    avail = _sdp_solvers()
-    first = (solver or avail[0]).upper()
     rep = sdp = None
-    for alt, opts in _SDP_RETRIES:
-        name = first if alt is None else alt
-        if alt is not None and (name not in avail or (solver is not None and name != first)
-                                or (name == first and opts is None)):
-            continue
+    for name, opts in _sdp_attempts(solver):
         sdp = build_spectral_sdp(plant.A, plant.C, np.asarray(plant.R, dtype=float), target, dt=plant.dt,
                                  structure=structure, G=plant.G, objective=objective, Q_nominal=Qn,
                                  terms=terms)
@@ -1230,9 +1225,7 @@ def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
     if not rep.status.is_solved or sdp.Q.value is None:
         return _empty(common, rep.status if not rep.status.is_solved else Status.NUMERICAL_ERROR,
                       f"the spectral SDP: {rep.message}", None, stats)
-    s = sdp.scale
-    W0 = s * (np.asarray(sdp.Q.value) if structure == "full" else
-              (np.asarray(sdp.Qw.value) if structure == "input" else np.ravel(sdp.Qw.value)))
+    W0 = _sdp_decision(sdp, structure)
     pol = _spectral_polish(sdp.coefficients, sdp.offset, structure, plant.G, W0)
     if pol is not None:
         Wdec = pol[0]
@@ -1256,8 +1249,7 @@ def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
         details={"spectral_sdp_report": rep}, **common)
 
 
-def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep, rep_m, Qn, solver, tol, seed,
-                           t_start, details):
+def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, t_start, details):
     """Single-output target out of reach: circle-condition certificate + closest poles."""
     from ..analysis.robustness import circle_condition
 
@@ -1342,37 +1334,18 @@ def _modal_start(F: NDArray, blocks: list) -> tuple[NDArray, NDArray]:
     return X, np.asarray(mu)
 
 
-def _factor(W: NDArray) -> NDArray:
-    """Lower-triangular factor of a PSD matrix (Cholesky of W + tiny I)."""
-    W = _project_psd(W)
-    eps = 1e-10 * max(1.0, float(np.linalg.norm(W, 2)))
-    return np.linalg.cholesky(W + eps * np.eye(W.shape[0]))
-
-
-def _lower_vec(F: NDArray) -> NDArray:
-    k = F.shape[0]
-    return np.array([F[i, j] for j in range(k) for i in range(j, k)])
-
-
-class _quiet:
+@contextmanager
+def _quiet():
     """Silence the backends' advisory warnings (the statuses are reported in the result)."""
-
-    def __enter__(self):
-        import warnings
-
-        self._ctx = warnings.catch_warnings()
-        self._ctx.__enter__()
+    with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*may be inaccurate.*")
         warnings.filterwarnings("ignore", message=".*Convergence was not reached.*")
-        return self
-
-    def __exit__(self, *exc):
-        return self._ctx.__exit__(*exc)
+        yield
 
 
 def _eig_nlp_solve(plant, target, structure, objective, Qn, start, *, closest=False, scale=1.0,
                    options=None):
-    """The state-space (eigenvector) NLP from ``start`` = dict(L, P, W[, mu])."""
+    """The state-space (eigenvector) NLP from ``start`` = dict(L, P, W[, mu]): ``(report, Q, Qw)``."""
     from ..solvers.casadi_backend import solve_opti
 
     nlp = build_pole_nlp(plant.A, plant.C, np.asarray(plant.R, dtype=float), target, dt=plant.dt,
@@ -1392,7 +1365,8 @@ def _eig_nlp_solve(plant, target, structure, objective, Qn, start, *, closest=Fa
     if structure == "diagonal":
         opti.set_initial(nlp.Fvec, np.maximum(np.asarray(W).ravel(), max(t0, 0.0) + 1e-8))
     else:
-        opti.set_initial(nlp.Fvec, _lower_vec(_factor(W - t0 * np.eye(W.shape[0]))))
+        k = W.shape[0]
+        opti.set_initial(nlp.Fvec, _chol_factor(_project_psd(W - t0 * np.eye(k)))[_tril_index(k)])
     X0, mu0 = _modal_start(plant.A - start["L"] @ plant.C, nlp.blocks)
     opti.set_initial(nlp.X, X0)
     if nlp.mu is not None:
@@ -1402,47 +1376,7 @@ def _eig_nlp_solve(plant, target, structure, objective, Qn, start, *, closest=Fa
     rep = solve_opti(opti, opts)
     Q = s * rep.value(nlp.Q).reshape(plant.n, plant.n)
     Qw = None if nlp.Qw is None else s * np.atleast_2d(rep.value(nlp.Qw))
-    L = rep.value(nlp.L).reshape(plant.n, plant.p)
-    return rep, L, _sym(Q), (None if Qw is None else _sym(Qw))
-
-
-def _nlpsol_solve(nlp, options: dict | None) -> SolverReport:
-    """Run a :class:`~optdesign.formulate.inverse_kalman.SpectralNLPSol` with IPOPT (the
-    plugin and ``ipopt.`` options as for :func:`optdesign.solvers.casadi_backend.solve_opti`);
-    ``report.value`` maps the solution vector to itself (pass None)."""
-    import casadi as ca
-
-    from ..solvers.casadi_backend import DEFAULT_IPOPT_OPTIONS
-    from ..solvers.status import map_status
-
-    opts = dict(DEFAULT_IPOPT_OPTIONS)
-    opts.update(options or {})
-    opts.pop("expand", None)  # the problem is SX already
-    plugin = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
-    plugin.update(nlp.options)
-    plugin["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
-    t0 = time.perf_counter()
-    error = ""
-    try:
-        solver = ca.nlpsol("spectral", "ipopt", nlp.nlp, plugin)
-        sol = solver(x0=nlp.x0, lbg=nlp.lbg, ubg=nlp.ubg)
-        st = solver.stats()
-        xopt = np.asarray(sol["x"], dtype=float).ravel()
-        obj = float(sol["f"])
-    except RuntimeError as exc:  # pragma: no cover - defensive: nlpsol reports, never raises
-        error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
-        st, xopt, obj = {}, nlp.x0, float("nan")
-    elapsed = time.perf_counter() - t0
-    native = str(st.get("return_status", "unknown"))
-    status = map_status("ipopt", native)
-    if native == "unknown" and not error:
-        status = Status.SOLVER_ERROR
-    stats = SolverStats(backend="ipopt", native_status=native, time=elapsed,
-                        iterations=int(st["iter_count"]) if "iter_count" in st else None,
-                        extra={"objective": obj, "derivatives": "closed form",
-                               **({"error": error} if error else {})})
-    msg = f"ipopt: {native}" + (f" ({error})" if error else "")
-    return SolverReport(status=status, stats=stats, value=lambda _=None: xopt, objective=obj, message=msg)
+    return rep, _sym(Q), (None if Qw is None else _sym(Qw))
 
 
 def _spectral_solve(plant, target, structure, objective, Qn, W0, terms, *, options=None, soft=False):
@@ -1453,7 +1387,7 @@ def _spectral_solve(plant, target, structure, objective, Qn, W0, terms, *, optio
     which dominated the time for n >= 20); the others by CasADi's symbolic derivatives
     (:func:`build_spectral_nlp`).
     """
-    from ..solvers.casadi_backend import solve_opti
+    from ..solvers.casadi_backend import solve_nlpsol, solve_opti
 
     Wm = np.diag(np.ravel(W0)) if structure == "diagonal" else np.asarray(W0)
     scale = max(1.0, float(np.linalg.norm(Wm)))
@@ -1463,7 +1397,8 @@ def _spectral_solve(plant, target, structure, objective, Qn, W0, terms, *, optio
                                     Q_nominal=Qn, W0=W0, scale=scale, terms=terms)
         opts = {"ipopt.max_iter": 500}
         opts.update(options or {})
-        rep = _nlpsol_solve(nlp, opts)
+        rep = solve_nlpsol(nlp.nlp, nlp.x0, nlp.lbg, nlp.ubg, opts, plugin=nlp.options,
+                           extra={"derivatives": "closed form"})
         Wd = nlp.decision(rep.value())
         if structure == "full":
             return rep, _sym(Wd), None
@@ -1581,9 +1516,8 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
     details["formulation"] = formulation
     dof = _decision_size(plant, structure) - plant.n
     details["degrees_of_freedom"] = dof
-    best = fallback = last_rep = None
     starts = _start_covariances(plant, target, structure, Qn, seed, nstarts, solver) if dof >= 0 else []
-    state = {"best": None, "fallback": None, "last_rep": None, "best_time": 0.0}
+    state = {"best": None, "fallback": None, "last_rep": None, "best_iterations": 0}
 
     def run_start(k, start, opts):
         if terms is not None:
@@ -1591,8 +1525,8 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
                                          options=opts)
         else:
             scale = max(1.0, float(np.linalg.norm(start["L"] @ plant.R @ start["L"].T)))
-            rep, _, Q, Qw = _eig_nlp_solve(plant, target, structure, objective, Qn, start, scale=scale,
-                                           options=opts)
+            rep, Q, Qw = _eig_nlp_solve(plant, target, structure, objective, Qn, start, scale=scale,
+                                        options=opts)
         state["last_rep"] = rep
         entry = {"start": k, "kind": start["kind"], "status": rep.status.value,
                  "native": rep.stats.native_status, "iterations": rep.stats.iterations,
@@ -1613,7 +1547,7 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
         best, fallback = state["best"], state["fallback"]
         if ver.passed:
             if best is None:
-                state["best_time"] = rep.stats.time
+                state["best_iterations"] = int(rep.stats.iterations or 0)
             if best is None or (val > best[0] if objective == "feasibility" else val < best[0]):
                 state["best"] = cand
         elif fallback is None or ver["pole_error"].value < fallback[6]["pole_error"].value:
@@ -1621,9 +1555,10 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
 
     for k, start in enumerate(starts):
         # once a verified design exists, the other starts only look for a better local optimum:
-        # at most 200 iterations and twice the wall time the first success took
+        # at most twice the iterations the first success took (50 .. 200) -- an iteration budget,
+        # not a wall-time one, so that the answer does not depend on the machine's load
         opts = None if state["best"] is None else {
-            "ipopt.max_iter": 200, "ipopt.max_wall_time": max(1.0, 2.0 * state["best_time"])}
+            "ipopt.max_iter": min(200, max(50, 2 * state["best_iterations"]))}
         run_start(k, start, opts)
     if state["best"] is None and starts:
         # no start converged to a verified design (typical of rank-deficient targets, whose
@@ -1833,8 +1768,8 @@ def _closest_poles(plant: Plant, target: NDArray, structure: str, Qn: NDArray | 
     Wd0 = np.diag(W).copy() if structure == "diagonal" else W
     cands = [(err0, Wd0)]
     try:
-        rep, _, Qc, Qw = _eig_nlp_solve(plant, target, structure, "min_trace", None, start, closest=True,
-                                        scale=scale)
+        rep, Qc, Qw = _eig_nlp_solve(plant, target, structure, "min_trace", None, start, closest=True,
+                                     scale=scale)
     except (RuntimeError, OptDesignError):  # pragma: no cover - defensive
         rep = None
     if rep is not None and rep.status.is_solved:
@@ -1872,7 +1807,6 @@ def _fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArra
     """:func:`pole_error` of the Kalman filter of a decision covariance (scipy's ARE solvers,
     no validation: the search's inner loop); inf where there is no stabilizing solution."""
     from scipy.linalg import schur, solve_discrete_are
-    from scipy.optimize import linear_sum_assignment
 
     A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
     n = A.shape[0]
@@ -1895,11 +1829,7 @@ def _fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArra
         return float("inf")
     if not np.all(np.isfinite(poles)) or not np.all(_stable(poles, plant.is_discrete)):
         return float("inf")
-    # pole_error's formula (relative distance after optimal matching), without its checks
-    t = np.asarray(target, dtype=complex)
-    cost = np.abs(poles[:, None] - t[None, :]) / np.maximum(1.0, np.abs(t))[None, :]
-    r, c = linear_sum_assignment(cost)
-    return float(np.max(cost[r, c]))
+    return pole_error(poles, target)
 
 
 def _closest_dfo(plant: Plant, target: NDArray, structure: str, cands: list, seed: int) -> list:
@@ -2039,12 +1969,7 @@ def _is_kalman_optimal(plant, L, R, omega, solver, tol) -> KalmanOptimalityResul
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
     L = as_matrix("L", L, (plant.n, plant.p))
-    if R is None:
-        if plant.R is None:
-            raise ValidationError("is_kalman_optimal needs R: give R=... or a plant with R")
-        R = np.asarray(plant.R, dtype=float)
-    else:
-        R = check_pd("R", as_matrix("R", R, (plant.p, plant.p)))
+    R = _resolve_R(plant, R, "is_kalman_optimal")
     tol = as_positive_float("tol", tol)
     A, C = plant.A, plant.C
     disc = plant.is_discrete
@@ -2182,27 +2107,13 @@ def _optimality_certificate(plant, L, R, P0, W0, *, project: bool):
     """``(P, Q, verification)`` from an SDP point for the gain L, polished onto its face of the
     PSD cone (``project``: else the PSD projection of the unpolished point), when every check
     passes; None otherwise."""
-    A, C = plant.A, plant.C
-    pol = _face_polish(A, C, L, R, plant.dt, "full", None, P0, W0, 1e-9)
+    pol = _face_polish(plant.A, plant.C, L, R, plant.dt, "full", None, P0, W0, 1e-9)
     if pol is not None:
         P, Q, _ = pol
     elif project:
         P, Q = P0, _project_psd(W0)
     else:
         return None
-    checks = [
-        Check.at_most("riccati_residual", filter_are_residual(plant.replace(R=R), P, Qs=Q), RESIDUAL_TOL,
-                      "relative residual of the filter ARE with the certificate Q"),
-        Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / max(1.0, float(np.linalg.norm(Q, 2))),
-                       -PSD_RTOL, "smallest eigenvalue of Q (relative)"),
-        Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / max(1.0, float(np.linalg.norm(P, 2))),
-                       -PSD_RTOL, "smallest eigenvalue of P (relative)"),
-    ]
-    try:
-        are = _independent_are(plant.replace(G=None, Q=_project_psd(Q), R=R))
-        checks.append(Check.at_most("are_resolve_gain", _rel(are.L, L), GAIN_TOL,
-                                    "gain of an independent filter_are with the certificate Q vs L"))
-    except (RiccatiError, OptDesignError) as exc:
-        checks.append(Check.at_most("are_resolve_gain", float("inf"), GAIN_TOL, f"filter_are failed: {exc}"))
+    checks, _ = _kalman_checks(plant.replace(R=R), L, P, Q, "the certificate Q")
     ver = Verification.of(checks)
     return (P, Q, ver) if ver.passed else None

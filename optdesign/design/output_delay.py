@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_matrix, as_positive_float, as_square, as_vector, check_pd, check_psd
+from .._validate import as_int, as_matrix, as_positive_float, as_square, as_vector, check_pd, check_psd
 from ..analysis.robustness import (
     CircleConditionResult,
     circle_search,
@@ -495,11 +495,7 @@ def output_delay_kalman(
         raise ValidationError(f"method must be 'pade' or 'sample'; found {method!r}")
 
     def _int(name, v, default, lo):
-        if v is None:
-            return default
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < lo:
-            raise ValidationError(f"{name} must be an integer >= {lo}; found {v!r}")
-        return int(v)
+        return default if v is None else as_int(name, v, lo)
 
     if method == "pade":
         m = _int("order", order, 4, 1)

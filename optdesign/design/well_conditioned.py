@@ -32,29 +32,33 @@ feedback", Int. J. Control 41 (1985) 1129-1155.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_poles, as_positive_float
+from .._validate import as_int, as_poles, as_positive_float
 from ..analysis import metrics
 from ..classical.placement import place_observer, pole_error
+from ..classical.riccati import _sort_poles, filter_are, filter_are_residual
 from ..errors import DimensionError, ValidationError
 from ..formulate.well_conditioned import (
     KAPPA2_STAGES,
-    OBJECTIVES,
     NLPScaling,
     PoleStructure,
     build_kalman_nlp,
     build_observer_nlp,
+    check_objective,
+    check_q_structure,
     random_gain_for_poles,
 )
 from ..model.plant import Plant
-from ..model.regions import Region, stability_region
+from ..model.regions import Disk, HalfPlane, Region, Sector, _golden_argmin, stability_region
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
 
 __all__ = [
@@ -63,6 +67,7 @@ __all__ = [
     "well_conditioned_observer",
     "well_conditioned_kalman",
     "naive_poles",
+    "suggested_region",
     "start_real_counts",
     "start_real_count",
 ]
@@ -199,7 +204,7 @@ class ObserverDesign(ResultMixin):
     @property
     def n_converged(self) -> int:
         """Number of starts whose design was solved and verified."""
-        return sum(1 for s in self.starts if s.verified and Status(s.status).is_solved)
+        return _n_converged(self.starts)
 
     def record(self) -> dict[str, Any]:
         """Scalar summary for sweeps and tables."""
@@ -229,6 +234,10 @@ class ObserverDesign(ResultMixin):
 # --------------------------------------------------------------------------- validation helpers
 
 
+def _n_converged(records: tuple[StartRecord, ...] | list[StartRecord]) -> int:
+    return sum(1 for r in records if r.verified and Status(r.status).is_solved)
+
+
 def _check_plant(plant: Any) -> Plant:
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
@@ -252,24 +261,34 @@ def _check_mask(structure: Any, n: int, p: int) -> NDArray[np.bool_] | None:
     return m
 
 
-def _check_int(name: str, v: Any, lo: int) -> int:
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise ValidationError(f"{name} must be an integer >= {lo}; found {v!r}")
-    return int(v)
-
-
 def _check_solver(solver: Any) -> None:
     if solver != "ipopt":
         raise ValidationError(f"solver must be 'ipopt' (CasADi/IPOPT is the NLP backend); found {solver!r}")
+
+
+def _check_region(region: Any) -> Region:
+    if not isinstance(region, Region):
+        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    return region
+
+
+def _ipopt_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """The verbs' IPOPT defaults with the caller's ``options`` merged over them."""
+    return {**_IPOPT_DEFAULTS, **(options or {})}
 
 
 def _metric_of(objective: str, m: dict[str, float]) -> float:
     return float(m[objective])
 
 
-def _sorted_poles(p: NDArray) -> NDArray[np.complex128]:
-    p = np.asarray(p, dtype=complex)
-    return p[np.lexsort((p.imag, p.real))]
+def _checker(evaluate, objective: str):
+    """``check(candidate) -> (verified, objective metric)`` from an ``evaluate`` function."""
+
+    def check(c: _Candidate) -> tuple[bool, float]:
+        m, v = evaluate(c)
+        return v.passed, _metric_of(objective, m)
+
+    return check
 
 
 # --------------------------------------------------------------------------- verification
@@ -315,7 +334,7 @@ def _evaluate(
             "V": None,
         }, Verification.of(checks)
     X = plant.A - L @ plant.C
-    poles = _sorted_poles(np.linalg.eigvals(X))
+    poles = _sort_poles(np.linalg.eigvals(X))
     scale = max(1.0, float(np.max(np.abs(poles))))
     if stable:
         checks.append(_stability_check(poles, plant.is_discrete))
@@ -339,7 +358,6 @@ def _evaluate(
         )
     summ = metrics.condition_summary(X)
     k2, eta_v, kf = float(summ["kappa2"]), float(summ["eta"]), float(summ["kappa_fro"])
-    V = None
     if cand.Z is not None:
         Z, zp = cand.Z, cand.Zpoles
         res = np.linalg.norm(X @ Z - Z * zp[None, :]) / max(
@@ -367,11 +385,8 @@ def _evaluate(
         elif math.isfinite(kz) and res <= EIG_RESIDUAL_TOL:
             # repeated pole: the basis is not unique; report the verified basis the solver found
             k2 = kz
-            Zi = np.linalg.inv(Z)
-            kf = float(np.linalg.norm(Z) * np.linalg.norm(Zi))
-            V = Z
-        if V is None:
-            V = Z
+            kf = float(np.linalg.norm(Z) * np.linalg.norm(np.linalg.inv(Z)))
+        V = Z
     else:
         V = metrics.eigenvector_matrix(X) if math.isfinite(k2) else None
     gn = float(np.linalg.norm(L, 2))
@@ -438,17 +453,9 @@ def _region_sup_modulus(region: Region) -> float:
     vals = radii(thetas)
     k = int(np.argmax(vals))
     a, b = float(thetas[max(k - 1, 0)]), float(thetas[min(k + 1, thetas.size - 1)])
-    best = float(vals[k])
-    g = 0.618033988749895
-    for _ in range(60):  # golden-section refinement of the best bracket
-        c, e = b - g * (b - a), a + g * (b - a)
-        rc, re_ = radii(np.array([c, e]))
-        best = max(best, float(rc), float(re_))
-        if rc >= re_:
-            b = e
-        else:
-            a = c
-    return best
+    # golden-section refinement of the best bracket
+    t = _golden_argmin(lambda th: -float(radii(np.array([th]))[0]), a, b, iters=60)
+    return max(float(vals[k]), float(radii(np.array([t]))[0]))
 
 
 def _check_region_stable(region: Region, discrete: bool) -> None:
@@ -511,57 +518,61 @@ def _run_start(
             nlp.warm_start(last_good)
         rep = solve_opti(nlp.opti, options, configure=not nlp.solver_ready)
         nlp.solver_ready = True
-        stage = type(nlp).__name__ + ("" if J is None else f" J={J}")
-        try:
-            L = nlp.gain(rep.value)
-        except RuntimeError as exc:  # CasADi cannot evaluate the iterate (e.g. after a failed restoration)
-            history.append(_solver_error_candidate(nlp.plant, rep, exc, stage))
-            if last_good is None and len(history) >= 2:
-                break
-            if last_good is None:
-                nlp.set_initial_gain(L0)
-            continue
-        try:
-            Z, zp = nlp.basis(rep.value)
-        except (ValueError, np.linalg.LinAlgError, FloatingPointError, RuntimeError):
-            Z, zp = None, None
-        cand = _Candidate(
-            L,
-            Z,
-            zp,
-            rep.status,
-            rep.stats.native_status,
-            rep.message,
-            int(rep.stats.iterations or 0),
-            float(rep.stats.time),
-            stage=stage,
-        )
+        cand, _ = _read_candidate(nlp, rep, type(nlp).__name__ + ("" if J is None else f" J={J}"))
         history.append(cand)
-        ok, _ = check(cand)
-        if ok:
+        if check(cand)[0]:  # (a candidate CasADi could not evaluate has a NaN gain: it fails)
             last_good = nlp.snapshot(rep.value)
-        elif J is not None and last_good is None:
+        elif last_good is None:
             if len(history) >= 2:  # two failed stages from this start: give it up
                 break
             nlp.set_initial_gain(L0)  # retry the next stage from the same start
     return history
 
 
+def _read_candidate(nlp, rep, stage: str) -> tuple[_Candidate, bool]:
+    """The candidate of one solve (gain and, if it can be read, the solver's eigenbasis) and
+    whether the iterate could be evaluated at all; if not, a failed candidate (NaN gain, status
+    solver_error) giving CasADi's reason (seen after e.g. a failed restoration phase)."""
+    try:
+        L = nlp.gain(rep.value)
+    except RuntimeError as exc:
+        return _solver_error_candidate(nlp.plant, rep, exc, stage), False
+    try:
+        Z, zp = nlp.basis(rep.value)
+    except (ValueError, np.linalg.LinAlgError, FloatingPointError, RuntimeError):
+        Z, zp = None, None
+    return _Candidate(L, Z, zp, *_report_fields(rep), stage=stage), True
+
+
+def _report_fields(rep) -> tuple[Status, str, str, int, float]:
+    """``(status, native status, message, iterations, time)`` of a SolverReport (_Candidate's order)."""
+    st = rep.stats
+    return rep.status, st.native_status, rep.message, int(st.iterations or 0), float(st.time)
+
+
 def _solver_error_candidate(plant: Plant, rep, exc: Exception, stage: str) -> _Candidate:
     """A failed candidate (NaN gain, status solver_error) for an iterate CasADi could not evaluate."""
     first = str(exc).strip().splitlines()
     why = first[-1] if first else repr(exc)
+    _, native, message, iterations, time = _report_fields(rep)
     return _Candidate(
         np.full((plant.n, plant.p), np.nan),
         None,
         None,
         Status.SOLVER_ERROR,
-        rep.stats.native_status,
-        f"{rep.message}; the solution could not be evaluated ({type(exc).__name__}: {why[:200]})",
-        int(rep.stats.iterations or 0),
-        float(rep.stats.time),
+        native,
+        f"{message}; the solution could not be evaluated ({type(exc).__name__}: {why[:200]})",
+        iterations,
+        time,
         stage=stage,
     )
+
+
+def _start_record(idx: int, origin: str, cand: _Candidate, m: dict, v: Verification, obj: float,
+                  message: str) -> StartRecord:
+    """The history entry of one start whose chosen candidate carries the start's totals."""
+    return StartRecord(idx, origin, Status(cand.status), v.passed, m["kappa2"], m["eta"], m["gain_norm"], obj,
+                       cand.iterations, cand.time, message)
 
 
 def _rank_key(obj: float, v: Verification, c: _Candidate, idx: int = 0) -> tuple[int, float, int]:
@@ -586,24 +597,9 @@ def _solve_starts(starts_list, runner, objective, evaluate):
         ok = [x for x in scored if x[2].passed]
         pool = ok if ok else scored[-1:]
         obj, m, v, cand = min(pool, key=lambda x: _rank_key(x[0], x[2], x[3]))
-        cand = _Candidate(
-            cand.L, cand.Z, cand.Zpoles, cand.status, cand.native, cand.message, it, t, cand.stage
-        )
-        records.append(
-            StartRecord(
-                idx,
-                origin,
-                Status(cand.status),
-                v.passed,
-                m["kappa2"],
-                m["eta"],
-                m["gain_norm"],
-                obj,
-                it,
-                t,
-                cand.message + (f" [{cand.stage}]" if cand.stage else ""),
-            )
-        )
+        cand = dataclasses.replace(cand, iterations=it, time=t)
+        message = cand.message + (f" [{cand.stage}]" if cand.stage else "")
+        records.append(_start_record(idx, origin, cand, m, v, obj, message))
         evaluated.append((obj, idx, m, v, cand))
     return records, evaluated
 
@@ -612,33 +608,19 @@ def _pick(evaluated):
     return min(evaluated, key=lambda e: _rank_key(e[0], e[3], e[4], e[1]))
 
 
-def _result_from(
-    plant,
-    records,
-    evaluated,
-    *,
-    objective,
-    target,
-    region,
-    extra_checks=None,
-    kalman=None,
-    infeasible_msg=None,
-) -> ObserverDesign:
+def _result_from(records, evaluated, *, objective, target, region, kalman=None) -> ObserverDesign:
     obj, idx, m, v, cand = _pick(evaluated)
-    if extra_checks is not None:
-        v = v + extra_checks(cand)
     status = Status(cand.status)
     all_infeasible = all(Status(r.status).is_infeasible for r in records)
     certificate = None
     if not v.passed and all_infeasible:
         status = Status.INFEASIBLE
         certificate = {
-            "reason": infeasible_msg
-            or "IPOPT converged to a point of local infeasibility from "
+            "reason": "IPOPT converged to a point of local infeasibility from "
             "every start (not a proof: the NLP is non-convex)",
             "starts": len(records),
         }
-    converged = sum(1 for r in records if r.verified and Status(r.status).is_solved)
+    converged = _n_converged(records)
     if v.passed and status.is_solved:
         msg = (
             f"best of {len(records)} starts (start {idx}, {records[idx].origin}): {objective} = {obj:.6g}; "
@@ -736,6 +718,16 @@ def _placement_start(plant: Plant, poles: NDArray, method: str) -> NDArray | Non
 
 
 # --------------------------------------------------------------------------- the verbs
+
+
+def _kappa2_bound(kappa2_max) -> float | None:
+    """A bound on kappa2: None, or a number >= 1 (kappa2 >= 1 always)."""
+    if kappa2_max is None:
+        return None
+    kappa2_max = as_positive_float("kappa2_max", kappa2_max)
+    if kappa2_max < 1:
+        raise ValidationError(f"kappa2_max must be >= 1 (kappa2 >= 1 always); found {kappa2_max!r}")
+    return kappa2_max
 
 
 def well_conditioned_observer(
@@ -855,19 +847,15 @@ def well_conditioned_observer(
     (True, 6.1623)
     """
     plant = _check_plant(plant)
-    if objective not in OBJECTIVES:
-        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
+    check_objective(objective)
     _check_solver(solver)
-    starts = _check_int("starts", starts, 1)
-    seed = _check_int("seed", seed, 0)
+    starts = as_int("starts", starts, 1)
+    seed = as_int("seed", seed, 0)
     n, p = plant.n, plant.p
     mask = _check_mask(structure, n, p)
     max_gain = None if max_gain is None else as_positive_float("max_gain", max_gain)
     eta_max = None if eta_max is None else as_positive_float("eta_max", eta_max)
-    if kappa2_max is not None:
-        kappa2_max = as_positive_float("kappa2_max", kappa2_max)
-        if kappa2_max < 1:
-            raise ValidationError(f"kappa2_max must be >= 1 (kappa2 >= 1 always); found {kappa2_max!r}")
+    kappa2_max = _kappa2_bound(kappa2_max)
     if region is not None and poles is not None:
         raise ValidationError("give either poles (fixed) or region (free poles), not both")
     if not isinstance(allow_unstable, (bool, np.bool_)):
@@ -876,12 +864,11 @@ def well_conditioned_observer(
         raise ValidationError(
             "allow_unstable applies to fixed poles only; a region must lie in the stability region"
         )
-    if region is not None and not isinstance(region, Region):
-        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    if region is not None:
+        _check_region(region)
     if poles is not None:
         plant.require_observable(what="well-conditioned observer design with fixed poles")
-    opts = dict(_IPOPT_DEFAULTS)
-    opts.update(options or {})
+    opts = _ipopt_options(options)
     rng = np.random.default_rng(seed)
 
     if poles is not None:
@@ -936,29 +923,17 @@ def well_conditioned_observer(
             scaling=sc,
         )
         nlp.set_poles(target)
-
-        def evaluate(c):
-            return _evaluate(
-                plant,
-                c,
-                target=target,
-                region=None,
-                mask=mask,
-                max_gain=max_gain,
-                kappa2_max=kappa2_max,
-                eta_max=eta_max,
-                stable=not allow_unstable,
-            )
-
-        def check(c):
-            m, v = evaluate(c)
-            return v.passed, _metric_of(objective, m)
+        evaluate = partial(
+            _evaluate, plant, target=target, region=None, mask=mask, max_gain=max_gain,
+            kappa2_max=kappa2_max, eta_max=eta_max, stable=not allow_unstable,
+        )
+        check = _checker(evaluate, objective)
 
         def runner(L0, st):
             return _run_start(nlp, L0, objective, opts, check)
 
         records, evaluated = _solve_starts(start_list, runner, objective, evaluate)
-        return _result_from(plant, records, evaluated, objective=objective, target=target, region=None)
+        return _result_from(records, evaluated, objective=objective, target=target, region=None)
 
     if region is None:
         region = stability_region(plant.is_discrete)
@@ -998,21 +973,15 @@ def well_conditioned_observer(
         objective=objective, mask=mask, max_gain=max_gain, kappa2_max=kappa2_max, eta_max=eta_max, scaling=sc
     )
 
-    def evaluate(c):
-        return _evaluate(
-            plant,
-            c,
-            target=None,
-            region=region,
-            mask=mask,
-            max_gain=max_gain,
-            kappa2_max=kappa2_max,
-            eta_max=eta_max,
-        )
-
-    def check(c):
-        m, v = evaluate(c)
-        return v.passed, _metric_of(objective, m)
+    evaluate = partial(
+        _evaluate, plant, target=None, region=region, mask=mask, max_gain=max_gain,
+        kappa2_max=kappa2_max, eta_max=eta_max,
+    )
+    check = _checker(evaluate, objective)
+    observable = plant.is_observable()
+    rank_c = int(np.linalg.matrix_rank(plant.C))
+    region_opts = dict(opts)
+    region_opts["ipopt.max_iter"] = min(int(opts.get("ipopt.max_iter", 300)), 300)
 
     def fixed_at(poles_now, L0):
         """Fixed-pole optimization at given poles (inside the region), or [] if not applicable."""
@@ -1051,9 +1020,10 @@ def well_conditioned_observer(
         # from the placement start at 1.27
         hb = _run_start(region_cache[st], L0, objective, region_opts, check, stages=REGION_STAGES)
         hist += hb
-        okb = [c for c in hb if check(c)[0]]
+        checked = [(check(c), c) for c in hb]
+        okb = [(obj, c) for (ok, obj), c in checked if ok]
         if okb and observable:
-            cb = min(okb, key=lambda c: check(c)[1])
+            cb = min(okb, key=lambda t: t[0])[1]
             Pb = np.linalg.eigvals(plant.A - cb.L @ plant.C)
             hist += fixed_at(Pb, cb.L)
             Lyt = _placement_start(plant, Pb, "YT") if mask is None else None
@@ -1061,12 +1031,8 @@ def well_conditioned_observer(
                 hist += fixed_at(Pb, Lyt)
         return hist
 
-    observable = plant.is_observable()
-    rank_c = int(np.linalg.matrix_rank(plant.C))
-    region_opts = dict(opts)
-    region_opts["ipopt.max_iter"] = min(int(opts.get("ipopt.max_iter", 300)), 300)
     records, evaluated = _solve_starts(start_list, runner, objective, evaluate)
-    return _result_from(plant, records, evaluated, objective=objective, target=None, region=region)
+    return _result_from(records, evaluated, objective=objective, target=None, region=region)
 
 
 def _fixed_starts(plant, target, starts, rng, pstruct):
@@ -1096,18 +1062,16 @@ def _fixed_starts(plant, target, starts, rng, pstruct):
 
 
 def _riccati_start(plant: Plant, rng: np.random.Generator, k: int) -> NDArray:
-    """A stabilizing Kalman gain for a random process noise (works for detectable plants)."""
-    from scipy.linalg import solve_continuous_are, solve_discrete_are
+    """A stabilizing Kalman gain for a random process noise (works for detectable plants).
 
+    The filter of state-space noise ``F F' + 1e-3 I`` (``F = I`` for ``k = 0``) and ``R = I``;
+    zero when :func:`~optdesign.riccati.filter_are` fails.
+    """
     n, p = plant.n, plant.p
     F = rng.standard_normal((n, n)) if k else np.eye(n)
     Qs = F @ F.T + 1e-3 * np.eye(n)
     try:
-        if plant.is_discrete:
-            P = solve_discrete_are(plant.A.T, plant.C.T, Qs, np.eye(p))
-            return plant.A @ P @ plant.C.T @ np.linalg.inv(plant.C @ P @ plant.C.T + np.eye(p))
-        P = solve_continuous_are(plant.A.T, plant.C.T, Qs, np.eye(p))
-        return P @ plant.C.T
+        return filter_are(plant.replace(G=np.eye(n), Q=Qs, R=np.eye(p))).L
     except (ValueError, np.linalg.LinAlgError):
         return np.zeros((n, p))
 
@@ -1141,7 +1105,7 @@ def start_real_counts(n: int) -> tuple[int, ...]:
     >>> start_real_counts(3), start_real_counts(6)
     ((1, 3), (4, 6, 0, 2))
     """
-    n = _check_int("n", n, 0)
+    n = as_int("n", n, 0)
     counts = list(range(n, -1, -2))
     order: list[int] = []
     for c in [n - 2, n, n % 2] + sorted(counts, key=lambda c: (abs(c - n / 2), c)):
@@ -1158,9 +1122,51 @@ def start_real_count(n: int, k: int) -> int:
     >>> [start_real_count(2, k) for k in range(3)]
     [0, 2, 0]
     """
-    k = _check_int("k", k, 0)
+    k = as_int("k", k, 0)
     counts = start_real_counts(n)
     return counts[k % len(counts)]
+
+
+def suggested_region(plant: Plant, *, decay_factor: float = 1.5, damping: float = 0.5) -> Region:
+    """A pole region chosen from the plant: faster than it, damped, and bounded.
+
+    ``HalfPlane(alpha) & Sector.from_damping(damping) & Disk(0, 2 max(rho(A), alpha))`` with
+    ``alpha = decay_factor x`` the slowest open-loop decay ``min |Re lambda(A)|`` (at least 1 % of
+    the spectral radius ``rho(A)``).  An unobservable mode is an eigenvalue of every ``A - LC``:
+    ``alpha`` is lowered to 0.9 times its decay so that the region stays reachable.  The region of
+    the COMPleib region-mode benchmark (``benchmarks/bench_placement.py``); continuous time only.
+
+    Parameters
+    ----------
+    plant : Plant
+        Continuous time (``plant.dt`` None).
+    decay_factor : float, default 1.5
+    damping : float in (0, 1), default 0.5
+
+    Returns
+    -------
+    Region
+
+    Raises
+    ------
+    ValidationError
+        A discrete-time plant, an unobservable mode that is not stable, or a bad factor / damping.
+    """
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    if plant.is_discrete:
+        raise ValidationError("suggested_region is for continuous-time plants (a half-plane and a sector); "
+                              "for a discrete plant give a Disk inside the unit circle")
+    factor = as_positive_float("decay_factor", decay_factor)
+    w = np.linalg.eigvals(plant.A)
+    rho = float(np.max(np.abs(w)))
+    alpha = factor * max(float(np.min(np.abs(w.real))), 0.01 * rho)
+    un = plant.unobservable_modes()
+    if un.size:
+        if np.max(un.real) >= 0:
+            raise ValidationError(f"the unobservable mode(s) {un} are not stable: no observer is stable")
+        alpha = min(alpha, 0.9 * float(np.min(-un.real)))
+    return HalfPlane(alpha) & Sector.from_damping(damping) & Disk(0.0, 2.0 * max(rho, alpha))
 
 
 def naive_poles(plant: Plant, region: Region) -> NDArray[np.complex128]:
@@ -1199,8 +1205,7 @@ def naive_poles(plant: Plant, region: Region) -> NDArray[np.complex128]:
     ``benchmarks/bench_placement.py`` (COMPleib region mode, "YT @ naive").
     """
     plant = _check_plant(plant)
-    if not isinstance(region, Region):
-        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    _check_region(region)
     w = np.linalg.eigvals(plant.A)
     x0 = float(region.interior_point())
     rho = max(-float(region.distance([x0])[0]), 1e-300)  # a disk of radius rho around x0 is inside
@@ -1357,22 +1362,16 @@ def well_conditioned_kalman(
     ----------
     Seed 001, section 2.3 and Example 2 (the gain depends on ``q/r`` only, eq 29).
     """
-    from ..classical.riccati import filter_are, filter_are_residual
-
     plant = _check_plant(plant)
-    if objective not in OBJECTIVES:
-        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
-    if q_structure not in ("scalar", "diagonal", "full"):
-        raise ValidationError(f"q_structure must be 'scalar', 'diagonal' or 'full'; found {q_structure!r}")
+    check_objective(objective)
+    check_q_structure(q_structure)
     _check_solver(solver)
-    starts = _check_int("starts", starts, 1)
-    seed = _check_int("seed", seed, 0)
+    starts = as_int("starts", starts, 1)
+    seed = as_int("seed", seed, 0)
     eta_max = None if eta_max is None else as_positive_float("eta_max", eta_max)
-    kappa2_max = None if kappa2_max is None else as_positive_float("kappa2_max", kappa2_max)
-    if region is not None and not isinstance(region, Region):
-        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    kappa2_max = _kappa2_bound(kappa2_max)
     if region is not None:
-        _check_region_stable(region, plant.is_discrete)
+        _check_region_stable(_check_region(region), plant.is_discrete)
     try:
         lo, hi = (float(q_range[0]), float(q_range[1]))
     except (TypeError, ValueError, IndexError):
@@ -1384,8 +1383,7 @@ def well_conditioned_kalman(
     R = plant.R if plant.R is not None else np.eye(p)
     Q0 = plant.Q if plant.Q is not None else np.eye(m)
     base = plant.replace(R=R, Q=Q0)
-    opts = dict(_IPOPT_DEFAULTS)
-    opts.update(options or {})
+    opts = _ipopt_options(options)
     rng = np.random.default_rng(seed)
 
     # starting points: Kalman filters for log-spaced multiples of Q0 (random diagonal jitter)
@@ -1428,17 +1426,10 @@ def well_conditioned_kalman(
             scaling=sc,
         )
 
-    def evaluate(c):
-        return _evaluate(
-            base,
-            c,
-            target=None,
-            region=region,
-            mask=None,
-            max_gain=None,
-            kappa2_max=kappa2_max,
-            eta_max=eta_max,
-        )
+    evaluate = partial(
+        _evaluate, base, target=None, region=region, mask=None, max_gain=None,
+        kappa2_max=kappa2_max, eta_max=eta_max,
+    )
 
     from ..solvers.casadi_backend import solve_opti
 
@@ -1464,30 +1455,18 @@ def well_conditioned_kalman(
                 knlp.opti.set_initial(knlp.theta, good[2])
             rep = solve_opti(knlp.opti, opts, configure=not knlp.obs.solver_ready)
             knlp.obs.solver_ready = True
-            try:
-                L = knlp.obs.gain(rep.value)
-                Qv = knlp.noise(rep.value)
-                Pv = np.asarray(rep.value(knlp.P), dtype=float).reshape(n, n)
-            except RuntimeError as exc:  # CasADi cannot evaluate the iterate
-                hist.append(_solver_error_candidate(base, rep, exc, "" if J is None else f"J={J}"))
+            stage = "" if J is None else f"J={J}"
+            c, readable = _read_candidate(knlp.obs, rep, stage)
+            if readable:
+                try:
+                    Qv = knlp.noise(rep.value)
+                    Pv = np.asarray(rep.value(knlp.P), dtype=float).reshape(n, n)
+                except RuntimeError as exc:  # CasADi cannot evaluate the iterate
+                    c, readable = _solver_error_candidate(base, rep, exc, stage), False
+            hist.append(c)
+            if not readable:
                 Qv, Pv = np.full((m, m), np.nan), np.full((n, n), np.nan)
                 break
-            try:
-                Z, zp = knlp.obs.basis(rep.value)
-            except (ValueError, np.linalg.LinAlgError, RuntimeError):
-                Z, zp = None, None
-            c = _Candidate(
-                L,
-                Z,
-                zp,
-                rep.status,
-                rep.stats.native_status,
-                rep.message,
-                int(rep.stats.iterations or 0),
-                float(rep.stats.time),
-                "" if J is None else f"J={J}",
-            )
-            hist.append(c)
             _, v = evaluate(c)
             if v.passed:
                 good = (
@@ -1500,34 +1479,17 @@ def well_conditioned_kalman(
         cand = best if best is not None else hist[-1]
         if best is None:
             qinfo[idx] = (Qv, Pv)
-        t = sum(h.time for h in hist)
-        it = sum(h.iterations for h in hist)
-        cand = _Candidate(
-            cand.L, cand.Z, cand.Zpoles, cand.status, cand.native, cand.message, it, t, cand.stage
+        cand = dataclasses.replace(
+            cand, iterations=sum(h.iterations for h in hist), time=sum(h.time for h in hist)
         )
         mtr, v = evaluate(cand)
-        v = v + _kalman_checks(base, cand.L, *qinfo[idx], filter_are, filter_are_residual)
+        v = v + _kalman_checks(base, cand.L, *qinfo[idx])
         obj = _metric_of(objective, mtr)
-        records.append(
-            StartRecord(
-                idx,
-                origin,
-                Status(cand.status),
-                v.passed,
-                mtr["kappa2"],
-                mtr["eta"],
-                mtr["gain_norm"],
-                obj,
-                it,
-                t,
-                cand.message,
-            )
-        )
+        records.append(_start_record(idx, origin, cand, mtr, v, obj, cand.message))
         evaluated.append((obj, idx, mtr, v, cand))
     best_idx = _pick(evaluated)[1]
     Qb, Pb = qinfo[best_idx]
     res = _result_from(
-        base,
         records,
         evaluated,
         objective=objective,
@@ -1538,7 +1500,7 @@ def well_conditioned_kalman(
     return res
 
 
-def _kalman_checks(plant, L, Q, P, filter_are, filter_are_residual) -> Verification:
+def _kalman_checks(plant: Plant, L: NDArray, Q: NDArray, P: NDArray) -> Verification:
     checks = []
     if not (np.all(np.isfinite(Q)) and np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
         return Verification.of(

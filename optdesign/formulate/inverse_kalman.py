@@ -106,7 +106,57 @@ OBJECTIVES = ("min_trace", "nearest", "feasibility")
 
 def _check_choice(name: str, value: str, allowed: tuple[str, ...]) -> None:
     if value not in allowed:
-        raise ValidationError(f"{name} must be one of {allowed}; found {value!r}")
+        raise ValidationError(f"{name} must be one of {tuple(allowed)}; found {value!r}")
+
+
+def _check_options(structure: str, objective: str, G: NDArray | None, Q_nominal: NDArray | None, *,
+                   structures: tuple[str, ...] = STRUCTURES, objectives: tuple[str, ...] = OBJECTIVES,
+                   nominal_needed: bool = True) -> None:
+    """The option checks every builder shares (structure, objective, G, ``Q_nominal``)."""
+    _check_choice("structure", structure, structures)
+    _check_choice("objective", objective, objectives)
+    if structure != "full" and G is None:
+        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    if nominal_needed and objective == "nearest" and Q_nominal is None:
+        raise ValidationError("objective='nearest' needs Q_nominal")
+
+
+def _require_terms(A: NDArray, C: NDArray, poles: NDArray, dt: float | None, terms: list | None) -> list:
+    """``terms`` or :func:`spectral_terms`; raises where the spectral identity is singular."""
+    if terms is None:
+        terms = spectral_terms(A, C, poles, dt)
+    if terms is None:
+        raise ValidationError("a target pole is an eigenvalue of A or of its mirror image: the spectral "
+                              "identity is singular there (use build_pole_nlp or build_fixed_gain_sdp)")
+    return terms
+
+
+def _tril_index(k: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Row and column indices of the lower triangle, column by column (the factor's vector)."""
+    cols, rows = np.triu_indices(k)  # (j, i) with i >= j, ordered by j then i
+    return rows.astype(np.intp), cols.astype(np.intp)
+
+
+def _psd_part(W: NDArray) -> NDArray:
+    w, V = np.linalg.eigh(0.5 * (W + W.T))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+def _chol_factor(W: NDArray) -> NDArray:
+    """Lower-triangular factor of a PSD matrix: Cholesky of ``W + 1e-10 max(1, ||W||) I``."""
+    k = W.shape[0]
+    return np.linalg.cholesky(W + 1e-10 * max(1.0, float(np.linalg.norm(W, 2))) * np.eye(k))
+
+
+def _null_vector_start(M0: NDArray, size: int, c: int, p: int) -> NDArray:
+    """Initial null vector of ``M0`` for the c-th repetition of a target: its (c+1)-th smallest
+    right singular vector (the smallest when c >= p); complex for a pair (size 2), with the
+    phase fixed so that ``Re w' Im w = 0``."""
+    j = -1 - c if c < p else -1
+    if size == 1:
+        return np.linalg.svd(M0.real)[2][j]
+    v = np.linalg.svd(M0)[2][j].conj()
+    return v * np.exp(-0.5j * np.angle(v @ v))
 
 
 def fixed_gain_maps(A: NDArray, C: NDArray, L: NDArray, R: NDArray, dt: float | None,
@@ -336,16 +386,11 @@ def build_fixed_gain_sdp(
     from ..solvers.cvxpy_backend import import_cvxpy
 
     cp = import_cvxpy()
-    _check_choice("structure", structure, STRUCTURES)
-    _check_choice("objective", objective, OBJECTIVES)
+    _check_options(structure, objective, G, Q_nominal)
     A = np.asarray(A, dtype=float)
     C = np.asarray(C, dtype=float)
     R = np.asarray(R, dtype=float)
     n, p = A.shape[0], C.shape[0]
-    if structure != "full" and G is None:
-        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
-    if objective == "nearest" and Q_nominal is None:
-        raise ValidationError("objective='nearest' needs Q_nominal")
     params = {"LR": cp.Parameter((n, p), name="LR"), "LRL": cp.Parameter((n, n), symmetric=True, name="LRL")}
     P = cp.Variable((n, n), symmetric=True, name="P")
     Q = cp.Variable((n, n), symmetric=True, name="Q")
@@ -433,17 +478,50 @@ class PoleNLP:
 
 def _lower_factor(ca, opti, k: int):
     """A lower-triangular k x k MX matrix built from k(k+1)/2 new variables."""
-    idx = [(i, j) for j in range(k) for i in range(j, k)]
-    v = opti.variable(len(idx))
-    E = np.zeros((k * k, len(idx)))
-    for c, (i, j) in enumerate(idx):
-        E[j * k + i, c] = 1.0  # column-major vec
+    I, J = _tril_index(k)
+    v = opti.variable(I.size)
+    E = np.zeros((k * k, I.size))
+    E[J * k + I, np.arange(I.size)] = 1.0  # column-major vec
     return ca.reshape(ca.mtimes(ca.DM(E), v), k, k), v
 
 
 def _lower_entries(ca, M, k: int):
-    idx = [(i, j) for j in range(k) for i in range(j, k)]
-    return ca.vertcat(*[M[i, j] for i, j in idx])
+    return ca.vertcat(*[M[int(i), int(j)] for i, j in zip(*_tril_index(k), strict=True)])
+
+
+def _casadi_noise(ca, opti, structure: str, n: int, G: NDArray | None, t):
+    """The process noise of the NLPs: ``Q = F F'`` (``"full"``), ``Q = G Qw G'`` with
+    ``Qw = F F'`` (``"input"``) or ``Qw = diag(qw)``, ``qw >= 0`` (``"diagonal"``); plus
+    ``t I`` (``qw >= t``) when the margin variable ``t`` is given.
+
+    Returns ``(F, Fvec, Q, Qw, Qdec)``: the factor (``qw`` for ``"diagonal"``), its decision
+    vector, Q, Qw (None for ``"full"``) and the decision covariance (Q or Qw).
+    """
+    if structure == "diagonal":
+        Fvec = opti.variable(G.shape[1])
+        opti.subject_to(Fvec >= (t if t is not None else 0))
+        Qw = ca.densify(ca.diag(Fvec))
+        Gd = ca.DM(G)
+        return Fvec, Fvec, ca.mtimes(ca.mtimes(Gd, Qw), Gd.T), Qw, Qw
+    k = n if structure == "full" else G.shape[1]
+    F, Fvec = _lower_factor(ca, opti, k)
+    Qdec = ca.mtimes(F, F.T)
+    if t is not None:
+        Qdec = Qdec + t * ca.DM(np.eye(k))
+    if structure == "full":
+        return F, Fvec, Qdec, None, Qdec
+    Gd = ca.DM(G)
+    return F, Fvec, ca.mtimes(ca.mtimes(Gd, Qdec), Gd.T), Qdec, Qdec
+
+
+def _casadi_objective(ca, opti, objective: str, Q, Qdec, t, Q_nominal: NDArray | None, s: float) -> None:
+    """``min trace(Q)``, ``min ||Qdec - Q_nominal / s||_F^2`` or ``max t``."""
+    if objective == "min_trace":
+        opti.minimize(ca.trace(Q))
+    elif objective == "nearest":
+        opti.minimize(ca.sumsqr(Qdec - ca.DM(np.asarray(Q_nominal, dtype=float) / s)))
+    else:
+        opti.minimize(-t)
 
 
 def build_pole_nlp(
@@ -498,12 +576,7 @@ def build_pole_nlp(
     from ..solvers.casadi_backend import import_casadi
 
     ca = import_casadi()
-    _check_choice("structure", structure, STRUCTURES)
-    _check_choice("objective", objective, OBJECTIVES)
-    if structure != "full" and G is None:
-        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
-    if objective == "nearest" and Q_nominal is None and not closest:
-        raise ValidationError("objective='nearest' needs Q_nominal")
+    _check_options(structure, objective, G, Q_nominal, nominal_needed=not closest)
     n, p = A.shape[0], C.shape[0]
     s = float(scale)
     opti = ca.Opti()
@@ -522,28 +595,7 @@ def build_pole_nlp(
         Qe = P - ca.mtimes(ca.mtimes(Fcl, P), Fcl.T) - LRL
     opti.subject_to(ca.vec(gres) == 0)
     t = opti.variable() if (objective == "feasibility" and not closest) else None
-    Qw = None
-    if structure == "full":
-        F, Fvec = _lower_factor(ca, opti, n)
-        Q = ca.mtimes(F, F.T)
-        if t is not None:
-            Q = Q + t * ca.DM(np.eye(n))
-        Qdec = Q
-    elif structure == "input":
-        m = G.shape[1]
-        F, Fvec = _lower_factor(ca, opti, m)
-        Qw = ca.mtimes(F, F.T)
-        if t is not None:
-            Qw = Qw + t * ca.DM(np.eye(m))
-        Qdec = Qw
-        Q = ca.mtimes(ca.mtimes(ca.DM(G), Qw), ca.DM(G).T)
-    else:
-        m = G.shape[1]
-        F = Fvec = opti.variable(m)
-        opti.subject_to(F >= (t if t is not None else 0))
-        Qw = ca.densify(ca.diag(F))
-        Qdec = Qw
-        Q = ca.mtimes(ca.mtimes(ca.DM(G), Qw), ca.DM(G).T)
+    F, Fvec, Q, Qw, Qdec = _casadi_noise(ca, opti, structure, n, G, t)
     opti.subject_to(_lower_entries(ca, Qe - Q, n) == 0)
     # eigenvalue conditions in real modal form
     target = np.asarray(poles, dtype=complex)
@@ -579,13 +631,7 @@ def build_pole_nlp(
         opti.minimize(cost)
     else:
         Lam = ca.DM(_block_matrix(blocks))
-        if objective == "min_trace":
-            opti.minimize(ca.trace(Q))
-        elif objective == "nearest":
-            Qn = ca.DM(np.asarray(Q_nominal, dtype=float) / s)
-            opti.minimize(ca.sumsqr(Qdec - Qn))
-        else:
-            opti.minimize(-t)
+        _casadi_objective(ca, opti, objective, Q, Qdec, t, Q_nominal, s)
     opti.subject_to(ca.vec(ca.mtimes(Fcl, X) - ca.mtimes(X, Lam)) == 0)
     k0 = 0
     norms = []
@@ -732,45 +778,17 @@ def build_spectral_nlp(
     from ..solvers.casadi_backend import import_casadi
 
     ca = import_casadi()
-    _check_choice("structure", structure, STRUCTURES)
-    _check_choice("objective", objective, OBJECTIVES)
-    if structure != "full" and G is None:
-        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    _check_options(structure, objective, G, Q_nominal, nominal_needed=not soft)
     if soft:
         objective = "min_trace"
-    if objective == "nearest" and Q_nominal is None:
-        raise ValidationError("objective='nearest' needs Q_nominal")
     n, p = A.shape[0], C.shape[0]
-    if terms is None:
-        terms = spectral_terms(A, C, poles, dt)
-    if terms is None:
-        raise ValidationError("a target pole is an eigenvalue of A or of its mirror image: the spectral "
-                              "identity is singular there (use build_pole_nlp)")
+    terms = _require_terms(A, C, poles, dt, terms)
     s = float(scale)
     opti = ca.Opti()
     t = opti.variable() if objective == "feasibility" else None
-    Qw = None
     Gd = None if G is None else ca.DM(G)
-    if structure == "diagonal":
-        m = G.shape[1]
-        F = None
-        Fvec = opti.variable(m)
-        opti.subject_to(Fvec >= (t if t is not None else 0))
-        Qw = ca.densify(ca.diag(Fvec))
-        Q = ca.mtimes(ca.mtimes(Gd, Qw), Gd.T)
-        Qdec = Qw
-        k = m
-    else:
-        k = n if structure == "full" else G.shape[1]
-        F, Fvec = _lower_factor(ca, opti, k)
-        Qdec = ca.mtimes(F, F.T)
-        if t is not None:
-            Qdec = Qdec + t * ca.DM(np.eye(k))
-        if structure == "full":
-            Q = Qdec
-        else:
-            Qw = Qdec
-            Q = ca.mtimes(ca.mtimes(Gd, Qw), Gd.T)
+    k = n if structure == "full" else G.shape[1]
+    F, Fvec, Q, Qw, Qdec = _casadi_noise(ca, opti, structure, n, G, t)
     # initial values
     Q0 = None
     if W0 is not None:
@@ -785,8 +803,7 @@ def build_spectral_nlp(
                 t0 = -1e-3 * max(1.0, float(np.max(np.abs(Wp))))
                 opti.set_initial(t, t0)
                 Wp = Wp - t0 * np.eye(k)
-            Lf = np.linalg.cholesky(Wp + 1e-10 * max(1.0, float(np.linalg.norm(Wp, 2))) * np.eye(k))
-            opti.set_initial(Fvec, np.array([Lf[i, j] for j in range(k) for i in range(j, k)]))
+            opti.set_initial(Fvec, _chol_factor(Wp)[_tril_index(k)])
             Q0 = Wp if structure == "full" else G @ Wp @ G.T
     Rs = R / s
 
@@ -827,8 +844,7 @@ def build_spectral_nlp(
         if size == 1:
             w = opti.variable(p)
             if M0 is not None:
-                v = np.linalg.svd(M0.real)[2][-1 - len(prev) if len(prev) < p else -1]
-                opti.set_initial(w, v)
+                opti.set_initial(w, _null_vector_start(M0, 1, len(prev), p))
             resid.append(mw(G1, G2, wgt, w)[0])
             cons.append(ca.sumsqr(w) - 1)
             for wo in prev:
@@ -838,8 +854,7 @@ def build_spectral_nlp(
         else:
             wr, wi = opti.variable(p), opti.variable(p)
             if M0 is not None:
-                v = np.linalg.svd(M0)[2][-1 - len(prev) if len(prev) < p else -1].conj()
-                v = v * np.exp(-0.5j * np.angle(v @ v))
+                v = _null_vector_start(M0, 2, len(prev), p)
                 opti.set_initial(wr, v.real)
                 opti.set_initial(wi, v.imag)
             resid += list(mw(G1, G2, wgt, wr, wi))
@@ -853,19 +868,9 @@ def build_spectral_nlp(
         opti.minimize(ca.sumsqr(ca.vertcat(*resid)))
     else:
         opti.subject_to(ca.vertcat(*resid) == 0)
-        if objective == "min_trace":
-            opti.minimize(ca.trace(Q))
-        elif objective == "nearest":
-            opti.minimize(ca.sumsqr(Qdec - ca.DM(np.asarray(Q_nominal, dtype=float) / s)))
-        else:
-            opti.minimize(-t)
+        _casadi_objective(ca, opti, objective, Q, Qdec, t, Q_nominal, s)
     return SpectralNLP(opti=opti, Fvec=Fvec, Q=Q, Qw=Qw, t=t, null_vectors=nulls, scale=s,
                        blocks=[(b[0], b[1]) for b in terms], structure=structure, objective=objective)
-
-
-def _psd_part(W: NDArray) -> NDArray:
-    w, V = np.linalg.eigh(0.5 * (W + W.T))
-    return (V * np.maximum(w, 0.0)) @ V.T
 
 
 # --------------------------------------------------------------------- spectral SDP
@@ -939,19 +944,10 @@ def build_spectral_sdp(
     from ..solvers.cvxpy_backend import import_cvxpy
 
     cp = import_cvxpy()
-    _check_choice("structure", structure, STRUCTURES)
-    _check_choice("objective", objective, OBJECTIVES)
+    _check_options(structure, objective, G, Q_nominal)
     if C.shape[0] != 1:
         raise ValidationError(f"the spectral SDP needs one output; C has {C.shape[0]} rows")
-    if structure != "full" and G is None:
-        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
-    if objective == "nearest" and Q_nominal is None:
-        raise ValidationError("objective='nearest' needs Q_nominal")
-    if terms is None:
-        terms = spectral_terms(A, C, poles, dt)
-    if terms is None:
-        raise ValidationError("a target pole is an eigenvalue of A or of its mirror image: the spectral "
-                              "conditions are singular there")
+    terms = _require_terms(A, C, poles, dt, terms)
     n = A.shape[0]
     E, off = spectral_linear_conditions(terms, R)
     # scale Q so that the conditions are O(1): |E vec(Q)| ~ |offset|
@@ -1022,16 +1018,8 @@ class SpectralNLPSol:
     def decision(self, x: NDArray) -> NDArray[np.float64]:
         """The decision covariance ``F F'`` (physical units) at the point x."""
         F = np.zeros((self.k, self.k))
-        idx = _tril_index(self.k)
-        F[idx[0], idx[1]] = np.asarray(x, dtype=float).ravel()[: self.n_factor]
+        F[_tril_index(self.k)] = np.asarray(x, dtype=float).ravel()[: self.n_factor]
         return self.scale * (F @ F.T)
-
-
-def _tril_index(k: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Row and column indices of the lower triangle, column by column (the factor's vector)."""
-    idx = [(i, j) for j in range(k) for i in range(j, k)]
-    return (np.array([i for i, _ in idx], dtype=np.intp).reshape(-1),
-            np.array([j for _, j in idx], dtype=np.intp).reshape(-1))
 
 
 def _make_callback(ca, name, n_in_shapes, out_sparsity, fun):
@@ -1097,18 +1085,9 @@ def build_spectral_nlpsol(
     from ..solvers.casadi_backend import import_casadi
 
     ca = import_casadi()
-    _check_choice("structure", structure, FAST_STRUCTURES)
-    _check_choice("objective", objective, FAST_OBJECTIVES)
-    if structure != "full" and G is None:
-        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
-    if objective == "nearest" and Q_nominal is None:
-        raise ValidationError("objective='nearest' needs Q_nominal")
+    _check_options(structure, objective, G, Q_nominal, structures=FAST_STRUCTURES, objectives=FAST_OBJECTIVES)
     n, p = A.shape[0], C.shape[0]
-    if terms is None:
-        terms = spectral_terms(A, C, poles, dt)
-    if terms is None:
-        raise ValidationError("a target pole is an eigenvalue of A or of its mirror image: the spectral "
-                              "identity is singular there (use build_pole_nlp)")
+    terms = _require_terms(A, C, poles, dt, terms)
     s = float(scale)
     Gd = np.eye(n) if structure == "full" else np.asarray(G, dtype=float)
     k = Gd.shape[1]
@@ -1305,21 +1284,16 @@ def build_spectral_nlpsol(
     x0 = np.zeros(nx)
     if W0 is not None:
         Wp = _psd_part(np.asarray(W0, dtype=float)) / s
-        Lf = np.linalg.cholesky(Wp + 1e-10 * max(1.0, float(np.linalg.norm(Wp, 2))) * np.eye(k))
-        x0[:nF] = Lf[I, J]
-        Qd0 = Wp
+        x0[:nF] = _chol_factor(Wp)[I, J]
         seen: dict[tuple[float, float], int] = {}
         for (size, cols, H1, B, wRs), (_, z, *_r) in zip(blocks, terms, strict=True):
             key = (round(z.real, 9), round(z.imag, 9))
             c = seen.get(key, 0)
             seen[key] = c + 1
-            M0 = wRs + H1 @ Qd0 @ B
+            v = _null_vector_start(wRs + H1 @ Wp @ B, size, c, p)
             if size == 1:
-                v = np.linalg.svd(M0.real)[2][-1 - c if c < p else -1]
                 x0[cols[0]] = v
             else:
-                v = np.linalg.svd(M0)[2][-1 - c if c < p else -1].conj()
-                v = v * np.exp(-0.5j * np.angle(v @ v))
                 x0[cols[0]], x0[cols[1]] = v.real, v.imag
     else:
         x0[:nF] = np.eye(k)[I, J]

@@ -78,6 +78,9 @@ from ..model.regions import Region
 
 __all__ = [
     "OBJECTIVES",
+    "Q_STRUCTURES",
+    "check_objective",
+    "check_q_structure",
     "KAPPA2_STAGES",
     "PoleStructure",
     "NLPScaling",
@@ -93,6 +96,24 @@ __all__ = [
 
 #: objectives understood by :func:`build_observer_nlp`
 OBJECTIVES = ("kappa2", "kappa_fro", "eta")
+
+#: process-noise parametrizations understood by :func:`build_kalman_nlp`
+Q_STRUCTURES = ("scalar", "diagonal", "full")
+
+
+def check_objective(objective: Any) -> str:
+    """Raise ValidationError unless ``objective`` is one of :data:`OBJECTIVES`."""
+    if objective not in OBJECTIVES:
+        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
+    return objective
+
+
+def check_q_structure(q_structure: Any) -> str:
+    """Raise ValidationError unless ``q_structure`` is one of :data:`Q_STRUCTURES`."""
+    if q_structure not in Q_STRUCTURES:
+        raise ValidationError(f"q_structure must be 'scalar', 'diagonal' or 'full'; found {q_structure!r}")
+    return q_structure
+
 
 #: continuation stages of the kappa2 surrogate: orders 2**J of the trace powers
 KAPPA2_STAGES = (0, 3, 6, 9, 12)
@@ -346,6 +367,25 @@ def _trace_power_chain(ca, M, J_max: int) -> dict[int, Any]:
     return out
 
 
+def _complex_basis(
+    V: NDArray, st: PoleStructure, real: ArrayLike, uppers: ArrayLike, sign: float
+) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+    """``(Z, poles)`` from a real modal basis ``V``: unit real columns, then for each pair with
+    columns ``(x, y)`` the unit vector ``z = x + sign j y`` and ``conj(z)`` (poles ``u, conj(u)``)."""
+    cols, poles = [], []
+    for k in range(st.n_real):
+        cols.append(V[:, k] / np.linalg.norm(V[:, k]))
+        poles.append(complex(real[k]))
+    for k in range(st.n_pairs):
+        j = st.n_real + 2 * k
+        z = V[:, j] + sign * 1j * V[:, j + 1]
+        z = z / np.linalg.norm(z)
+        lam = complex(uppers[k])
+        cols += [z, z.conj()]
+        poles += [lam, lam.conjugate()]
+    return np.column_stack(cols), np.asarray(poles)
+
+
 def _chol_or_zero(M: NDArray) -> NDArray:
     try:
         return np.linalg.cholesky(0.5 * (M + M.T))
@@ -423,7 +463,6 @@ class ObserverNLP:
             self.k2_terms = {J: 0.5 * (cv[J] + cw[J]) for J in KAPPA2_STAGES}
             self.log_k2 = self.k2_terms[KAPPA2_STAGES[-1]]
         self.fro2 = ca.sumsqr(Wu)
-        self.dep2 = dep2
         if self.objective == "eta" or eta_max is not None:
             self.eta2 = dep2 / delta2
         if kappa2_max is not None:
@@ -491,6 +530,16 @@ class ObserverNLP:
         """The gain ``L`` (n, p) in the plant's units from ``value`` (a SolverReport.value)."""
         L = np.asarray(value(self.L_expr), dtype=float).reshape(self.plant.n, self.plant.p)
         return np.where(self.mask, L, 0.0)
+
+    def _initial_basis(self, L0: NDArray) -> tuple[NDArray, NDArray, NDArray[np.complex128]]:
+        """``(Vt0, Wt0, poles)``: real modal basis of ``A - L0 C`` (scaled), its inverse, its poles."""
+        V0, _, P0 = real_modal_basis(self.plant.A - L0 @ self.plant.C, self.structure)
+        Vt0 = V0 / self.scaling.T[:, None]
+        try:
+            Wt0 = np.linalg.inv(Vt0)
+        except np.linalg.LinAlgError:
+            Wt0 = np.linalg.pinv(Vt0)
+        return Vt0, Wt0, P0
 
     def set_initial_gain(self, L0: ArrayLike) -> None:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -621,17 +670,12 @@ class RegionNLP(ObserverNLP):
 
     def set_initial_gain(self, L0: ArrayLike) -> None:
         """Initial guess from a gain: modal basis of ``A - L0 C`` (masked), its poles, gaps."""
-        plant, sc, n, p = self.plant, self.scaling, self.plant.n, self.plant.p
+        sc, n, p = self.scaling, self.plant.n, self.plant.p
         st, opti = self.structure, self.opti
         L0 = np.where(self.mask, np.asarray(L0, dtype=float).reshape(n, p), 0.0)
-        V0, _, P0 = real_modal_basis(plant.A - L0 @ plant.C, st)
+        Vt0, Wt0, P0 = self._initial_basis(L0)
         Lt0 = sc.gain_to_scaled(L0)
         opti.set_initial(self.vars["Lfree"], Lt0[self.mask])
-        Vt0 = V0 / sc.T[:, None]
-        try:
-            Wt0 = np.linalg.inv(Vt0)
-        except np.linalg.LinAlgError:
-            Wt0 = np.linalg.pinv(Vt0)
         opti.set_initial(self.vars["Vt"], Vt0)
         opti.set_initial(self.vars["Wt"], Wt0)
         Ps = P0 / sc.omega
@@ -650,18 +694,10 @@ class RegionNLP(ObserverNLP):
         st, sc, n = self.structure, self.scaling, self.plant.n
         V = np.asarray(value(self.V), dtype=float).reshape(n, n)
         Lam = np.asarray(value(_casadi().densify(self.Lam)), dtype=float).reshape(n, n) * sc.omega
-        cols, poles = [], []
-        for k in range(st.n_real):
-            cols.append(V[:, k] / np.linalg.norm(V[:, k]))
-            poles.append(complex(Lam[k, k]))
-        for k in range(st.n_pairs):
-            j = st.n_real + 2 * k
-            z = V[:, j] + 1j * V[:, j + 1]
-            z = z / np.linalg.norm(z)
-            lam = complex(Lam[j, j], Lam[j, j + 1])
-            cols += [z, z.conj()]
-            poles += [lam, lam.conjugate()]
-        return np.column_stack(cols), np.asarray(poles)
+        jp = range(st.n_real, n, 2)
+        return _complex_basis(
+            V, st, [Lam[k, k] for k in range(st.n_real)], [complex(Lam[j, j], Lam[j, j + 1]) for j in jp], 1.0
+        )
 
 
 class FixedPoleNLP(ObserverNLP):
@@ -679,9 +715,9 @@ class FixedPoleNLP(ObserverNLP):
 
     The objective is invariant to the scale of each ``c_i`` (and the phase of a pair's), so
     the Hessian is singular along those directions; IPOPT's regularization handles that.
-    Pinning them with ``||c_i|| = 1`` equalities (``normalize=True``) was measured to be
-    worse: from the same start the k = 512 stage of a random n = 16, p = 5 plant drifted
-    from kappa2 199 to 313 in 1000 iterations, while the unconstrained form converged in 13.
+    Pinning them with ``||c_i|| = 1`` equalities was measured to be worse (hence not offered):
+    from the same start the k = 512 stage of a random n = 16, p = 5 plant drifted from kappa2
+    199 to 313 in 1000 iterations, while the unconstrained form converged in 13.
     """
 
     fixed_poles = True
@@ -697,18 +733,15 @@ class FixedPoleNLP(ObserverNLP):
         kappa2_max: float | None,
         eta_max: float | None,
         scaling: NLPScaling,
-        normalize: bool = False,
     ) -> None:
         ca = _casadi()
         self._common_init(plant, structure, objective, mask, scaling)
         self.region = None
-        self.normalize = normalize
         opti, sc = self.opti, scaling
         n, p = plant.n, plant.p
         T = sc.T
         nr, npair = structure.n_real, structure.n_pairs
-        k = p
-        self._k = k
+        k = self._k = p  # dimension of each left null space (observable pair)
         rows_w, rows_g = [], []
         self._N: list[tuple[Any, Any | None]] = []
         cvars = []
@@ -721,8 +754,6 @@ class FixedPoleNLP(ObserverNLP):
             y = N @ c
             rows_w.append(y[:n].T)
             rows_g.append(-y[n:].T)
-            if self.normalize:
-                opti.subject_to(ca.sumsqr(c) == 1)
         for i in range(npair):
             Nr = opti.parameter(n + p, k)
             Ni = opti.parameter(n + p, k)
@@ -735,9 +766,6 @@ class FixedPoleNLP(ObserverNLP):
             yi = Nr @ b + Ni @ a
             rows_w += [yr[:n].T, yi[:n].T]
             rows_g += [-yr[n:].T, -yi[n:].T]
-            if self.normalize:
-                opti.subject_to(ca.sumsqr(a) + ca.sumsqr(b) == 1)
-                opti.subject_to(b[0] == 0)
         Wt = ca.vertcat(*rows_w)  # left modal basis in scaled coordinates
         Gt = ca.vertcat(*rows_g)
         Vt = ca.solve(Wt, ca.MX.eye(n))
@@ -776,6 +804,7 @@ class FixedPoleNLP(ObserverNLP):
         w = self.scaling.omega
         n, p = self.plant.n, self.plant.p
         At, Ct = self._At, self._Ct
+        nulls = []
         for slot, lam in enumerate([*real, *pairs]):
             lam = complex(lam) / w
             M = np.vstack([At - lam * np.eye(n), Ct])
@@ -787,36 +816,27 @@ class FixedPoleNLP(ObserverNLP):
                     f"(expected p = {p}): it is an unobservable mode of the plant"
                 )
             Nr, Ni = self._N[slot]
-            if Ni is None:
-                self.opti.set_value(Nr, np.real(N) if np.allclose(N.imag, 0) else np.real(N))
-            else:
-                self.opti.set_value(Nr, N.real)
+            self.opti.set_value(Nr, N.real)
+            if Ni is not None:
                 self.opti.set_value(Ni, N.imag)
+            nulls.append(N)
         P = as_poles("poles", poles, n) / w
         d = np.abs(P[:, None] - P[None, :])
         np.fill_diagonal(d, np.inf)
         self.opti.set_value(self._lam2, float(np.sum(np.abs(P) ** 2)))
         self.opti.set_value(self._delta2, float(np.min(d)) ** 2 if n > 1 else 1.0)
         self._poles = (real, pairs)
-        self._nulls = []
-        for lam in [*real, *pairs]:
-            lam = complex(lam) / w
-            self._nulls.append(null_space(np.vstack([At - lam * np.eye(n), Ct]).T))
+        self._nulls = nulls
 
     def set_initial_gain(self, L0: ArrayLike) -> None:
         """Initial coordinates from a gain: left eigenvectors of ``A - L0 C`` projected on the null spaces."""
         if self._poles is None:
             raise ValidationError("call set_poles before set_initial_gain")
-        plant, sc, n, p = self.plant, self.scaling, self.plant.n, self.plant.p
+        n, p = self.plant.n, self.plant.p
         st = self.structure
         L0 = np.asarray(L0, dtype=float).reshape(n, p)
-        V0, _, _ = real_modal_basis(plant.A - L0 @ plant.C, st)
-        Vt0 = V0 / sc.T[:, None]
-        try:
-            Wt0 = np.linalg.inv(Vt0)
-        except np.linalg.LinAlgError:
-            Wt0 = np.linalg.pinv(Vt0)
-        Lt0 = sc.gain_to_scaled(L0)
+        _, Wt0, _ = self._initial_basis(L0)
+        Lt0 = self.scaling.gain_to_scaled(L0)
         for i in range(st.n_real):
             w = Wt0[i]
             y = np.concatenate([w, -w @ Lt0])
@@ -840,21 +860,11 @@ class FixedPoleNLP(ObserverNLP):
 
     def basis(self, value) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
         """``(Z, poles)``: the solver's complex eigenvector matrix (unit columns) and its poles."""
-        st, n = self.structure, self.plant.n
+        n = self.plant.n
         V = np.asarray(value(self.Vu), dtype=float).reshape(n, n)
         real, pairs = self._poles
-        cols, poles = [], []
-        for k in range(st.n_real):
-            cols.append(V[:, k] / np.linalg.norm(V[:, k]))
-            poles.append(complex(real[k]))
-        for k in range(st.n_pairs):
-            j = st.n_real + 2 * k
-            z = V[:, j] - 1j * V[:, j + 1]  # right eigenvector of the upper pole (rows Re w, Im w)
-            z = z / np.linalg.norm(z)
-            lam = complex(pairs[k])
-            cols += [z, z.conj()]
-            poles += [lam, lam.conjugate()]
-        return np.column_stack(cols), np.asarray(poles)
+        # x - j y is the right eigenvector of the upper pole (the rows of W are Re w, Im w)
+        return _complex_basis(V, self.structure, real, pairs, -1.0)
 
 
 def build_observer_nlp(
@@ -909,8 +919,7 @@ def build_observer_nlp(
         Unknown objective, structure not matching ``n``, mask of the wrong shape, region
         arguments given with ``fixed_poles``.
     """
-    if objective not in OBJECTIVES:
-        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
+    check_objective(objective)
     if structure.n != plant.n:
         raise ValidationError(f"pole structure has {structure.n} poles; the plant has n = {plant.n} states")
     if mask is not None:
@@ -1034,7 +1043,6 @@ class KalmanNLP:
         else:
             Lk = P @ C.T @ Rinv
             res = A @ P + P @ A.T - P @ C.T @ Rinv @ C @ P + GQG
-        self.L_kalman = Lk
         opti.subject_to(_lower(ca, res, n) == 0)
         opti.subject_to(ca.vec(self.obs.L_expr - Lk) == 0)
 
@@ -1089,10 +1097,8 @@ def build_kalman_nlp(
     ValidationError
         Unknown objective or ``q_structure``.
     """
-    if objective not in OBJECTIVES:
-        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
-    if q_structure not in ("scalar", "diagonal", "full"):
-        raise ValidationError(f"q_structure must be 'scalar', 'diagonal' or 'full'; found {q_structure!r}")
+    check_objective(objective)
+    check_q_structure(q_structure)
     sc = scaling or NLPScaling.identity(plant.n, plant.p)
     return KalmanNLP(
         plant,

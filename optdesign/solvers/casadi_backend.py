@@ -1,7 +1,9 @@
-"""Run a CasADi ``Opti`` problem with IPOPT and report in the common status set."""
+"""Run a CasADi problem (an ``Opti`` description or an ``nlpsol`` problem dict) with IPOPT and
+report in the common status set."""
 
 from __future__ import annotations
 
+import re
 import time
 from typing import Any
 
@@ -12,7 +14,7 @@ from ..results import SolverStats, Status
 from .report import SolverReport
 from .status import map_status
 
-__all__ = ["import_casadi", "solve_opti", "DEFAULT_IPOPT_OPTIONS"]
+__all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "DEFAULT_IPOPT_OPTIONS"]
 
 #: Quiet, reasonably tight IPOPT defaults.  Override per call.
 DEFAULT_IPOPT_OPTIONS: dict[str, Any] = {
@@ -34,6 +36,17 @@ def import_casadi():
             "the NLP backend needs CasADi with IPOPT: pip install casadi"
         ) from exc
     return casadi
+
+
+def _error_line(exc: BaseException) -> str:
+    """The informative line of a CasADi error: the last line that is not a list of suggestions,
+    without the C++ source location (``.../options.cpp:255: Unknown option: x`` -> ``Unknown
+    option: x``)."""
+    lines = [ln.strip() for ln in str(exc).splitlines()]
+    lines = [ln for ln in lines if ln and not ln.startswith((">", "Did you mean", "Use print_options"))]
+    if not lines:
+        return repr(exc)
+    return re.sub(r"^.*?\.(?:cpp|hpp):\d+:\s*", "", lines[-1]) or lines[-1]
 
 
 def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool = True) -> SolverReport:
@@ -68,7 +81,7 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
         sol = opti.solve()
         getter = sol.value
     except RuntimeError as exc:  # IPOPT did not report success
-        error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+        error = _error_line(exc)
         getter = opti.debug.value
     elapsed = time.perf_counter() - t0
     try:
@@ -96,3 +109,58 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
     )
     msg = f"ipopt: {native}" + (f" ({error})" if error and error not in native else "")
     return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)
+
+
+def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] | None = None, *,
+                 plugin: dict[str, Any] | None = None, extra: dict[str, Any] | None = None,
+                 name: str = "nlp") -> SolverReport:
+    """Solve an ``nlpsol`` problem dict (``{"x", "f", "g"}`` or one with user derivative
+    callbacks) with IPOPT; never raises on solver failure.
+
+    Parameters
+    ----------
+    problem : dict
+        The problem for ``casadi.nlpsol``.
+    x0, lbg, ubg : array_like
+        Initial point and constraint bounds.
+    options : dict, optional
+        As for :func:`solve_opti`: plugin options and ``ipopt.``-prefixed IPOPT options, merged
+        over :data:`DEFAULT_IPOPT_OPTIONS` (``expand`` is dropped: the problem is built already).
+    plugin : dict, optional
+        Further plugin options of the formulation (e.g. derivative callbacks), merged last.
+    extra : dict, optional
+        Entries for ``stats.extra``.
+    name : str
+        Name of the CasADi function.
+
+    Returns
+    -------
+    SolverReport
+        ``value()`` is the solution vector (the initial point when the solver failed to run).
+    """
+    ca = import_casadi()
+    opts = dict(DEFAULT_IPOPT_OPTIONS)
+    opts.update(options or {})
+    opts.pop("expand", None)
+    plug = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
+    plug.update(plugin or {})
+    plug["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
+    t0 = time.perf_counter()
+    error = ""
+    try:
+        solver = ca.nlpsol(name, "ipopt", problem, plug)
+        sol = solver(x0=x0, lbg=lbg, ubg=ubg)
+        st = solver.stats()
+        xopt = np.asarray(sol["x"], dtype=float).ravel()
+        obj = float(sol["f"])
+    except RuntimeError as exc:  # a callback or the plugin failed to run
+        error = _error_line(exc)
+        st, xopt, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
+    elapsed = time.perf_counter() - t0
+    native = str(st.get("return_status", "solver_error" if error else "unknown"))
+    status = map_status("ipopt", native)  # unknown (and "solver_error") -> SOLVER_ERROR
+    stats = SolverStats(backend="ipopt", native_status=native, time=elapsed,
+                        iterations=int(st["iter_count"]) if "iter_count" in st else None,
+                        extra={"objective": obj, **(extra or {}), **({"error": error} if error else {})})
+    msg = f"ipopt: {native}" + (f" ({error})" if error else "")
+    return SolverReport(status=status, stats=stats, value=lambda _=None: xopt, objective=obj, message=msg)

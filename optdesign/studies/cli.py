@@ -15,14 +15,13 @@ not succeed exits with 1, as does a reproduction with a missing or failing paper
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 from typing import Any
 
 import numpy as np
 
-from ..cli import CLIError, register
+from ..cli import CLIError, _plant_of, _print_json, register
 from ..errors import ValidationError
 
 __all__ = ["cmd_design", "cmd_study", "cmd_reproduce", "DESIGN_METHODS", "region_from_args"]
@@ -100,32 +99,6 @@ def region_from_args(args: argparse.Namespace, discrete: bool = False):
     except ValidationError as exc:
         raise CLIError(f"--region: {' '.join(str(exc).split())}") from None
     return region
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, np.ndarray):
-        if np.iscomplexobj(x):
-            return {"re": x.real.tolist(), "im": x.imag.tolist()}
-        return [_jsonable(v) for v in x.tolist()] if x.dtype == object else _finite(x.tolist())
-    if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return _jsonable(x.item())
-    if isinstance(x, float):
-        return x if math.isfinite(x) else str(x)
-    if isinstance(x, complex):
-        return {"re": x.real, "im": x.imag}
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    return x
-
-
-def _finite(v: Any) -> Any:
-    if isinstance(v, list):
-        return [_finite(u) for u in v]
-    if isinstance(v, float) and not math.isfinite(v):
-        return str(v)
-    return v
 
 
 def _fmt_poles(p) -> str:
@@ -216,19 +189,10 @@ def _target_poles(args: argparse.Namespace, prob) -> np.ndarray:
     return np.asarray(prob.targets["poles"], dtype=complex).ravel()
 
 
-def _load_problem(name: str):
-    from .. import problems
-
-    p = problems.load(name)
-    if p.plant is None:
-        raise CLIError(f"problem {name!r} has no valid plant ({p.notes or 'see its notes'})")
-    return p
-
-
 def cmd_design(args: argparse.Namespace) -> int:
     """``optdesign design``: run one design verb on a problem and report the verified result."""
     _check_applicable(args)
-    prob = _load_problem(args.problem)
+    prob = _plant_of(args.problem)
     plant = prob.plant
     method = args.method
     out: dict[str, Any] = {"problem": prob.name, "method": method}
@@ -300,7 +264,7 @@ def cmd_design(args: argparse.Namespace) -> int:
                L=L, poles=getattr(res, "poles", None), kappa2=vals.get("kappa2"), eta=vals.get("eta"),
                gain_norm=vals.get("gain_norm"), verification=res.verification.as_dict())
     if args.json:
-        print(json.dumps(_jsonable(out), indent=2, default=str))
+        _print_json(out)
     else:
         print(f"problem: {prob.name} -- {prob.title}")
         print(f"method: {method}    status: {out['status']}    success: {out['success']}")
@@ -358,10 +322,9 @@ def cmd_study(args: argparse.Namespace) -> int:
                    output=args.out)
     t = res.table
     if args.json:
-        print(json.dumps(_jsonable({"spec": str(args.spec), "points": len(t), "successful": t.n_success,
-                                    "failed": len(t) - t.n_success, "wall_time": t.wall_time,
-                                    "csv": str(res.csv), "json": str(res.json),
-                                    "figures": [str(f) for f in res.figures], "meta": t.meta}), indent=2))
+        _print_json({"spec": str(args.spec), "points": len(t), "successful": t.n_success,
+                     "failed": len(t) - t.n_success, "wall_time": t.wall_time, "csv": str(res.csv),
+                     "json": str(res.json), "figures": [str(f) for f in res.figures], "meta": t.meta})
     else:
         print(f"study {spec.name}: {spec.problem}, design {spec.design}, {len(spec.points)} points on "
               f"{t.meta.get('executor')}")

@@ -23,11 +23,13 @@ is configured once, and every point only sets the parameter values and re-solves
   descending) to get this monotonicity; the NLP is non-convex and independent local solves can
   otherwise land in different local optima at neighbouring points.
 
-Every candidate is verified independently of the solver (poles of ``A - L C`` with numpy, signed
-distance to the point's region, the solver's eigenbasis against :func:`optdesign.metrics.kappa2`,
-the bounds) and the best verified candidate is returned as an
-:class:`~optdesign.design.well_conditioned.ObserverDesign`.  ``reuse=False`` rebuilds the NLP for
-every point (same algorithm): the benchmark ``benchmarks/bench_sweep.py`` measures the difference.
+Every candidate is verified independently of the solver, by the well-conditioned verb's own
+checks (stability and the signed distance of the poles of ``A - L C`` to the point's region, with
+numpy; the solver's eigenbasis against :func:`optdesign.metrics.kappa2`; the bounds), and the
+best verified candidate is returned as an :class:`~optdesign.design.well_conditioned.ObserverDesign`.
+A point whose region reaches outside the stability region is refused, as the verb refuses it.
+``reuse=False`` rebuilds the NLP for every point (same algorithm): the benchmark
+``benchmarks/bench_sweep.py`` measures the difference.
 
 :class:`KalmanNoiseDesigner` (axes ``q``, ``r``: noise-ratio studies) and
 :class:`PoleTargetDesigner` (axes ``scale``, ``shift`` of a target pole set: where does a
@@ -41,6 +43,7 @@ Jung & Huh (seed 001); Chang & Lee 1984 (seed 000); Kautsky, Nichols & Van Doore
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import threading
 import time
@@ -55,7 +58,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_poles, as_positive_float
+from .._validate import as_bool, as_int, as_poles, as_positive_float
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
@@ -81,15 +84,6 @@ SWEEP_IPOPT_OPTIONS: dict[str, Any] = {
     "ipopt.acceptable_tol": 1e-6,
     "ipopt.max_iter": 300,
 }
-
-#: relative agreement required between the solver's eigenbasis and numpy's kappa2
-KAPPA_TOL = 1e-3
-#: relative residual required of the solver's eigenbasis
-EIG_TOL = 1e-7
-#: region distance allowed outside, relative to max(1, |poles|)
-REGION_TOL = 1e-7
-#: pole accuracy required of placement baselines (relative, :func:`pole_error`)
-POLE_TOL = 1e-6
 
 _CACHE_SIZE = 8
 
@@ -119,6 +113,17 @@ def _library_plant(name: str) -> Plant:
     return prob.plant
 
 
+@lru_cache(maxsize=64)
+def _library_poles(name: str) -> tuple[complex, ...]:
+    """The target poles of a library problem (loaded once per process, not once per point)."""
+    from .. import problems
+
+    prob = problems.load(name)
+    if "poles" not in prob.targets:
+        raise ValidationError(f"problem {name!r} has no target poles; give poles")
+    return tuple(complex(z) for z in np.asarray(prob.targets["poles"], dtype=complex).ravel())
+
+
 def _point_seed(seed: int, point: Mapping[str, Any]) -> list[int]:
     """Entropy for a point's random choices: the seed and the point's values (order-free)."""
     out = [int(seed)]
@@ -134,83 +139,15 @@ def _point_seed(seed: int, point: Mapping[str, Any]) -> list[int]:
     return out
 
 
-def _sorted_poles(p: ArrayLike) -> NDArray[np.complex128]:
-    p = np.asarray(p, dtype=complex)
-    return p[np.lexsort((p.imag, p.real))]
-
-
 def _plant_key(plant: Plant) -> tuple:
     return (plant.A.shape, plant.A.tobytes(), plant.C.shape, plant.C.tobytes(), plant.dt)
 
 
-def _finite_metrics(X: NDArray) -> dict[str, float]:
-    from ..analysis import metrics
-
-    s = metrics.condition_summary(X)
-    return {"kappa2": float(s["kappa2"]), "eta": float(s["eta"]), "kappa_fro": float(s["kappa_fro"])}
-
-
-def _verify_gain(plant: Plant, L: NDArray, *, region: Region | None = None, target: NDArray | None = None,
-                 basis: tuple[NDArray, NDArray] | None = None, max_gain: float | None = None,
-                 kappa2_max: float | None = None, eta_max: float | None = None,
-                 ) -> tuple[dict[str, Any], Verification]:
-    """Independent checks of an observer gain (numpy/scipy only) and its metrics.
-
-    The same checks as the well-conditioned verb's verification: finite gain, poles of
-    ``A - L C`` against the target or inside the region, the solver's eigenbasis (residual and
-    its condition number against ``metrics.kappa2``), bounds.
-    """
-    checks: list[Check] = []
-    nan = float("nan")
-    if not np.all(np.isfinite(L)):
-        checks.append(Check.at_most("finite_gain", math.inf, 0.0, "the gain has NaN/Inf entries"))
-        return ({"kappa2": nan, "eta": nan, "kappa_fro": nan, "gain_norm": nan,
-                 "poles": np.full(plant.n, nan + 0j), "V": None}, Verification.of(checks))
-    X = plant.A - L @ plant.C
-    poles = _sorted_poles(np.linalg.eigvals(X))
-    scale = max(1.0, float(np.max(np.abs(poles))))
-    if target is not None:
-        from ..classical.placement import pole_error
-
-        checks.append(Check.at_most("pole_error", pole_error(poles, target), POLE_TOL,
-                                    "max relative error of eig(A - LC) vs the target poles"))
-    if region is not None:
-        checks.append(Check.at_most("region_margin", region.margin(poles), REGION_TOL * scale,
-                                    "max signed distance of eig(A - LC) to the region (<= 0 inside)"))
-    m = _finite_metrics(X)
-    k2 = m["kappa2"]
-    V = None
-    if basis is not None:
-        Z, zp = basis
-        res = float(np.linalg.norm(X @ Z - Z * zp[None, :]) / max(np.linalg.norm(X), 1e-300))
-        checks.append(Check.at_most("eig_residual", res, EIG_TOL,
-                                    "||(A - LC) Z - Z diag(poles)||_F / ||A - LC||_F for the solver's basis"))
-        sv = np.linalg.svd(Z, compute_uv=False)
-        kz = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
-        if math.isfinite(k2):
-            checks.append(Check.at_most("kappa2_agreement", abs(kz - k2) / k2, KAPPA_TOL,
-                                        "solver basis cond vs metrics.kappa2 (relative)"))
-        elif math.isfinite(kz) and res <= EIG_TOL:
-            # repeated pole: the basis is not unique; report the verified basis the solver found
-            k2 = kz
-            m["kappa_fro"] = float(np.linalg.norm(Z) * np.linalg.norm(np.linalg.inv(Z)))
-        V = Z
-    elif math.isfinite(k2):
-        from ..analysis import metrics
-
-        V = metrics.eigenvector_matrix(X)
-    gn = float(np.linalg.norm(L, 2))
-    if max_gain is not None:
-        checks.append(Check.at_most("gain_bound", gn, max_gain * (1 + 1e-6), "||L||_2 <= max_gain"))
-    if kappa2_max is not None:
-        checks.append(Check.at_most("kappa2_bound", k2, kappa2_max * (1 + 1e-6), "kappa2 <= kappa2_max"))
-    if eta_max is not None:
-        checks.append(Check.at_most("eta_bound", m["eta"], eta_max * (1 + 1e-6), "eta <= eta_max"))
-    if not checks:
-        checks.append(Check.at_most("finite_gain", 0.0, 0.0))
-    out = {"kappa2": k2, "eta": m["eta"], "kappa_fro": m["kappa_fro"], "gain_norm": gn, "poles": poles,
-           "V": V}
-    return out, Verification.of(checks)
+def _finite_number(name: str, v: Any, where: str = "") -> float:
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) \
+            or not math.isfinite(float(v)):
+        raise ValidationError(f"{name} must be a finite number{where}; found {v!r}")
+    return float(v)
 
 
 # --------------------------------------------------------------------------- per-worker cache
@@ -231,19 +168,22 @@ def clear_cache() -> None:
 
 
 class _Workspace:
-    """The NLPs of one designer configuration (one per pole structure), configured once."""
+    """The NLPs of one designer configuration (one per pole structure), each built once; an NLP's
+    IPOPT instance is configured at its first solve (``nlp.solver_ready``) and re-used after."""
 
     def __init__(self, build, options: dict[str, Any]) -> None:
         self._build = build
         self.options = options
         self.nlps: dict[Any, Any] = {}
-        self.configured: set[Any] = set()
-        self.builds = 0
+
+    @property
+    def builds(self) -> int:
+        """NLPs built so far."""
+        return len(self.nlps)
 
     def get(self, structure):
         if structure not in self.nlps:
             self.nlps[structure] = self._build(structure)
-            self.builds += 1
         return self.nlps[structure]
 
 
@@ -363,10 +303,10 @@ class RegionSweepDesigner:
                                   f"{type(self.region).__name__}")
         if self.placement not in ("always", "fallback"):
             raise ValidationError(f"placement must be 'always' or 'fallback'; found {self.placement!r}")
-        _check_int("starts", self.starts, 1)
-        _check_int("seed", self.seed, 0)
-        _check_bool("warm_start", self.warm_start)
-        _check_bool("reuse", self.reuse)
+        as_int("starts", self.starts, 1)
+        as_int("seed", self.seed, 0)
+        as_bool("warm_start", self.warm_start)
+        as_bool("reuse", self.reuse)
         self._check_values(self.defaults(), where="")
         if self.pole_scale is not None:
             as_positive_float("pole_scale", self.pole_scale)
@@ -402,10 +342,7 @@ class RegionSweepDesigner:
             if k not in self.AXES:
                 raise ValidationError(f"unknown parameter {k!r}{where}; a region designer takes "
                                       f"{', '.join(self.AXES)}")
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(float(v)):
-                raise ValidationError(f"{k} must be a finite number{where}; found {v!r}")
-            v = float(v)
+            v = _finite_number(k, v, where)
             if k == "zeta" and not 0.0 < v < 1.0:
                 raise ValidationError(f"zeta (damping ratio) must be in (0, 1){where}; found {v!r}")
             if k in ("radius", "max_gain", "eta_max", "kappa2_max") and not v > 0:
@@ -434,12 +371,30 @@ class RegionSweepDesigner:
         return max(1.0, rho, abs(self.alpha or 0.0))
 
     def check_point(self, **point: Any) -> None:
-        """Validate a point without solving (unknown keys, values, empty region)."""
+        """Validate a point without solving (unknown keys, values, empty or unstable region)."""
         self.region_for(**point)
 
     def region_for(self, **point: float) -> Region:
-        """The pole region of a point (validated), as used for verification."""
-        vals = {**self.defaults(), **self._check_values(point, where=" in the point")}
+        """The pole region of a point (validated), as used for verification.
+
+        Raises
+        ------
+        ValidationError
+            Unknown keys or bad values; alpha/zeta with a discrete-time plant; a region that
+            reaches outside the stability region (e.g. ``alpha < 0``), which the well-conditioned
+            verb refuses too.
+        EmptyRegionError
+            The pieces have no common point.
+        """
+        return self._region_of(self._point_values(point))
+
+    def _point_values(self, point: Mapping[str, Any]) -> dict[str, float]:
+        """The sweepable parameters of a point (validated) over the designer's defaults."""
+        return {**self.defaults(), **self._check_values(point, where=" in the point")}
+
+    def _region_of(self, vals: Mapping[str, float]) -> Region:
+        from ..design.well_conditioned import _check_region_stable
+
         plant = self._plant()
         members: list[Region] = []
         if self.region is not None:
@@ -458,6 +413,7 @@ class RegionSweepDesigner:
         reg = members[0]
         for m in members[1:]:
             reg = reg & m
+        _check_region_stable(reg, plant.is_discrete)
         return reg
 
     # ------------------------------------------------------------------ workspace
@@ -504,19 +460,31 @@ class RegionSweepDesigner:
 
 
 class _RegionSession:
+    """One chunk of a sweep: the previous point's verified design is the next point's warm start."""
+
     def __init__(self, designer: RegionSweepDesigner) -> None:
         self.d = designer
-        self.prev: tuple[Any, frozenset, dict[str, NDArray]] | None = None
+        #: the sweepable parameters of the previous point and its chosen (solved, verified) candidate
+        self.prev_params: frozenset[str] | None = None
         self.prev_cand: _Cand | None = None
 
     def __call__(self, **point: float):
-        from ..design.well_conditioned import ObserverDesign, StartRecord, naive_poles, start_real_count
+        from ..design.well_conditioned import (
+            ObserverDesign,
+            StartRecord,
+            _Candidate,
+            _evaluate,
+            _pick,
+            _placement_start,
+            naive_poles,
+            start_real_count,
+        )
         from ..formulate.well_conditioned import KAPPA2_STAGES, PoleStructure, random_gain_for_poles
         from ..solvers.casadi_backend import solve_opti
 
         d = self.d
-        region = d.region_for(**point)  # validates the point
-        vals = {**d.defaults(), **d._check_values(point, where=" in the point")}
+        vals = d._point_values(point)  # validates the point
+        region = d._region_of(vals)
         plant = d._plant()
         plant.require_observable(what="well-conditioned observer design")
         params = frozenset(vals)
@@ -529,7 +497,13 @@ class _RegionSession:
         full = KAPPA2_STAGES if d.objective == "kappa2" else (None,)
 
         def evaluate(c: _Cand):
-            return _verify_gain(plant, c.L, region=region, basis=c.basis, **bounds)
+            """The verb's independent checks (numpy/scipy) and metrics of a candidate."""
+            Z, zp = c.basis if c.basis is not None else (None, None)
+            cand = _Candidate(c.L, Z, zp, c.status, c.native, c.message, c.iterations, c.time)
+            return _evaluate(plant, cand, target=None, region=region, mask=None, **bounds)
+
+        def verified(c: _Cand) -> bool:
+            return Status(c.status).is_solved and evaluate(c)[1].passed
 
         def run(origin: str, structure, init, stages) -> _Cand:
             nlp = ws.get(structure)
@@ -543,17 +517,15 @@ class _RegionSession:
                     nlp.set_stage(J)
                 if good is not None:
                     nlp.warm_start(good)
-                configure = structure not in ws.configured
-                rep = solve_opti(nlp.opti, ws.options, configure=configure)
-                ws.configured.add(structure)
-                L = nlp.gain(rep.value)
+                rep = solve_opti(nlp.opti, ws.options, configure=not nlp.solver_ready)
+                nlp.solver_ready = True
                 try:
                     basis = nlp.basis(rep.value)
                 except (ValueError, np.linalg.LinAlgError, FloatingPointError):
                     basis = None
                 snap = nlp.snapshot(rep.value)
-                c = _Cand(origin, structure, L, basis, rep.status, rep.stats.native_status, rep.message,
-                          int(rep.stats.iterations or 0), float(rep.stats.time), snap)
+                c = _Cand(origin, structure, nlp.gain(rep.value), basis, rep.status, rep.stats.native_status,
+                          rep.message, int(rep.stats.iterations or 0), float(rep.stats.time), snap)
                 hist.append(c)
                 if evaluate(c)[1].passed:
                     good = snap
@@ -561,33 +533,31 @@ class _RegionSession:
                 elif J is not None and good is None:
                     init(nlp)  # a failed early stage: continue the continuation from the start
             chosen = best if best is not None else hist[-1]
-            return _Cand(chosen.origin, structure, chosen.L, chosen.basis, chosen.status, chosen.native,
-                         chosen.message, sum(h.iterations for h in hist), sum(h.time for h in hist),
-                         chosen.snapshot)
+            return dataclasses.replace(chosen, iterations=sum(h.iterations for h in hist),
+                                       time=sum(h.time for h in hist))
 
+        same_params = self.prev_params == params
         cands: list[_Cand] = []
         warm_ok = False
-        if d.warm_start and self.prev is not None and self.prev[1] == params:
-            structure, _, snap = self.prev
-            cands.append(run("warm start", structure, lambda nlp, s=snap: nlp.warm_start(s), final))
-            warm_ok = Status(cands[-1].status).is_solved and evaluate(cands[-1])[1].passed
+        if d.warm_start and same_params:
+            prev = self.prev_cand
+            cands.append(run("warm start", prev.structure, lambda nlp, s=prev.snapshot: nlp.warm_start(s),
+                             final))
+            warm_ok = verified(cands[-1])
         if d.initial_gain is not None:
             L0 = d.initial_gain
             st0 = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
             cands.append(run("initial gain", st0, lambda nlp, L0=L0: nlp.set_initial_gain(L0), final))
-            warm_ok = warm_ok or (Status(cands[-1].status).is_solved and evaluate(cands[-1])[1].passed)
-        if d.warm_start and self.prev_cand is not None and self.prev[1] == params:
+            warm_ok = warm_ok or verified(cands[-1])
+        tail: list[_Cand] = []
+        if d.warm_start and same_params:
             # the previous point's design as it is: when the region got looser (or a bound weaker) it is
             # still feasible, and the point's answer can then only be as good or better
-            p = self.prev_cand
-            kept = _Cand("previous point's design", p.structure, p.L, p.basis, p.status, p.native,
-                         "kept from the previous point (no solve)", 0, 0.0, p.snapshot)
+            kept = dataclasses.replace(self.prev_cand, origin="previous point's design",
+                                       message="kept from the previous point (no solve)", iterations=0,
+                                       time=0.0)
             if evaluate(kept)[1].passed:
-                tail = [kept]
-            else:
-                tail = []
-        else:
-            tail = []
+                tail.append(kept)
         for k in range(d.starts if (d.placement == "always" or not warm_ok) else 0):
             # start 0: YT at the open-loop poles moved into the region (the verb's baseline); then
             # poles sampled in the region, complex-pair patterns first (start_real_count)
@@ -597,7 +567,7 @@ class _RegionSession:
                 P0 = region.sample_poles(plant.n, rng, n_real=start_real_count(plant.n, k - 1))
                 origin = "region sample + YT"
             structure = PoleStructure.of(P0)
-            L0 = _placement(plant, P0)
+            L0 = _placement_start(plant, P0, "YT")
             if L0 is None:
                 try:
                     L0 = random_gain_for_poles(plant, P0, rng)
@@ -617,16 +587,11 @@ class _RegionSession:
                                        obj, c.iterations, c.time, c.message))
             evaluated.append((obj, i, m, v, c))
 
-        def rank(e):
-            obj, i, m, v, c = e
-            r = 0 if (v.passed and Status(c.status).is_solved) else 1 if v.passed else 2
-            return (r, obj if math.isfinite(obj) else math.inf, i)
-
-        obj, idx, m, v, c = min(evaluated, key=rank)
-        if v.passed and c.snapshot is not None and Status(c.status).is_solved:
-            self.prev = (c.structure, params, c.snapshot)
-            self.prev_cand = c
+        # the verb's ranking: solved and verified first, then verified, then by objective
+        obj, idx, m, v, c = _pick(evaluated)
         status = Status(c.status)
+        if v.passed and c.snapshot is not None and status.is_solved:
+            self.prev_params, self.prev_cand = params, c
         converged = sum(1 for r in records if r.verified and Status(r.status).is_solved)
         certificate = None
         if v.passed and status.is_solved:
@@ -651,18 +616,6 @@ class _RegionSession:
                               solver_stats=stats, verification=v, starts=tuple(records), V=m["V"],
                               region=region, certificate=certificate,
                               extra={"point": dict(point), "best_origin": c.origin})
-
-
-def _placement(plant: Plant, poles: NDArray) -> NDArray | None:
-    from ..classical.placement import place_observer
-
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            L = place_observer(plant, poles, method="YT")
-    except (ValueError, np.linalg.LinAlgError):
-        return None
-    return L if np.all(np.isfinite(L)) else None
 
 
 # --------------------------------------------------------------------------- generic point result
@@ -696,10 +649,12 @@ def _gain_values(plant: Plant, L: NDArray | None) -> dict[str, float]:
     nan = float("nan")
     if L is None or not np.all(np.isfinite(L)):
         return {"kappa2": nan, "eta": nan, "gain_norm": nan, "max_real_pole": nan}
+    from ..analysis import metrics
+
     X = plant.A - L @ plant.C
-    m = _finite_metrics(X)
+    m = metrics.condition_summary(X)
     ev = np.linalg.eigvals(X)
-    return {"kappa2": m["kappa2"], "eta": m["eta"], "gain_norm": float(np.linalg.norm(L, 2)),
+    return {"kappa2": float(m["kappa2"]), "eta": float(m["eta"]), "gain_norm": float(np.linalg.norm(L, 2)),
             "max_real_pole": float(np.max(ev.real)), "max_abs_pole": float(np.max(np.abs(ev)))}
 
 
@@ -779,6 +734,7 @@ def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> Pla
     if method not in ("YT", "KNV0"):
         raise ValidationError(f"method must be 'YT' or 'KNV0'; found {method!r}")
     from ..classical.placement import place_observer
+    from ..design.well_conditioned import POLE_TOL, _Candidate, _evaluate
 
     target = as_poles("poles", poles, plant.n)
     plant.require_observable(what="pole placement")
@@ -794,7 +750,11 @@ def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> Pla
                                stats,
                                Verification.of([Check.at_most("pole_error", math.inf, POLE_TOL, str(exc))]))
     stats = SolverStats(backend="scipy", native_status="placed", time=time.perf_counter() - t0)
-    m, v = _verify_gain(plant, L, target=target)
+    # the verb's checks of a fixed-pole design (pole error, numpy); no stability requirement: a
+    # placement baseline may be asked for any pole set
+    cand = _Candidate(L, None, None, Status.SOLVED, "placed", "", 0, stats.time)
+    m, v = _evaluate(plant, cand, target=target, region=None, mask=None, max_gain=None, kappa2_max=None,
+                     eta_max=None, stable=False)
     return PlacementResult(L, m["poles"], target, m["kappa2"], m["eta"], m["kappa_fro"], m["gain_norm"],
                            method,
                            Status.SOLVED, f"scipy.signal.place_poles ({method}) on the dual pair", stats, v)
@@ -852,15 +812,6 @@ class KalmanNoiseDesigner:
 
 
 # --------------------------------------------------------------------------- pole-target designer
-def _check_int(name: str, v: Any, lo: int) -> None:
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < lo:
-        raise ValidationError(f"{name} must be an integer >= {lo}; found {v!r}")
-
-
-def _check_bool(name: str, v: Any) -> None:
-    if not isinstance(v, (bool, np.bool_)):
-        raise ValidationError(f"{name} must be true or false; found {v!r}")
-
 
 
 @dataclass(frozen=True)
@@ -920,9 +871,9 @@ class PoleTargetDesigner:
             if self.objective not in allowed:
                 raise ValidationError(f"objective must be one of {', '.join(allowed) or '(none)'} for method "
                                       f"{self.method!r}; found {self.objective!r}")
-        _check_int("starts", self.starts, 1)
-        _check_int("seed", self.seed, 0)
-        _check_bool("reuse", self.reuse)
+        as_int("starts", self.starts, 1)
+        as_int("seed", self.seed, 0)
+        as_bool("reuse", self.reuse)
         if self.poles is not None:
             object.__setattr__(self, "poles", tuple(complex(z) for z in np.asarray(self.poles).ravel()))
         plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")
@@ -940,20 +891,11 @@ class PoleTargetDesigner:
         """The target poles of a point."""
         if self.poles is not None:
             base = np.asarray(self.poles, dtype=complex)
+        elif self.problem is None:
+            raise ValidationError("PoleTargetDesigner needs poles (no problem to take them from)")
         else:
-            if self.problem is None:
-                raise ValidationError("PoleTargetDesigner needs poles (no problem to take them from)")
-            from .. import problems
-
-            prob = problems.load(self.problem)
-            if "poles" not in prob.targets:
-                raise ValidationError(f"problem {self.problem!r} has no target poles; give poles")
-            base = np.asarray(prob.targets["poles"], dtype=complex).ravel()
-        for name, v in (("scale", scale), ("shift", shift)):
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) \
-                    or not math.isfinite(v):
-                raise ValidationError(f"{name} must be a finite number; found {v!r}")
-        return as_poles("poles", float(scale) * base + float(shift))
+            base = np.asarray(_library_poles(self.problem), dtype=complex)
+        return as_poles("poles", _finite_number("scale", scale) * base + _finite_number("shift", shift))
 
     def __call__(self, *, scale: float = 1.0, shift: float = 0.0) -> DesignPoint:
         plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")

@@ -41,7 +41,7 @@ from .. import problems
 from ..classical.placement import pole_error
 from ..classical.riccati import filter_are, hamiltonian_are
 from ..classical.solheim import solheim
-from .reproduce import PaperReproduction, ReproRow, fmt, pyplot
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "example1_family"]
 
@@ -101,8 +101,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     from ..analysis.robustness import return_difference
     from ..design.inverse_kalman import kalman_for_poles
 
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = output_dir(outdir)
     rows: list[ReproRow] = []
     num = 25 if quick else 80
 
@@ -256,11 +255,7 @@ def _figure_family(outdir: Path, fam, members, s1) -> Path:
         ax[0].axvline(v, color="0.8", lw=0.8)
     ax[0].legend(fontsize=8)
     ax[1].legend(fontsize=8)
-    fig.tight_layout()
-    path = outdir / "seed000_ex1_family.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, outdir / "seed000_ex1_family.png")
 
 
 def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int) -> Path:
@@ -286,11 +281,7 @@ def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int) -> Path:
         ax.set_title(title)
         ax.legend(fontsize=8)
     fig.suptitle("Filter poles as the noise of each sequential step is turned up (Q = sum Q_i + s Q_k)")
-    fig.tight_layout()
-    path = outdir / "seed000_pole_loci.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, outdir / "seed000_pole_loci.png")
 
 
 def _figure_double_integrator(outdir: Path, di, return_difference, quick: bool) -> Path:
@@ -336,8 +327,4 @@ def _figure_double_integrator(outdir: Path, di, return_difference, quick: bool) 
     ax[1].set_ylabel("Im")
     ax[1].set_title("Targets and the reachable sector")
     ax[1].legend(fontsize=8, loc="lower left")
-    fig.tight_layout()
-    path = outdir / "seed000_double_integrator.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, outdir / "seed000_double_integrator.png")

@@ -49,11 +49,13 @@ from ..classical.jung_huh import (
     observer_2x2_kappa2,
     observer_2x2_stable,
 )
-from .reproduce import PaperReproduction, ReproRow, fmt, pyplot
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "real_schur_eta", "aircraft_design"]
 
 _TITLE = "Design of the Well-Conditioned Observer Using the Non-normality Measure"
+#: how the figures are written (``bbox_inches="tight"`` instead of ``tight_layout``)
+_SAVE = {"dpi": 120, "layout": False, "bbox_inches": "tight"}
 
 
 def real_schur_eta(X) -> float:
@@ -103,8 +105,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     from ..design.well_conditioned import well_conditioned_kalman
 
     plt = pyplot()
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = output_dir(outdir)
     rows: list[ReproRow] = []
     figs: list[Path] = []
 
@@ -209,10 +210,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         fontsize=9,
     )
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
-    f1 = outdir / "seed001_fig1_kappa2_gain_plane.png"
-    fig.savefig(f1, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    figs.append(f1)
+    figs.append(save_figure(fig, outdir / "seed001_fig1_kappa2_gain_plane.png", **_SAVE))
 
     # Fig. 2: the region {stable, eta <= beta}
     l1r = np.linspace(a2 + 1e-6, 30.0, 600 if not quick else 200)
@@ -261,10 +259,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         fontsize=9,
     )
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
-    f2 = outdir / "seed001_fig2_gain_region.png"
-    fig.savefig(f2, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    figs.append(f2)
+    figs.append(save_figure(fig, outdir / "seed001_fig2_gain_region.png", **_SAVE))
 
     # ------------------------------------------------------------------ Example 2
     ex2 = problems.load("jung_huh_ex2")
@@ -355,10 +350,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     ax.set_ylabel(r"$\eta$, $\kappa_2(P)$ (clipped at 50)")
     ax.set_title("Seed 001 Fig. 3: eta and kappa2 of the Kalman filter vs the noise ratio q/r", fontsize=9)
     ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
-    f3 = outdir / "seed001_fig3_qr.png"
-    fig.savefig(f3, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    figs.append(f3)
+    figs.append(save_figure(fig, outdir / "seed001_fig3_qr.png", **_SAVE))
 
     # ------------------------------------------------------------------ Example 3
     ex3 = problems.load("jung_huh_ex3")
@@ -487,9 +479,6 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     ax2.set_title("observer poles (same decay, same gain norm)", fontsize=9)
     ax2.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=7, framealpha=0.85)
     fig.suptitle("Seed 001 Fig. 4: aircraft pitch model (Example 3)", fontsize=10)
-    f4 = outdir / "seed001_fig4_aircraft.png"
-    fig.savefig(f4, dpi=120, bbox_inches="tight")
-    plt.close(fig)
-    figs.append(f4)
+    figs.append(save_figure(fig, outdir / "seed001_fig4_aircraft.png", **_SAVE))
 
     return PaperReproduction(paper="001", title=_TITLE, rows=tuple(rows), figures=tuple(figs))

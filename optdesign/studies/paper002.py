@@ -37,7 +37,7 @@ from ..analysis.robustness import circle_condition, filter_margins, return_diffe
 from ..design.kalman import kalman
 from ..design.output_delay import output_delay_convergence, output_delay_kalman
 from ..model.plant import Plant
-from .reproduce import PaperReproduction, ReproRow, fmt, pyplot
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "crossfeed_counterexample"]
 
@@ -88,8 +88,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     -------
     PaperReproduction
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = output_dir(outdir)
     prob = problems.load("lee_output_delay_scalar")
     d = prob.data
     A, C0, C1, h, Q, R = d["A"], d["C0"], d["C1"], float(d["h"]), d["Q"], d["R"]
@@ -215,10 +214,7 @@ def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref)
                  "(-> 0 as omega -> inf)", fontsize=9)
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize=8)
-    fig.tight_layout()
-    f1 = outdir / "seed002_return_difference.png"
-    fig.savefig(f1, dpi=120)
-    plt.close(fig)
+    f1 = save_figure(fig, outdir / "seed002_return_difference.png", dpi=120)
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8))
     m = [r.order for r in pade_rows]
@@ -238,8 +234,5 @@ def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref)
     a2.set_title("Sampling with shift register + DARE")
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize=8)
-    fig.tight_layout()
-    f2 = outdir / "seed002_convergence.png"
-    fig.savefig(f2, dpi=120)
-    plt.close(fig)
+    f2 = save_figure(fig, outdir / "seed002_convergence.png", dpi=120)
     return (f1, f2)

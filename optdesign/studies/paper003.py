@@ -46,7 +46,7 @@ from ..design.generalized import (
 )
 from ..errors import OptDesignError
 from ..model.noise import NoiseModel, Sinusoid, Step
-from .reproduce import PaperReproduction, ReproRow, fmt, pyplot
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "example_cases", "STEP_LEVEL", "SINE_AMPLITUDE"]
 
@@ -118,8 +118,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     -------
     PaperReproduction
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = output_dir(outdir)
     cases = example_cases()
     steps = 600 if quick else 1000
     rows: list[ReproRow] = []
@@ -250,11 +249,7 @@ def _figures(outdir: Path, sims, printed) -> list[Path]:
         ax2.set_title("generalized: C xh follows the noisy y, so x - xh does not vanish (printed/direct "
                       "gains bias states 2-3;\noutput coupling confines the error to the measured x1); "
                       "noise-rejecting: x - xh -> 0", fontsize=7.5)
-        fig.tight_layout()
-        path = outdir / f"seed003_fig{fig_no}_state{i + 1}_{key}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        out.append(path)
+        out.append(save_figure(fig, outdir / f"seed003_fig{fig_no}_state{i + 1}_{key}.png"))
     # side-by-side comparison, same poles
     fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
     for row, key in enumerate(("step", "sinusoid")):
@@ -281,9 +276,5 @@ def _figures(outdir: Path, sims, printed) -> list[Path]:
             ax.legend(fontsize=7, loc="upper right")
     fig.suptitle("Seed 003: the generalized observer does not reject output noise from the state estimate; "
                  "an output-disturbance (noise-rejecting) observer does (same poles)", fontsize=9)
-    fig.tight_layout()
-    path = outdir / "seed003_comparison.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    out.append(path)
+    out.append(save_figure(fig, outdir / "seed003_comparison.png"))
     return out

@@ -47,7 +47,7 @@ from ..classical.bpf import (
     riccati_flow,
 )
 from ..classical.riccati import filter_are
-from .reproduce import PaperReproduction, ReproRow, fmt, pyplot
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "convergence", "naive_error", "PROBLEM", "BLOCKS", "NAIVE_PROBLEMS"]
 
@@ -129,8 +129,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
     -------
     PaperReproduction
     """
-    outdir = Path(outdir)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir = output_dir(outdir)
     prob = problems.load(PROBLEM)
     plant = prob.plant
     P0 = np.asarray(prob.targets["P0"], dtype=float)
@@ -256,11 +255,7 @@ def _figure_gain(outdir: Path, t_mid, K_paper, K_sym, t, P, Rinv_C, are, P_raw, 
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     fig.suptitle("Seed 004 Fig 2: harmonic oscillator, time-varying Kalman gain")
-    fig.tight_layout()
-    path = outdir / "seed004_fig2_filter_gain.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, outdir / "seed004_fig2_filter_gain.png")
 
 
 def _figure_convergence(outdir: Path, conv, t_long, naive) -> Path:
@@ -289,8 +284,4 @@ def _figure_convergence(outdir: Path, conv, t_long, naive) -> Path:
     ax2.set_title("V U^-1 from one exponential (dashed: overflow)")
     ax2.grid(alpha=0.3, which="both")
     ax2.legend(fontsize=8)
-    fig.tight_layout()
-    path = outdir / "seed004_convergence.png"
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, outdir / "seed004_convergence.png")

@@ -30,11 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import as_int
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Region
 from .designers import RegionSweepDesigner
-from .sweep import SweepTable, sweep
+from .sweep import SweepTable, grid, record_of, sweep
 
 __all__ = ["pareto", "ParetoFront", "nondominated", "plot_pareto", "MINIMIZABLE", "BOUNDABLE",
            "PARETO_IPOPT_OPTIONS"]
@@ -114,17 +115,19 @@ class ParetoFront:
     def primary(self) -> str:
         return self.objectives[0]
 
-    def front(self) -> list[dict[str, Any]]:
-        """Records of the non-dominated points, sorted by the second objective."""
+    def _front_order(self) -> np.ndarray:
+        """Indices of the non-dominated points, sorted by the second objective."""
         idx = np.where(self.nondominated)[0]
         key = self.values[idx, 1] if self.values.shape[1] > 1 else self.values[idx, 0]
-        return [self.table.records[i] for i in idx[np.argsort(key, kind="stable")]]
+        return idx[np.argsort(key, kind="stable")]
+
+    def front(self) -> list[dict[str, Any]]:
+        """Records of the non-dominated points, sorted by the second objective."""
+        return [self.table.records[i] for i in self._front_order()]
 
     def front_designs(self) -> list[Any]:
         """The designs of the non-dominated points (same order as :meth:`front`)."""
-        idx = np.where(self.nondominated)[0]
-        key = self.values[idx, 1] if self.values.shape[1] > 1 else self.values[idx, 0]
-        return [self.designs[i] for i in idx[np.argsort(key, kind="stable")]]
+        return [self.designs[i] for i in self._front_order()]
 
     def to_csv(self, path: str | Path) -> Path:
         """Every point, with a ``nondominated`` column."""
@@ -249,8 +252,7 @@ def pareto(
         if o not in BOUNDABLE:
             raise ValidationError(f"objective {o!r} cannot be bounded; bounded objectives are "
                                   f"{tuple(BOUNDABLE)}")
-    if isinstance(levels, bool) or not isinstance(levels, int) or levels < 1:
-        raise ValidationError(f"levels must be an integer >= 1; found {levels!r}")
+    levels = as_int("levels", levels, 1)
     ranges = dict(ranges or {})
     for k, v in ranges.items():
         if k not in objs[1:]:
@@ -275,10 +277,7 @@ def pareto(
                                    placement=placement)
 
     # anchors: each minimizable objective alone
-    anchor_objs = [o for o in objs if o in MINIMIZABLE]
-    anchors = {}
-    for o in anchor_objs:
-        anchors[o] = designer(o)()
+    anchors = {o: designer(o)() for o in objs if o in MINIMIZABLE}
     prim = anchors[objs[0]]
     lv: dict[str, list[float]] = {}
     for o in objs[1:]:
@@ -302,17 +301,14 @@ def pareto(
                                   "give ranges")
     axes = {BOUNDABLE[o]: lv[o] for o in objs[1:]}
     names = list(axes)
-    points = [{names[0]: a} for a in axes[names[0]]] if len(names) == 1 else \
-        [{names[0]: a, names[1]: b} for a in axes[names[0]] for b in axes[names[1]]]
+    points = grid(**axes)
     # every level also starts from the primary anchor's gain (feasible for the loosest levels)
     des = designer(objs[0], prim.L if prim.success else None)
-    chunk = len(points) if executor in ("serial", None) or executor == "threads" else None
+    chunk = len(points) if executor in ("serial", "threads", None) else None
     table = sweep(des, points, executor=executor, progress=progress, keep_results=True, chunksize=chunk)
     records = [{**r, "anchor": None} for r in table.records]
     designs = list(table.results or [None] * len(records))
     for o, a in anchors.items():
-        from .sweep import record_of
-
         rec = {k: None for k in names}
         rec.update(record_of(a))
         rec.update({"anchor": o, "time": a.solver_stats.time, "error": None, "worker": None})
@@ -335,7 +331,7 @@ def plot_pareto(front: ParetoFront, path: str | Path | None = None, *, x: str | 
     -------
     matplotlib Figure (saved to ``path`` when given).
     """
-    from .reproduce import pyplot
+    from .reproduce import pyplot, save_figure
     from .spec import LABELS
 
     plt = pyplot()
@@ -379,6 +375,5 @@ def plot_pareto(front: ParetoFront, path: str | Path | None = None, *, x: str | 
                  + (f"\n({n_fail} bound levels infeasible or failed)" if n_fail else ""), fontsize=10)
     fig.tight_layout()
     if path is not None:
-        fig.savefig(Path(path), dpi=120)
-        plt.close(fig)
+        save_figure(fig, path, dpi=120, layout=False)
     return fig

@@ -14,16 +14,18 @@ import csv
 import importlib
 import math
 import time
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import BackendUnavailableError, ValidationError
+from .sweep import _one_line
 
 __all__ = [
     "ReproRow",
     "PaperReproduction",
     "pyplot",
+    "output_dir",
+    "save_figure",
     "format_table",
     "fmt",
     "PAPERS",
@@ -86,6 +88,23 @@ def pyplot():
     except ImportError as exc:  # pragma: no cover - exercised only without matplotlib
         raise BackendUnavailableError("figures need matplotlib: pip install 'optdesign[plot]'") from exc
     return plt
+
+
+def output_dir(outdir: str | Path) -> Path:
+    """The folder of a paper's figures as a Path, created if missing."""
+    out = Path(outdir)
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def save_figure(fig, path: str | Path, *, dpi: int = 110, layout: bool = True, **savefig_kw) -> Path:
+    """Lay out (``tight_layout`` unless ``layout=False``), write and close a figure; its path."""
+    if layout:
+        fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=dpi, **savefig_kw)
+    pyplot().close(fig)
+    return path
 
 
 def fmt(x, digits: int = 4) -> str:
@@ -233,13 +252,7 @@ def _run_paper(pid: str, outdir: Path, quick: bool) -> PaperOutcome:
     if missing:
         return PaperOutcome(pid, title, "figures missing", rep, "figure(s) not written: "
                                                                 f"{', '.join(missing)}", dt)
-    return PaperOutcome(pid, title or rep.title, "ok", rep, None, dt)
-
-
-def _one_line(exc: BaseException) -> str:
-    tb = traceback.extract_tb(exc.__traceback__)
-    where = f" (at {Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
-    return f"{type(exc).__name__}: {' '.join(str(exc).split())}{where}"
+    return PaperOutcome(pid, title, "ok", rep, None, dt)
 
 
 def _close_figures() -> None:

@@ -193,8 +193,7 @@ def parse_poles(value: Any, *, field: str = "poles") -> np.ndarray:
 # --------------------------------------------------------------------------- spec
 
 _STUDY_KEYS = ("name", "title", "problem", "design", "output", "executor", "workers", "scheduler",
-               "chunksize",
-               "timeout")
+               "chunksize", "timeout")
 _EXECUTORS = ("processes", "threads", "serial", "dask")
 _FIGURE_KEYS = ("kind", "x", "y", "series", "value", "logx", "logy", "file", "title")
 
@@ -376,8 +375,7 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         raise _err(source, "study.name", f"must be a non-empty name without slashes; found {name!r}")
     problem = study.get("problem")
     if not isinstance(problem, str):
-        raise _err(source, "study.problem", "missing or not a string (a problem name, see `optdesign "
-                                            "list`); "
+        raise _err(source, "study.problem", "missing or not a string (a problem name, see `optdesign list`); "
                                             f"found {problem!r}")
     from .. import problems as _problems
 
@@ -458,8 +456,8 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         msg = " ".join(str(exc).split())
         where = next((f"fixed.{k}" for k in kwargs if k in msg), None)
         if where is None:
-            where = "study.problem" if ("noise" in msg or "target "
-                                                          "poles" in msg or "problem" in msg) else "fixed"
+            about_problem = any(w in msg for w in ("noise", "target poles", "problem"))
+            where = "study.problem" if about_problem else "fixed"
             if "target poles" in msg:
                 msg += " (in [fixed], e.g. poles = ['-1', '-2+1j', '-2-1j'])"
         raise _err(source, where, msg) from None
@@ -500,8 +498,8 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
     for i, fr in enumerate(figs_raw):
         figures.append(_parse_figure(source, fr, i if len(figs_raw) > 1 else None, axes, design, name))
     return StudySpec(name=name, problem=problem, design=design, designer=designer, points=tuple(pts),
-                     axes=axes,
-                     output=out_path, executor=executor, workers=ints["workers"], scheduler=scheduler,
+                     axes=axes, output=out_path, executor=executor, workers=ints["workers"],
+                     scheduler=scheduler,
                      chunksize=ints["chunksize"], timeout=None if timeout is None else float(timeout),
                      title=title, figures=tuple(figures), source=source)
 
@@ -554,8 +552,7 @@ def _parse_figure(source: str, fr: Any, index: int | None, axes: dict[str, list]
         for c in ys:
             if c not in columns:
                 raise _err(source, f"{pre}.y", f"{c!r} is not a result column of design {design!r}; "
-                                               "expected one "
-                                               f"of {', '.join(columns)}")
+                                               f"expected one of {', '.join(columns)}")
         series = fr.get("series")
         if series is not None and (series not in axes or series == x):
             raise _err(source, f"{pre}.series", f"must be another axis of the grid; found {series!r}")
@@ -563,8 +560,7 @@ def _parse_figure(source: str, fr: Any, index: int | None, axes: dict[str, list]
         if others:
             raise _err(source, f"{pre}.series" if series is None else pre,
                        f"axis {others[0]!r} also varies: give it as series (or fix it) so that each curve "
-                       "is a "
-                       f"function of {x!r}")
+                       f"is a function of {x!r}")
         value = None
         file = fr.get("file", f"{name}_{'_'.join(ys)}.png")
     if not isinstance(file, str) or not file.lower().endswith((".png", ".pdf", ".svg")) or "/" in file:
@@ -605,7 +601,7 @@ def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: s
     values written in the cells (failed cells blank, marked "failed").  Failed points are left
     out and counted in the title.
     """
-    from .reproduce import pyplot
+    from .reproduce import pyplot, save_figure
 
     plt = pyplot()
     ok = np.array([bool(r.get("success")) for r in table.records])
@@ -671,11 +667,7 @@ def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: s
                           bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         axs[-1, 0].set_xlabel(_label(fig.x))
         axs[0, 0].set_title(_title(fig.title or title or ", ".join(fig.y), note), fontsize=10)
-    f.tight_layout()
-    path = Path(path)
-    f.savefig(path, dpi=120)
-    plt.close(f)
-    return path
+    return save_figure(f, path, dpi=120)
 
 
 def _dask_client(spec: StudySpec, workers: int | None):

@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import as_int
 from ..errors import ValidationError
 
 __all__ = [
@@ -160,6 +161,7 @@ def _reason(result: Any) -> str:
 
 
 def _one_line(exc: BaseException) -> str:
+    """``"Type: message at file:line"`` on one line (the message's line breaks become spaces)."""
     tb = traceback.extract_tb(exc.__traceback__)
     where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
     msg = " ".join(str(exc).split())
@@ -465,11 +467,13 @@ def _progress_bar(total: int, enabled: bool):
     return tqdm(total=total, delay=1.0, unit="pt", leave=False, file=sys.stderr, desc="sweep")
 
 
-def _kill_pool(executor: cf.Executor) -> None:
+def _kill_pool(executor: cf.ProcessPoolExecutor) -> None:
     """Stop an owned process pool whose workers may be stuck (after a timeout)."""
+    # before Python 3.14 (terminate_workers) there is no public way to stop a busy worker: terminate
+    # our own processes -- taken before shutdown(), which forgets them
+    procs = list((getattr(executor, "_processes", None) or {}).values())
     executor.shutdown(wait=False, cancel_futures=True)
-    # ProcessPoolExecutor has no public way to stop a busy worker; terminate our own processes
-    for proc in list((getattr(executor, "_processes", None) or {}).values()):
+    for proc in procs:
         try:
             proc.terminate()
         except Exception:  # noqa: BLE001 - already gone
@@ -553,19 +557,17 @@ def sweep(
         raise ValidationError("sweep needs at least one point")
     if not callable(design_fn):
         raise ValidationError(f"design_fn must be callable; found {type(design_fn).__name__}")
-    if chunksize is not None and (isinstance(chunksize, bool) or not isinstance(chunksize, (int, np.integer))
-                                  or chunksize < 1):
-        raise ValidationError(f"chunksize must be an integer >= 1; found {chunksize!r}")
+    if chunksize is not None:
+        chunksize = as_int("chunksize", chunksize, 1)
     if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
         raise ValidationError(f"timeout must be a positive number of seconds; found {timeout!r}")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
-                                or workers < 1):
-        raise ValidationError(f"workers must be an integer >= 1; found {workers!r}")
+    if workers is not None:
+        workers = as_int("workers", workers, 1)
     inputs = tuple(dict.fromkeys(k for p in pts for k in p))
     if executor is None or executor == "processes" or isinstance(executor, cf.ProcessPoolExecutor):
         _check_picklable(design_fn)
     exe, own, label = _resolve_executor(executor, workers, len(pts))
-    size = int(chunksize) if chunksize is not None else default_chunksize(len(pts))
+    size = chunksize if chunksize is not None else default_chunksize(len(pts))
     indexed = list(enumerate(pts))
     chunks = [indexed[i:i + size] for i in range(0, len(indexed), size)]
     t0 = time.perf_counter()
