@@ -24,6 +24,11 @@ class Status(str, enum.Enum):
 
     ``OPTIMAL``/``OPTIMAL_INACCURATE`` come from optimizers, ``SOLVED`` from direct
     (closed-form, analytical, linear-algebra) methods that have no optimality notion.
+
+    ``INFEASIBLE`` is a verdict: it is reported only with a *global* certificate (a
+    return-difference frequency, an SDP dual / Farkas certificate, a proof).  A local method
+    that stops without a solution reports ``NOT_FOUND`` (feasibility unknown), never
+    ``INFEASIBLE`` -- whatever the solver said.
     """
 
     OPTIMAL = "optimal"
@@ -31,6 +36,7 @@ class Status(str, enum.Enum):
     SOLVED = "solved"
     INFEASIBLE = "infeasible"
     INFEASIBLE_INACCURATE = "infeasible_inaccurate"
+    NOT_FOUND = "not_found"
     UNBOUNDED = "unbounded"
     ITERATION_LIMIT = "iteration_limit"
     TIME_LIMIT = "time_limit"
@@ -44,6 +50,11 @@ class Status(str, enum.Enum):
     @property
     def is_infeasible(self) -> bool:
         return self in (Status.INFEASIBLE, Status.INFEASIBLE_INACCURATE)
+
+    @property
+    def is_limit(self) -> bool:
+        """A budget ran out (iterations or time): the answer is the best found so far."""
+        return self in (Status.ITERATION_LIMIT, Status.TIME_LIMIT)
 
     def __str__(self) -> str:  # "optimal", not "Status.OPTIMAL"
         return self.value

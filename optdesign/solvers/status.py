@@ -15,7 +15,9 @@ IPOPT_STATUS: dict[str, Status] = {
     "Solve_Succeeded": Status.OPTIMAL,
     "Solved_To_Acceptable_Level": Status.OPTIMAL_INACCURATE,
     "Feasible_Point_Found": Status.OPTIMAL_INACCURATE,
-    "Infeasible_Problem_Detected": Status.INFEASIBLE,
+    # IPOPT converged to a point of local infeasibility: no verdict on the problem (no global
+    # certificate), so "not found" -- never "infeasible"
+    "Infeasible_Problem_Detected": Status.NOT_FOUND,
     "Search_Direction_Becomes_Too_Small": Status.NUMERICAL_ERROR,
     "Diverging_Iterates": Status.UNBOUNDED,
     "User_Requested_Stop": Status.SOLVER_ERROR,
