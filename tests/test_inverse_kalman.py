@@ -26,7 +26,8 @@ from optdesign import (
 from optdesign.classical import solheim
 from optdesign.classical.placement import place_observer, pole_error
 from optdesign.classical.riccati import filter_are, filter_are_residual
-from optdesign.design.inverse_kalman import _face_polish, _pole_tolerance, _sdp_fixed_gain
+from optdesign.design.inverse_kalman import _face_polish, _sdp_fixed_gain
+from optdesign.design.verification import pole_tolerance as _pole_tolerance
 from optdesign.errors import (
     DimensionError,
     NotConjugateClosedError,

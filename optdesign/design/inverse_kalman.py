@@ -91,10 +91,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, check_symmetric
-from ..analysis.metrics import eigenvalue_rounding_floor
 from ..analysis.robustness import _resolve_R
 from ..classical.placement import place_observer, pole_error
-from ..classical.riccati import _fmt, filter_are, filter_are_residual
+from ..classical.riccati import _fmt, filter_are
 from ..classical.riccati import _sort_poles as _sorted_poles
 from ..errors import OptDesignError, RiccatiError, ValidationError
 from ..formulate.inverse_kalman import (
@@ -116,6 +115,7 @@ from ..formulate.inverse_kalman import (
 )
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from .verification import pole_check, pole_tolerance, psd_check, relative_difference, riccati_checks
 
 __all__ = [
     "METHODS",
@@ -133,12 +133,7 @@ METHODS = ("auto", "sdp", "nlp", "sequential")
 #: derivatives everywhere -- for comparisons and tests)
 _FAST_NLP = [True]
 
-#: relative tolerance of the PSD checks (smallest eigenvalue >= -PSD_RTOL * norm)
-PSD_RTOL = 1e-10
-#: relative Riccati residual accepted
-RESIDUAL_TOL = 1e-8
-#: relative gain difference accepted between the design and an independent ARE solve
-GAIN_TOL = 1e-7
+_EPS = float(np.finfo(float).eps)
 
 
 # ============================================================================ results
@@ -376,9 +371,7 @@ def _sym(X: NDArray) -> NDArray:
     return 0.5 * (X + X.T)
 
 
-def _rel(x: NDArray, y: NDArray) -> float:
-    d = float(np.linalg.norm(np.asarray(x) - np.asarray(y)))
-    return 0.0 if d == 0 else d / max(1.0, float(np.linalg.norm(y)))
+_rel = relative_difference
 
 
 def _lstsq(M: NDArray, b: NDArray) -> NDArray:
@@ -607,27 +600,6 @@ def _refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int
     return best
 
 
-def _independent_are(plant: Plant):
-    """The Riccati solve used to verify a design: the Hamiltonian Schur method (independent of
-    scipy's QZ, which produces L and P on the NLP path), scipy's if that one fails."""
-    try:  # no residual test here: an inaccurate re-solve shows up as a measured difference
-        return filter_are(plant, "hamiltonian", residual_tol=np.inf)
-    except (RiccatiError, OptDesignError):
-        return filter_are(plant, "scipy", residual_tol=np.inf)
-
-
-#: the pole tolerance is never raised above this, however ill-conditioned the poles
-POLE_FLOOR_CAP = 1e-6
-
-
-def _pole_tolerance(F: NDArray, tol: float) -> float:
-    """``max(tol, min(floor, POLE_FLOOR_CAP))``: the floor is the rounding level of the
-    eigenvalues of F itself (:func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`) --
-    no gain can be verified to better than its poles can be computed; the cap keeps the check
-    meaningful for (nearly) defective poles."""
-    return max(tol, min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP))
-
-
 def _placed_gain(plant: Plant, target: NDArray) -> NDArray:
     """Robust pole placement (scipy, refined by Newton); for one output and repeated targets,
     where scipy refuses, Ackermann's formula ``L = phi(A) O^-1 e_n`` (the gain is unique)."""
@@ -647,56 +619,27 @@ def _placed_gain(plant: Plant, target: NDArray) -> NDArray:
     return _refine_gain(plant.A, plant.C, L0, target)
 
 
-def _kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, what: str):
-    """The checks that ``(L, P, Q)`` is a steady-state Kalman filter of ``plant`` (with its R):
-    ``riccati_residual``, ``Q_min_eig``, ``P_min_eig`` and ``are_resolve_gain`` (an independent
-    Riccati solve with Q must return L).  Returns ``(checks, are)``; ``are`` is None when that
-    solve failed (then ``are_resolve_gain`` is a failed check)."""
-    nq = max(1.0, float(np.linalg.norm(Q, 2)))
-    npn = max(1.0, float(np.linalg.norm(P, 2)))
-    checks = [
-        Check.at_most("riccati_residual", filter_are_residual(plant, P, Qs=Q), RESIDUAL_TOL,
-                      f"relative residual of the filter ARE for the returned P with {what}"),
-        Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / nq, -PSD_RTOL,
-                       "smallest eigenvalue of Q / max(1, ||Q||)"),
-        Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / npn, -PSD_RTOL,
-                       "smallest eigenvalue of P / max(1, ||P||)"),
-    ]
-    try:
-        are = _independent_are(plant.replace(G=None, Q=_project_psd(Q)))
-    except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
-        checks.append(Check.at_most("are_resolve_gain", float("inf"), GAIN_TOL, f"filter_are failed: {exc}"))
-        return checks, None
-    checks.append(Check.at_most("are_resolve_gain", _rel(are.L, L), GAIN_TOL,
-                                f"||L_are - L|| / max(1, ||L||), L_are from an independent "
-                                f"filter_are with {what}"))
-    return checks, are
-
-
 def _verify(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
             structure: str, tol: float) -> tuple[Verification, NDArray]:
-    """Independent checks of a design (numpy eigenvalues, residual, re-solved ARE, PSD)."""
+    """Independent checks of a design (:mod:`optdesign.design.verification`: numpy eigenvalues,
+    residual and forward error, re-solved ARE, PSD)."""
     A, C = plant.A, plant.C
-    F = A - L @ C
-    poles = _sorted_poles(np.linalg.eigvals(F))
-    ptol = _pole_tolerance(F, tol)
-    pdetail = "max relative distance of eig(A - L C) (numpy) to the targets"
-    if ptol > tol:
-        pdetail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
-    kalman, are = _kalman_checks(plant, L, P, Q, "the returned Q")
-    checks = [Check.at_most("pole_error", pole_error(poles, target), ptol, pdetail), *kalman]
+    pcheck, poles = pole_check(A - L @ C, target, tol)
+    kalman, are, _ = riccati_checks(plant, L, P, Q, what="the returned Q")
+    checks = [pcheck, *kalman]
     if are is not None:
         checks.append(Check.at_most("are_resolve_poles", pole_error(are.poles, target),
-                                    _pole_tolerance(A - are.L @ C, tol),
+                                    pole_tolerance(A - are.L @ C, tol),
                                     "poles of the independent filter_are solve vs the targets"))
     if structure != "full" and Qw is not None:
         G = plant.G
         mis = _rel(G @ Qw @ G.T, Q)
-        wmin = float(np.linalg.eigvalsh(_sym(Qw))[0]) / max(1.0, float(np.linalg.norm(Qw, 2)))
         off = float(np.max(np.abs(Qw - np.diag(np.diag(Qw))))) if structure == "diagonal" else 0.0
-        checks.append(Check.at_most("structure", max(mis, off), 1e-9,
-                                    "||G Qw G' - Q|| (and off-diagonal of Qw for 'diagonal')"))
-        checks.append(Check.at_least("Qw_min_eig", wmin, -PSD_RTOL, "smallest eigenvalue of Qw (relative)"))
+        stol = 10.0 * (plant.n + plant.m) * _EPS * max(1.0, float(np.linalg.norm(G, 2)) ** 2)
+        checks.append(Check.at_most("structure", max(mis, off), stol,
+                                    "||G Qw G' - Q|| / max(1, ||Q||) (and off-diagonal of Qw for "
+                                    "'diagonal'); rounding level of the product"))
+        checks.append(psd_check("Qw_min_eig", Qw, what="Qw"))
     return Verification.of(checks), poles
 
 
@@ -2114,6 +2057,6 @@ def _optimality_certificate(plant, L, R, P0, W0, *, project: bool):
         P, Q = P0, _project_psd(W0)
     else:
         return None
-    checks, _ = _kalman_checks(plant.replace(R=R), L, P, Q, "the certificate Q")
+    checks, _, _ = riccati_checks(plant.replace(R=R), L, P, Q, what="the certificate Q")
     ver = Verification.of(checks)
     return (P, Q, ver) if ver.passed else None

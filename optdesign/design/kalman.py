@@ -15,18 +15,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_residual
+from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_error, filter_are_residual
 from ..errors import RiccatiError, ValidationError
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from .verification import FORWARD_ERROR_TOL, cross_check, psd_check, stability_check
 
-__all__ = ["KalmanFilter", "kalman", "CROSS_CHECK_TOL", "PSD_RTOL"]
-
-#: relative difference ||P - P_other||_F / ||P||_F allowed between the two Riccati solvers
-CROSS_CHECK_TOL = 1e-6
-
-#: smallest eigenvalue of P accepted as PSD: >= -PSD_RTOL ||P||_2
-PSD_RTOL = 1e-10
+__all__ = ["KalmanFilter", "kalman"]
 
 _METHODS = ("scipy", "hamiltonian")
 
@@ -57,11 +52,15 @@ class KalmanFilter(ResultMixin):
         ``backend`` is the method (``"scipy"`` or ``"hamiltonian"``); ``time`` the solve time;
         ``extra`` holds the cross-check method and its time.
     verification : Verification
-        Independent checks: ``riccati_residual`` (<= 1e-8), ``P_min_eig`` (>= -1e-10 ||P||),
-        ``stability_margin`` (``-max Re`` or ``1 - max |.|`` of ``eig(A - L C)`` recomputed
-        from L; must exceed ``1e3 eps``, times ``max(1, ||A||)`` in continuous time), and
-        ``cross_check`` (relative difference from the other solver's P, <= 1e-6; ``inf`` with
-        the reason in ``detail`` if the other solver failed).
+        Independent checks (tolerances in :mod:`optdesign.design.verification`):
+        ``riccati_residual`` (<= 1e-8), ``forward_error`` (the a posteriori error estimate of P,
+        :func:`~optdesign.classical.riccati.filter_are_error`, <= 1e-6), ``P_min_eig`` (P is PSD
+        to its forward error), ``stability_margin`` (``-max Re`` or ``1 - max |.|`` of
+        ``eig(A - L C)`` recomputed from L must exceed the rounding level of those poles), and
+        ``cross_check`` (relative difference from the other solver's P, within 4x the sum of
+        the two solutions' error estimates -- so a difference explained by the *other*
+        solver's inaccuracy passes; ``inf`` with the reason in ``detail`` if the other solver
+        failed).
     """
 
     L: NDArray[np.float64]
@@ -167,42 +166,28 @@ def kalman(plant: Plant, *, method: str = "scipy") -> KalmanFilter:
     elapsed = time.perf_counter() - t0
 
     other = _METHODS[1] if method == _METHODS[0] else _METHODS[0]
+    err = filter_are_error(plant, res.P)
     t1 = time.perf_counter()
     try:
         # no residual test here: an inaccurate answer of the other solver should show up as
-        # a measured difference, not as a missing cross-check
+        # a measured difference (explained, or not, by its own error estimate)
         P_other = filter_are(plant, other, residual_tol=np.inf).P
-        num = float(np.linalg.norm(res.P - P_other))
-        diff = 0.0 if num == 0.0 else num / max(float(np.linalg.norm(res.P)), float(np.linalg.norm(P_other)))
-        cross_detail = f"||P - P_{other}||_F / max(||P||_F, ||P_{other}||_F)"
+        cross = cross_check(res.P, P_other, err.relative, filter_are_error(plant, P_other).relative,
+                            other=other)
     except RiccatiError as exc:
-        diff = float("inf")
-        cross_detail = f"{other} solver failed: {exc}"
+        cross = Check.at_most("cross_check", float("inf"), 0.0, f"{other} solver failed: {exc}")
     cross_time = time.perf_counter() - t1
 
-    n = plant.n
     residual = filter_are_residual(plant, res.P)
-    lmin = float(np.linalg.eigvalsh(res.P)[0])
-    # P is known to about its Riccati condition times eps; a singular P (e.g. DAREX 1.7) comes
-    # out with eigenvalues of -1e-11 ||P||, so allow 1e-10 ||P|| (and a tiny absolute floor)
-    psd_tol = -(PSD_RTOL * float(np.linalg.norm(res.P, 2)) + n * np.finfo(float).tiny)
-    # poles recomputed from the returned gain; the margin must exceed their rounding level,
-    # not merely be positive
-    poles = np.linalg.eigvals(plant.A - res.L @ plant.C)
-    if plant.is_discrete:
-        margin = 1.0 - float(np.max(np.abs(poles)))
-        margin_tol = 1e3 * np.finfo(float).eps
-        margin_detail = "1 - max |eig(A - L C)|"
-    else:
-        margin = -float(np.max(poles.real))
-        margin_tol = 1e3 * np.finfo(float).eps * max(1.0, float(np.linalg.norm(plant.A, 2)))
-        margin_detail = "-max Re eig(A - L C)"
     checks = [
         Check.at_most("riccati_residual", residual, RESIDUAL_TOL,
                       "relative residual of the filter Riccati equation"),
-        Check.at_least("P_min_eig", lmin, psd_tol, "smallest eigenvalue of P (P must be PSD)"),
-        Check.at_least("stability_margin", margin, margin_tol, margin_detail),
-        Check.at_most("cross_check", diff, CROSS_CHECK_TOL, cross_detail),
+        Check.at_most("forward_error", err.relative, FORWARD_ERROR_TOL,
+                      "estimated relative error of P (Newton correction of its residual + rounding floor "
+                      "||Omega^-1|| n eps)"),
+        psd_check("P_min_eig", res.P, error=min(err.relative, 1.0), what="P"),
+        stability_check(plant.A - res.L @ plant.C, plant.is_discrete),
+        cross,
     ]
     verification = Verification.of(checks)
     kind = "discrete" if plant.is_discrete else "continuous"

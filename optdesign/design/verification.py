@@ -1,0 +1,239 @@
+r"""Independent verification of designs: one vocabulary of checks, one tolerance table.
+
+Every design verb checks its answer here, with numpy/scipy and independently of the solver that
+produced it; a design whose check fails is not ``success``, whatever the solver said.  Each check
+has one name (:data:`CHECK_NAMES`) and one tolerance rule, derived from the size, scale and
+conditioning of the data at hand -- never a bare constant tuned to one CPU:
+
+Tolerance table (value -> tolerance, and why):
+
+``pole_error``
+    max relative distance of ``eig(A - L C)`` (numpy) to the targets ->
+    ``max(tol, min(floor, 1e-6))``, ``floor`` the rounding floor of the eigenvalues of ``A - L C``
+    (:func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`): no pole is computable better.
+``stability_margin``
+    ``-max Re`` (continuous) or ``1 - max |.|`` (discrete) of ``eig(A - L C)`` -> more than the
+    absolute rounding level of those poles (floor times ``max(1, ||A - L C||)``).
+``riccati_residual``
+    relative residual of the filter ARE, normalized by the size of its terms -> :data:`RESIDUAL_TOL`
+    (1e-8; the residual is scale-free, and 0 when every term vanishes).
+``forward_error``
+    a posteriori relative error of P (:func:`~optdesign.classical.riccati.filter_are_error`: Newton
+    correction of the residual + rounding response) -> :data:`FORWARD_ERROR_TOL` (1e-6: P known to
+    6 digits; an ill-conditioned equation fails it honestly through its rounding response).
+``P_min_eig``
+    ``lambda_min(P) / ||P||`` -> ``>= -(forward error of P + 10 n eps)``: P is known to its error.
+``Q_min_eig``, ``Qw_min_eig``
+    ``lambda_min(X) / ||X||`` -> ``>= -10 n eps``: eigvalsh is backward stable, so a PSD X shows
+    eigenvalues ``>= -n eps ||X||``.
+``are_resolve_gain``
+    ``||L_are - L|| / max(1, ||L||)``, ``L_are`` from an independent Riccati solve with Q ->
+    ``4 (err_P + err_are + 10 n eps cond) ||P|| ||dL/dP|| / max(1, ||L||)``, capped at 1e-6: the two
+    gains differ by what the errors of the two P (and the gain formula's rounding) explain.
+``are_resolve_poles``
+    poles of that solve vs the targets -> as ``pole_error``.
+``cross_check``
+    ``||P - P_other|| / max(||P||, ||P_other||)`` -> ``4 (err_P + err_other) + 10 n eps``: two
+    solvers agree to what their own error estimates explain (a difference explained by the other
+    solver's residual passes).
+
+The factor 4 (:data:`ESTIMATE_FACTOR`) is the safety margin on first-order *estimates*.
+
+References
+----------
+Higham, N. J., *Accuracy and Stability of Numerical Algorithms*, 2nd ed., SIAM (2002): backward
+stable symmetric eigenvalues (ch. 15 notes), Lyapunov/Sylvester conditioning (ch. 16).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..analysis.metrics import eigenvalue_rounding_floor
+from ..classical.placement import pole_error
+from ..classical.riccati import AREErrorEstimate, filter_are, filter_are_error, filter_are_residual
+from ..errors import OptDesignError, RiccatiError
+from ..model.plant import Plant
+from ..results import Check
+
+__all__ = [
+    "CHECK_NAMES",
+    "RESIDUAL_TOL",
+    "FORWARD_ERROR_TOL",
+    "POLE_FLOOR_CAP",
+    "pole_tolerance",
+    "pole_check",
+    "stability_check",
+    "psd_check",
+    "psd_tolerance",
+    "riccati_checks",
+    "independent_are",
+    "cross_check",
+    "relative_difference",
+]
+
+_EPS = float(np.finfo(float).eps)
+
+#: the closed vocabulary of check names used by the verbs (extended per verb family below)
+CHECK_NAMES = frozenset({
+    "pole_error", "stability_margin", "stability", "spectral_radius", "riccati_residual", "forward_error",
+    "P_min_eig", "Q_min_eig", "Qw_min_eig", "are_resolve_gain", "are_resolve_poles", "cross_check",
+    "structure", "gain_relation_asymmetry", "gain_relation_min_eig", "margin", "circle_condition",
+})
+
+#: relative residual of the filter Riccati equation accepted (the residual is scale-free)
+RESIDUAL_TOL = 1e-8
+#: estimated relative forward error of P accepted
+FORWARD_ERROR_TOL = 1e-6
+#: the pole tolerance is never raised above this, however ill-conditioned the poles
+POLE_FLOOR_CAP = 1e-6
+#: the safety factor on first-order error estimates (they are estimates, not bounds)
+ESTIMATE_FACTOR = 4.0
+
+
+def relative_difference(x: NDArray, y: NDArray) -> float:
+    """``||x - y|| / max(1, ||y||)`` (0 for equal arrays)."""
+    d = float(np.linalg.norm(np.asarray(x) - np.asarray(y)))
+    return 0.0 if d == 0 else d / max(1.0, float(np.linalg.norm(y)))
+
+
+def pole_tolerance(F: NDArray, tol: float) -> float:
+    """``max(tol, min(floor, POLE_FLOOR_CAP))`` with ``floor`` the rounding floor of the eigenvalues
+    of F: no gain can be verified to better than its poles can be computed; the cap keeps the check
+    meaningful for (nearly) defective poles."""
+    return max(float(tol), min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP))
+
+
+def pole_check(F: NDArray, target: NDArray, tol: float, *, name: str = "pole_error",
+               what: str = "eig(A - L C) (numpy)") -> tuple[Check, NDArray]:
+    """The ``pole_error`` check of the error dynamics F against ``target``; returns the check and
+    the sorted poles."""
+    poles = np.linalg.eigvals(F)
+    poles = poles[np.lexsort((poles.imag, poles.real))]
+    ptol = pole_tolerance(F, tol)
+    detail = f"max relative distance of {what} to the targets"
+    if ptol > tol:
+        detail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
+    return Check.at_most(name, pole_error(poles, target), ptol, detail), poles
+
+
+def stability_check(F: NDArray, discrete: bool) -> Check:
+    """``stability_margin``: the poles of F must be stable by more than their rounding level."""
+    poles = np.linalg.eigvals(F)
+    floor = eigenvalue_rounding_floor(F)
+    level = (floor if np.isfinite(floor) else 1.0) * max(1.0, float(np.linalg.norm(F, 2)))
+    if discrete:
+        return Check.at_least("stability_margin", 1.0 - float(np.max(np.abs(poles))), level,
+                              "1 - max |eig(A - L C)| must exceed the rounding level of the poles")
+    return Check.at_least("stability_margin", -float(np.max(poles.real)), level,
+                          "-max Re eig(A - L C) must exceed the rounding level of the poles")
+
+
+def psd_tolerance(X: NDArray, error: float = 0.0) -> float:
+    """The (negative) relative bound on ``lambda_min(X) / ||X||`` of a PSD matrix known to a
+    relative accuracy ``error``: ``-(error + 10 n eps)``."""
+    n = max(1, np.asarray(X).shape[0])
+    return -(float(error) + 10.0 * n * _EPS)
+
+
+def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "") -> Check:
+    """``lambda_min(X) / ||X||_2 >= -(error + 10 n eps)`` (0 for ``X = 0``)."""
+    X = 0.5 * (np.asarray(X, dtype=float) + np.asarray(X, dtype=float).T)
+    nx = float(np.linalg.norm(X, 2)) if X.size else 0.0
+    value = float(np.linalg.eigvalsh(X)[0]) / nx if nx > 0 else 0.0
+    label = what or name.replace("_min_eig", "")
+    return Check.at_least(name, value, psd_tolerance(X, error),
+                          f"smallest eigenvalue of {label} / ||{label}|| (it must be PSD)")
+
+
+def independent_are(plant: Plant):
+    """The Riccati solve used to verify a design: the Hamiltonian Schur method (independent of
+    scipy's QZ, which produces L and P on the NLP path), scipy's if that one fails.  No residual
+    test here: an inaccurate re-solve shows up as a measured difference."""
+    try:
+        return filter_are(plant, "hamiltonian", residual_tol=np.inf)
+    except (RiccatiError, OptDesignError):
+        return filter_are(plant, "scipy", residual_tol=np.inf)
+
+
+def _gain_tolerance(plant: Plant, L: NDArray, P: NDArray, err_p: float, err_are: float) -> float:
+    """How far two gains of (nearly) the same Riccati solution may differ: the gain is linear in P
+    (``P C' R^-1``; discrete ``A P C' S^-1``, ``S = C P C' + R``), so by ``(err_p + err_are + the
+    rounding of the gain formula, 10 n eps cond(R or S)) ||P|| ||dL/dP||``, relative to
+    ``max(1, ||L||)``; capped at :data:`FORWARD_ERROR_TOL`."""
+    C, R = plant.C, plant.R
+    n = plant.n
+    if plant.is_discrete:
+        S = C @ P @ C.T + R
+        Si = np.linalg.inv(S)
+        sens = float(np.linalg.norm(plant.A, 2)) * float(np.linalg.norm(C.T @ Si, 2)) * \
+            (1.0 + float(np.linalg.norm(C @ P @ C.T, 2)) * float(np.linalg.norm(Si, 2)))
+        cond = float(np.linalg.cond(S))
+    else:
+        sens = float(np.linalg.norm(C.T @ np.linalg.inv(R), 2))
+        cond = float(np.linalg.cond(R))
+    rel = err_p + err_are + 10.0 * n * _EPS * cond
+    tol = ESTIMATE_FACTOR * rel * float(np.linalg.norm(P, 2)) * sens / max(1.0, float(np.linalg.norm(L)))
+    return min(tol + 10.0 * n * _EPS, FORWARD_ERROR_TOL)
+
+
+def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: str = "the returned Q",
+                   resolve: bool = True) -> tuple[list[Check], object | None, AREErrorEstimate]:
+    """The checks that ``(L, P, Q)`` is a steady-state Kalman filter of ``plant`` (with its R):
+    ``riccati_residual``, ``forward_error``, ``Q_min_eig``, ``P_min_eig`` and (``resolve``)
+    ``are_resolve_gain`` -- an independent Riccati solve with Q must return L.
+
+    Returns ``(checks, are, error)``: ``are`` is the independent solve (None when it failed or was
+    not asked for), ``error`` the forward error estimate of P.
+    """
+    Qs = 0.5 * (Q + Q.T)
+    err = filter_are_error(plant, P, Qs=Qs)
+    err_rel = err.relative if np.isfinite(err.relative) else float("inf")
+    checks = [
+        Check.at_most("riccati_residual", filter_are_residual(plant, P, Qs=Qs), RESIDUAL_TOL,
+                      f"relative residual of the filter ARE for the returned P with {what}"),
+        Check.at_most("forward_error", err_rel, FORWARD_ERROR_TOL,
+                      "estimated relative error of P (Newton correction of its residual + rounding "
+                      "floor ||Omega^-1|| n eps)"),
+        psd_check("Q_min_eig", Qs, what="Q"),
+        psd_check("P_min_eig", P, error=min(err_rel, 1.0), what="P"),
+    ]
+    if not resolve:
+        return checks, None, err
+    try:
+        are = independent_are(plant.replace(G=None, Q=_psd_part(Qs)))
+    except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
+        checks.append(Check.at_most("are_resolve_gain", float("inf"), 0.0, f"filter_are failed: {exc}"))
+        return checks, None, err
+    err_are = filter_are_error(plant.replace(G=None, Q=_psd_part(Qs)), are.P).relative
+    gtol = _gain_tolerance(plant, L, P, err_rel, err_are if np.isfinite(err_are) else 1.0)
+    checks.append(Check.at_most("are_resolve_gain", relative_difference(are.L, L), gtol,
+                                f"||L_are - L|| / max(1, ||L||), L_are from an independent filter_are with "
+                                f"{what}; tolerance from the error estimates of both P"))
+    return checks, are, err
+
+
+def cross_check(P: NDArray, P_other: NDArray, err: float, err_other: float, *, other: str) -> Check:
+    """``cross_check``: two Riccati solutions agree to what their own error estimates explain."""
+    num = float(np.linalg.norm(P - P_other))
+    den = max(float(np.linalg.norm(P)), float(np.linalg.norm(P_other)))
+    diff = 0.0 if num == 0.0 else (num / den if den > 0 else float("inf"))
+    n = P.shape[0]
+    tol = ESTIMATE_FACTOR * (err + err_other) + 10.0 * n * _EPS
+    return Check.at_most("cross_check", diff, tol,
+                         f"||P - P_{other}||_F / max(||P||_F, ||P_{other}||_F); tolerance 4 x the sum of "
+                         f"the two error estimates")
+
+
+def _psd_part(X: NDArray) -> NDArray:
+    lam, U = np.linalg.eigh(0.5 * (X + X.T))
+    Y = (U * np.maximum(lam, 0.0)) @ U.T
+    return 0.5 * (Y + Y.T)
+
+
+def failed_names(checks: Iterable[Check]) -> list[str]:
+    """Names of the failed checks, in order."""
+    return [c.name for c in checks if not c.passed]
