@@ -6,7 +6,8 @@ in the style of ``scipy.linalg._solvers``.  Never use ``assert`` for validation.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,6 +23,7 @@ from .errors import (
 )
 
 __all__ = [
+    "as_array",
     "as_matrix",
     "as_square",
     "as_vector",
@@ -29,15 +31,77 @@ __all__ = [
     "check_psd",
     "check_pd",
     "as_poles",
+    "as_frequencies",
+    "as_real",
     "as_positive_float",
     "as_int",
     "as_bool",
+    "as_options",
+    "as_rng",
+    "as_str",
     "sym_tol",
 ]
 
 
 def _shape_str(shape: Sequence[int | None]) -> str:
     return "(" + ", ".join("?" if s is None else str(s) for s in shape) + ")"
+
+
+def _numeric_array(name: str, X: ArrayLike, what: str, allow_complex: bool) -> NDArray:
+    """``X`` as a float (or complex) array; strings -- numeric ones too --, objects, ragged nests and
+    complex entries (unless allowed) are refused with a :class:`ValidationError` naming ``name``."""
+    if isinstance(X, (str, bytes)):
+        raise ValidationError(f"{name} must be a numeric {what}; found the string {X!r}")
+    try:
+        arr = np.asarray(X)
+    except Exception as exc:  # ragged lists etc.
+        raise ValidationError(f"{name} could not be converted to an array: {exc}") from None
+    if arr.dtype == object:
+        raise ValidationError(f"{name} must be a numeric {what}; found a ragged or non-numeric array")
+    if arr.dtype.kind in "USV":
+        first = arr.ravel()[0] if arr.size else ""
+        raise ValidationError(f"{name} must be numeric; found dtype {arr.dtype} (e.g. {str(first)!r}: "
+                              "numbers written as strings are not accepted)")
+    if np.iscomplexobj(arr):
+        if not allow_complex:
+            if np.any(np.imag(arr) != 0):
+                raise ValidationError(f"{name} must be real; found complex entries")
+            arr = np.real(arr)
+    elif not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise ValidationError(f"{name} must be numeric; found dtype {arr.dtype}")
+    return arr.astype(complex if np.iscomplexobj(arr) else float)
+
+
+def as_array(
+    name: str, X: ArrayLike, ndim: tuple[int, ...], *, allow_complex: bool = False
+) -> NDArray[np.float64]:
+    """A finite float (or complex) array with one of the allowed numbers of dimensions.
+
+    For data whose shape varies (a signal ``(T,)`` or ``(T, p)``, a row or a matrix); no reshaping.
+
+    Raises
+    ------
+    ValidationError
+        Not numeric (strings, numeric ones included, objects, ragged nests), complex entries
+        when ``allow_complex`` is false.
+    DimensionError
+        ``X.ndim`` not in ``ndim``.
+    NotFiniteError
+        A NaN or infinite entry (its index is named).
+    """
+    arr = _numeric_array(name, X, "array", allow_complex)
+    if arr.ndim not in ndim:
+        dims = " or ".join(f"{d}-D" for d in ndim)
+        raise DimensionError(f"{name} must be {dims}; found {arr.ndim}-D shape {arr.shape}")
+    _check_finite(name, arr)
+    return arr
+
+
+def _check_finite(name: str, arr: NDArray) -> None:
+    if arr.size and not np.all(np.isfinite(arr)):
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        where = int(bad[0]) if arr.ndim == 1 else tuple(int(b) for b in bad)
+        raise NotFiniteError(f"{name} must be finite; found {arr[tuple(bad)]} at index {where}")
 
 
 def as_matrix(
@@ -52,20 +116,7 @@ def as_matrix(
     Scalars become (1, 1); 1-D input is *not* silently reshaped (ambiguous between a row
     and a column), except when ``shape`` fixes one side to 1.
     """
-    try:
-        arr = np.asarray(X)
-    except Exception as exc:  # ragged lists etc.
-        raise ValidationError(f"{name} could not be converted to an array: {exc}") from None
-    if arr.dtype == object:
-        raise ValidationError(f"{name} must be a numeric matrix; found a ragged or non-numeric array")
-    if np.iscomplexobj(arr):
-        if not allow_complex:
-            if np.any(np.imag(arr) != 0):
-                raise ValidationError(f"{name} must be real; found complex entries")
-            arr = np.real(arr)
-    elif not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
-        raise ValidationError(f"{name} must be numeric; found dtype {arr.dtype}")
-    arr = arr.astype(complex if np.iscomplexobj(arr) else float)
+    arr = _numeric_array(name, X, "matrix", allow_complex)
     if arr.ndim == 0:
         arr = arr.reshape(1, 1)
     elif arr.ndim == 1 and shape is not None:
@@ -75,18 +126,15 @@ def as_matrix(
             arr = arr.reshape(1, -1)
     if arr.ndim != 2:
         expected = _shape_str(shape) if shape is not None else "a 2-D matrix"
-        raise DimensionError(f"{name} must be 2-D with shape {expected}; found {arr.ndim}-D shape {arr.shape}")
+        raise DimensionError(
+            f"{name} must be 2-D with shape {expected}; found {arr.ndim}-D shape {arr.shape}")
     if shape is not None:
         for k in (0, 1):
             if shape[k] is not None and arr.shape[k] != shape[k]:
                 raise DimensionError(
                     f"{name} has the wrong shape: expected {_shape_str(shape)}, found {arr.shape}"
                 )
-    if arr.size and not np.all(np.isfinite(arr)):
-        bad = np.argwhere(~np.isfinite(arr))[0]
-        raise NotFiniteError(
-            f"{name} must be finite; found {arr[tuple(bad)]} at index {tuple(int(b) for b in bad)}"
-        )
+    _check_finite(name, arr)
     return arr
 
 
@@ -101,24 +149,56 @@ def as_square(name: str, X: ArrayLike, n: int | None = None) -> NDArray[np.float
 
 
 def as_vector(name: str, x: ArrayLike, n: int | None = None, *, allow_complex: bool = False) -> NDArray:
-    """A finite 1-D vector (of length ``n`` if given)."""
-    arr = np.asarray(x)
-    if arr.dtype == object:
-        raise ValidationError(f"{name} must be a numeric vector; found a ragged or non-numeric array")
-    if np.iscomplexobj(arr) and not allow_complex:
-        if np.any(np.imag(arr) != 0):
-            raise ValidationError(f"{name} must be real; found complex entries")
-        arr = np.real(arr)
-    arr = np.atleast_1d(arr).astype(complex if np.iscomplexobj(arr) else float)
-    if arr.ndim != 1:
-        arr = arr.squeeze()
-        if arr.ndim != 1:
-            raise DimensionError(f"{name} must be a vector; found shape {np.shape(x)}")
+    """A finite 1-D vector (of length ``n`` if given).
+
+    A scalar is a vector of length 1.  A 2-D array with one row or one column -- shape ``(1, k)``
+    or ``(k, 1)`` -- is an unambiguous vector and is flattened; anything else with more than one
+    dimension (e.g. shape ``(2, 2)`` or ``(1, 1, k)``) is refused.
+
+    Raises
+    ------
+    ValidationError
+        Not numeric (strings, numeric ones included, objects, ragged nests); complex entries
+        when ``allow_complex`` is false.
+    DimensionError
+        Not a vector, or the wrong length.
+    NotFiniteError
+        A NaN or infinite entry (its index is named).
+    """
+    arr = _numeric_array(name, x, "vector", allow_complex)
+    if arr.ndim == 0:
+        arr = arr.reshape(1)
+    elif arr.ndim == 2 and 1 in arr.shape:
+        arr = arr.reshape(-1)
+    elif arr.ndim != 1:
+        raise DimensionError(
+            f"{name} must be a vector (shape (k,), or (1, k) / (k, 1)); found shape {arr.shape}")
     if n is not None and arr.shape[0] != n:
         raise DimensionError(f"{name} has the wrong length: expected {n}, found {arr.shape[0]}")
-    if not np.all(np.isfinite(arr)):
-        raise NotFiniteError(f"{name} must be finite; found {arr[~np.isfinite(arr)][0]}")
+    _check_finite(name, arr)
     return arr
+
+
+def as_frequencies(name: str, omega: ArrayLike, *, nonnegative: bool = True) -> NDArray[np.float64]:
+    """A non-empty vector of finite real frequencies (rad/s), ``>= 0`` unless ``nonnegative`` is false.
+
+    Frequency grids of the searches (circle condition, margins) are nonnegative: a real system's
+    frequency response at ``-w`` is the conjugate of that at ``w``.
+
+    Raises
+    ------
+    ValidationError
+        Not a real numeric vector (see :func:`as_vector`), empty, or a negative entry (named).
+    DimensionError, NotFiniteError
+        As :func:`as_vector`.
+    """
+    w = as_vector(name, omega).astype(float)
+    if w.size == 0:
+        raise DimensionError(f"{name} must contain at least one frequency; found an empty array")
+    if nonnegative and np.any(w < 0):
+        bad = int(np.flatnonzero(w < 0)[0])
+        raise ValidationError(f"{name} must be >= 0 (rad/s); found {w[bad]:g} at index {bad}")
+    return w
 
 
 def sym_tol(X: NDArray) -> float:
@@ -133,7 +213,8 @@ def check_symmetric(name: str, X: NDArray, tol: float | None = None) -> NDArray[
     tol = sym_tol(X) if tol is None else tol
     asym = float(np.max(np.abs(X - X.T))) if X.size else 0.0
     if asym > tol:
-        raise NotSymmetricError(f"{name} must be symmetric; found max |{name} - {name}'| = {asym:.3g} > {tol:.3g}")
+        raise NotSymmetricError(
+            f"{name} must be symmetric; found max |{name} - {name}'| = {asym:.3g} > {tol:.3g}")
     return 0.5 * (X + X.T)
 
 
@@ -164,14 +245,48 @@ def check_pd(name: str, X: NDArray) -> NDArray[np.float64]:
     return X
 
 
-def as_positive_float(name: str, value, *, allow_zero: bool = False) -> float:
-    """A finite positive scalar."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValidationError(f"{name} must be a real number; found {value!r}") from None
-    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        cond = ">= 0" if allow_zero else "> 0"
+def _is_real_scalar(value: object) -> bool:
+    """A Python or numpy integer / float (or a 0-d real numeric array); bool is not a number here."""
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return True
+    return isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf"
+
+
+def as_real(name: str, value: object) -> float:
+    """A finite real number (Python or numpy int / float).
+
+    Raises
+    ------
+    ValidationError
+        Anything else: a string (numeric ones too), a bool, a complex number, None, an array.
+    NotFiniteError
+        NaN or infinity.
+    """
+    if not _is_real_scalar(value):
+        kind = "a string" if isinstance(value, (str, bytes)) else type(value).__name__
+        raise ValidationError(f"{name} must be a real number; found {value!r} ({kind})")
+    v = float(value)  # type: ignore[arg-type]
+    if not np.isfinite(v):
+        raise NotFiniteError(f"{name} must be finite; found {value!r}")
+    return v
+
+
+def as_positive_float(name: str, value: object, *, allow_zero: bool = False) -> float:
+    """A finite scalar ``> 0`` (``>= 0`` with ``allow_zero``): Python or numpy int / float.
+
+    Raises
+    ------
+    ValidationError
+        Not a real number (strings -- numeric ones too --, bools, complex numbers are refused), not
+        finite, or not positive.
+    """
+    cond = ">= 0" if allow_zero else "> 0"
+    if _is_real_scalar(value) and not np.isfinite(float(value)):  # type: ignore[arg-type]
+        raise NotFiniteError(f"{name} must be finite and {cond}; found {value!r}")
+    v = as_real(name, value)
+    if v < 0 or (v == 0 and not allow_zero):
         raise ValidationError(f"{name} must be finite and {cond}; found {value!r}")
     return v
 
@@ -190,16 +305,78 @@ def as_bool(name: str, value) -> bool:
     return bool(value)
 
 
-def as_poles(name: str, poles: ArrayLike, n: int | None = None, *, tol: float = 1e-8) -> NDArray[np.complex128]:
+def as_options(name: str, options: object) -> dict[str, Any]:
+    """Solver options: ``None`` (none) or a mapping from option names (strings) to values; a copy.
+
+    Raises
+    ------
+    ValidationError
+        Not a mapping (e.g. a list), or a key that is not a string.
+    """
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValidationError(f"{name} must be a dict of solver options (name -> value) or None; found "
+                              f"{type(options).__name__} {options!r}")
+    bad = [k for k in options if not isinstance(k, str)]
+    if bad:
+        raise ValidationError(f"{name} keys must be option names (strings); found {bad[0]!r}")
+    return dict(options)
+
+
+def as_rng(name: str, rng: object) -> np.random.Generator:
+    """A numpy random generator from ``None`` (fresh entropy), an integer seed ``>= 0``, a
+    :class:`numpy.random.SeedSequence` or a :class:`numpy.random.Generator` (returned as is).
+
+    Raises
+    ------
+    ValidationError
+        Anything else (a float, a bool, a string, a negative integer).
+    """
+    if rng is None or isinstance(rng, (np.random.Generator, np.random.SeedSequence)):
+        return np.random.default_rng(rng)
+    if isinstance(rng, (bool, np.bool_)) or not isinstance(rng, (int, np.integer)) or rng < 0:
+        raise ValidationError(f"{name} must be None, an integer seed >= 0 or a numpy Generator; found "
+                              f"{type(rng).__name__} {rng!r}")
+    return np.random.default_rng(int(rng))
+
+
+def as_str(name: str, value: object, choices: Sequence[str] | None = None) -> str:
+    """A string (one of ``choices`` if given).
+
+    Raises
+    ------
+    ValidationError
+        Not a string, or not one of ``choices`` (they are listed).
+    """
+    if not isinstance(value, str):
+        expected = "one of " + ", ".join(map(repr, choices)) if choices else "a string"
+        raise ValidationError(f"{name} must be {expected}; found {type(value).__name__} {value!r}")
+    if choices is not None and value not in choices:
+        raise ValidationError(f"{name} must be one of {', '.join(map(repr, choices))}; found {value!r}")
+    return value
+
+
+def as_poles(
+    name: str, poles: ArrayLike, n: int | None = None, *, tol: float = 1e-8
+) -> NDArray[np.complex128]:
     """Validate a set of desired poles for a real system.
 
     Returns the poles as a complex vector, sorted with conjugate pairs adjacent
     (the member with positive imaginary part first) and conjugates made exact.
 
+    ``poles`` is a vector: shape ``(k,)``, or ``(1, k)`` / ``(k, 1)`` (one row or column, flattened);
+    a genuinely 2-D array such as shape ``(2, 2)`` is refused (:func:`as_vector`), as are strings,
+    numeric ones included.
+
     Raises
     ------
+    ValidationError
+        Not numeric.
+    NotFiniteError
+        A NaN or infinite pole.
     DimensionError
-        Wrong number of poles.
+        Not a vector, or the wrong number of poles.
     NotConjugateClosedError
         A complex pole without its conjugate (with multiplicity).
     """
@@ -213,7 +390,8 @@ def as_poles(name: str, poles: ArrayLike, n: int | None = None, *, tol: float = 
     lower = [z for z in cplx if z.imag < 0]
     for z in upper:
         if not lower:
-            raise NotConjugateClosedError(f"{name} is not closed under complex conjugation: {z} has no partner")
+            raise NotConjugateClosedError(
+                f"{name} is not closed under complex conjugation: {z} has no partner")
         k = int(np.argmin([abs(w - np.conj(z)) for w in lower]))
         if abs(lower[k] - np.conj(z)) > 1e3 * tol * scale:
             raise NotConjugateClosedError(

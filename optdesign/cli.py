@@ -6,7 +6,9 @@ Sub-commands (``optdesign -h`` lists them)::
     optdesign show PROBLEM                         one problem: plant, targets, references, citation
     optdesign kalman [PROBLEM] [--json]            steady-state Kalman filter of a problem's plant
 
-Bad arguments give a one-line error on stderr and exit code 2 (no traceback).
+Bad arguments give a one-line error on stderr and exit code 2 (no traceback).  A number that
+starts with a minus sign may follow its option with or without ``=``: ``--poles -1,-2``,
+``--poles=-1,-2`` and ``--alpha -1e-3`` all work (argparse alone reads ``-1,-2`` as an option).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -22,7 +25,8 @@ import numpy as np
 
 from .errors import OptDesignError
 
-__all__ = ["main", "build_parser", "DEFAULT_PROBLEM"]
+__all__ = ["main", "build_parser", "register", "CLIError", "DEFAULT_PROBLEM", "jsonable", "print_json",
+           "plant_of", "join_negative_values"]
 
 #: The embedded example used when no problem is named (seed 000, Example 1).
 DEFAULT_PROBLEM = "chang_lee_1984_ex1"
@@ -37,29 +41,30 @@ class _Parser(argparse.ArgumentParser):
         raise CLIError(message)
 
 
-def _jsonable(x: Any) -> Any:
+def jsonable(x: Any) -> Any:
     """A JSON-ready copy of ``x``: arrays as (nested) lists, complex ones as ``{"re": ..., "im": ...}``,
     numpy scalars as Python ones, and non-finite floats as the strings ``"inf"``, ``"-inf"``,
     ``"nan"`` (JSON has no such numbers)."""
     if isinstance(x, np.ndarray):
         if np.iscomplexobj(x):
-            return {"re": _jsonable(x.real.tolist()), "im": _jsonable(x.imag.tolist())}
-        return _jsonable(x.tolist())
+            return {"re": jsonable(x.real.tolist()), "im": jsonable(x.imag.tolist())}
+        return jsonable(x.tolist())
     if isinstance(x, (np.floating, np.integer, np.bool_)):
-        return _jsonable(x.item())
+        return jsonable(x.item())
     if isinstance(x, float):
         return x if math.isfinite(x) else str(x)
     if isinstance(x, complex):
-        return {"re": _jsonable(x.real), "im": _jsonable(x.imag)}
+        return {"re": jsonable(x.real), "im": jsonable(x.imag)}
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [jsonable(v) for v in x]
     return x
 
 
-def _print_json(obj: Any) -> None:
-    print(json.dumps(_jsonable(obj), indent=2, default=str))
+def print_json(obj: Any) -> None:
+    """Print ``obj`` as strict JSON (:func:`jsonable`), indented."""
+    print(json.dumps(jsonable(obj), indent=2, default=str))
 
 
 # ---------------------------------------------------------------- commands
@@ -75,7 +80,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         size = f"n={p.plant.n} p={p.plant.p}" if p.plant is not None else "(no plant)"
         rows.append((n, p.kind, size, p.title))
     if args.json:
-        _print_json([dict(zip(("name", "kind", "size", "title"), r, strict=True)) for r in rows])
+        print_json([dict(zip(("name", "kind", "size", "title"), r, strict=True)) for r in rows])
         return 0
     w = [max(len(r[k]) for r in rows) for k in range(3)]
     for r in rows:
@@ -89,7 +94,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
     if args.json:
         p = problems.load(args.problem)
-        _print_json({"name": p.name, "title": p.title, "kind": p.kind, "citation": p.citation,
+        print_json({"name": p.name, "title": p.title, "kind": p.kind, "citation": p.citation,
                      "source": p.source, "notes": p.notes, "tags": p.tags,
                      "plant": None if p.plant is None else p.plant.to_dict(),
                      "targets": p.targets, "references": p.references})
@@ -98,7 +103,8 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
-def _plant_of(name: str):
+def plant_of(name: str):
+    """The library problem ``name``, which must have a valid plant (:class:`CLIError` otherwise)."""
     from . import problems
 
     p = problems.load(name)
@@ -110,13 +116,13 @@ def _plant_of(name: str):
 def cmd_kalman(args: argparse.Namespace) -> int:
     from .design.kalman import kalman
 
-    prob = _plant_of(args.problem)
+    prob = plant_of(args.problem)
     plant = prob.plant
     if not plant.has_noise_model:
         raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): a Kalman filter needs both")
     kf = kalman(plant, method=args.method)
     if args.json:
-        _print_json({"problem": prob.name, "L": kf.L, "P": kf.P, "poles": kf.poles,
+        print_json({"problem": prob.name, "L": kf.L, "P": kf.P, "poles": kf.poles,
                      "residual": kf.residual, "status": str(kf.status), "success": kf.success,
                      "verification": kf.verification.as_dict()})
     else:
@@ -172,6 +178,33 @@ def _load_plugins() -> None:
                 raise
 
 
+#: a value that starts like a negative number (``-1``, ``-.5``, ``-1,-2``, ``-3+1j, -3-1j``)
+_NEGATIVE_VALUE = re.compile(r"-(\d|\.\d)")
+
+
+def join_negative_values(argv: Sequence[str]) -> list[str]:
+    """``["--poles", "-1,-2"]`` -> ``["--poles=-1,-2"]``: a long option followed by a value that
+    starts like a negative number is joined to it, so argparse does not read the value as an
+    option.  (None of the commands has a positional argument that is a negative number, and a flag
+    without a value followed by one gets argparse's own one-line error.)"""
+    out: list[str] = []
+    args = list(argv)
+    i = 0
+    while i < len(args):
+        a = args[i]
+        if (a.startswith("--") and "=" not in a and a != "--" and i + 1 < len(args)
+                and _NEGATIVE_VALUE.match(args[i + 1])):
+            out.append(f"{a}={args[i + 1]}")
+            i += 2
+            continue
+        if a == "--":  # everything after is positional
+            out.extend(args[i:])
+            break
+        out.append(a)
+        i += 1
+    return out
+
+
 def build_parser() -> argparse.ArgumentParser:
     _load_plugins()
     parser = _Parser(prog="optdesign", description="State-estimator gains designed by optimization.")
@@ -190,7 +223,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``optdesign`` console script; returns the exit code."""
     try:
         parser = build_parser()
-        args = parser.parse_args(argv)
+        args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else argv))
         if not getattr(args, "command", None):
             parser.print_help()
             return 2

@@ -35,6 +35,7 @@ from typing import Any
 
 import numpy as np
 
+from ._validate import as_str
 from .errors import ProblemNotFoundError, ValidationError
 from .model.plant import Plant
 
@@ -118,7 +119,8 @@ def _index() -> dict[str, str]:
             elif child.name.endswith(".json"):
                 stem = child.name[: -len(".json")]
                 if stem in out:
-                    raise ValidationError(f"duplicate problem name {stem!r}: {out[stem]} and {prefix}{child.name}")
+                    raise ValidationError(
+                        f"duplicate problem name {stem!r}: {out[stem]} and {prefix}{child.name}")
                 out[stem] = f"{prefix}{child.name}"
 
     walk(_root(), "")
@@ -135,7 +137,14 @@ def names(tag: str | None = None, kind: str | None = None) -> list[str]:
         name starts with it (e.g. ``"carex"``).
     kind : str, optional
         Keep problems of this kind (e.g. ``"riccati_care"``, ``"pole_placement"``).
+
+    Raises
+    ------
+    ValidationError
+        ``tag`` or ``kind`` is given but is not a string.
     """
+    tag = None if tag is None else as_str("tag", tag)
+    kind = None if kind is None else as_str("kind", kind)
     all_names = sorted(_index())
     if tag is None and kind is None:
         return all_names
@@ -179,8 +188,10 @@ def load(name: str) -> Problem:
     ------
     ProblemNotFoundError
         No such problem (the message suggests close names).
+    ValidationError
+        ``name`` is not a string.
     """
-    raw = _raw(name)
+    raw = _raw(as_str("name", name))
     plant_raw = raw.get("plant")
     plant = None
     if plant_raw is not None:

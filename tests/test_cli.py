@@ -65,11 +65,11 @@ def test_errors_are_one_line_exit_2(argv, match, capsys):
 
 def test_json_output_is_strict_json():
     """Non-finite numbers come out as strings ("inf", "nan"): JSON itself has no Infinity or NaN."""
-    from optdesign.cli import _jsonable
+    from optdesign.cli import jsonable
 
     obj = {"a": np.array([1.0, np.inf]), "z": np.array([1 + 2j, complex(np.nan, 0)]),
            "k": np.float64(-np.inf), "flag": np.bool_(True), "n": np.int64(3), "rows": [(0.5, float("nan"))]}
-    text = json.dumps(_jsonable(obj), allow_nan=False)  # raises if a non-finite float slipped through
+    text = json.dumps(jsonable(obj), allow_nan=False)  # raises if a non-finite float slipped through
     assert json.loads(text) == {"a": [1.0, "inf"], "z": {"re": [1.0, "nan"], "im": [2.0, 0.0]}, "k": "-inf",
                                 "flag": True, "n": 3, "rows": [[0.5, "nan"]]}
 

@@ -23,6 +23,7 @@ from optdesign.design.generalized import NoiseRejectingObserver, augmented_place
 from optdesign.errors import DimensionError, NotObservableError, ValidationError
 from optdesign.noise import Polynomial, Sinusoid, Step
 from optdesign.regions import Disk
+from optdesign.results import Status
 
 AMP = 0.2  # seed 003: 0.2 sin(2 pi t); the step amplitude was lost by the OCR, we use 0.2 too
 
@@ -392,6 +393,22 @@ def test_bad_inputs(paper):
         GeneralizedObserver.from_gains(plant, Step(), np.ones((2, 1)), np.ones((3, 1)))
     with pytest.raises(DimensionError, match=r"K has the wrong shape: expected \(3, 2\)"):
         GeneralizedObserver.from_gains(plant, Sinusoid(1.0, 0.01), np.ones((3, 1)), np.ones((3, 1)))
+    # before: an AttributeError from region.margin, and a TypeError from np.array(["place"]) in a tuple
+    for verb in (generalized_observer, noise_rejecting_observer):
+        with pytest.raises(ValidationError, match=r"region must be an optdesign.regions.Region .* found str"):
+            verb(plant, Step(), region="disk")
+        with pytest.raises(ValidationError, match=r"method must be one of .*; found array"):
+            verb(plant, Step(), method=np.array(["place", "well_conditioned"]))
+        with pytest.raises(ValidationError, match=r"time_limit must be a number of seconds > 0 .*found '1'"):
+            verb(plant, Step(), time_limit="1")
+        with pytest.raises(ValidationError, match=r"time_limit must be a finite number of seconds > 0"):
+            verb(plant, Step(), method="well_conditioned", time_limit=0.0)
+        with pytest.raises(ValidationError, match=r"options must be a dict of solver options .*; found list"):
+            verb(plant, Step(), method="well_conditioned", options=[1, 2])
+        with pytest.raises(ValidationError, match=r"options \(IPOPT options\) apply to method='well_cond"):
+            verb(plant, Step(), options={"ipopt.max_iter": 5})
+        with pytest.raises(ValidationError, match=r"options must be IPOPT / CasADi .*No such IPOPT option"):
+            verb(plant, Step(), method="well_conditioned", options={"ipopt.bogus": 1})
 
 
 def test_given_coupling_array_is_used(paper):
@@ -496,9 +513,9 @@ def test_well_conditioned_wiring_against_the_contract(paper, monkeypatch):
             self.verification = Verification.of([Check.at_most("pole_error", 0.0, 1e-6)])
             self.solver_stats = SolverStats("ipopt", "Solve_Succeeded")
 
-    def fake(aug, region, poles, objective, starts, seed, structure=None):
+    def fake(aug, region, poles, objective, starts, seed, structure=None, *, options=None, time_limit=None):
         calls.update(aug=aug, region=region, poles=poles, objective=objective, starts=starts, seed=seed,
-                     structure=structure)
+                     structure=structure, options=options, time_limit=time_limit)
         P = poles if poles is not None else default_poles(paper["plant"], noise)
         d = FakeDesign(P)
         if structure is None:  # the noise-rejecting observer: a plain gain for its own pair
@@ -506,9 +523,11 @@ def test_well_conditioned_wiring_against_the_contract(paper, monkeypatch):
         return d
 
     monkeypatch.setattr(gen, "_call_well_conditioned", fake)
-    g = generalized_observer(paper["plant"], noise, method="well_conditioned", starts=3, seed=5)
+    g = generalized_observer(paper["plant"], noise, method="well_conditioned", starts=3, seed=5,
+                             options={"ipopt.max_iter": 50}, time_limit=7.5)
     assert calls["aug"].n == 5 and calls["aug"].p == 3 and calls["aug"].is_discrete
     assert (calls["starts"], calls["seed"], calls["objective"]) == (3, 5, "kappa2")
+    assert calls["options"] == {"ipopt.max_iter": 50} and calls["time_limit"] == 7.5
     np.testing.assert_array_equal(calls["structure"], np.vstack([np.ones((3, 3)), np.zeros((2, 3))]) > 0)
     # F is exactly A_s - L_s C_s
     As, Cs, _ = gen.structured_pair(paper["plant"], noise)
@@ -527,6 +546,19 @@ def test_well_conditioned_wiring_against_the_contract(paper, monkeypatch):
                              poles=default_poles(paper["plant"], noise))
     with pytest.raises(ValidationError, match="coupling applies to method='place' only"):
         generalized_observer(paper["plant"], noise, method="well_conditioned", coupling="output")
+
+
+def test_well_conditioned_method_time_limit():
+    """A budget far too small for the NLP (no timing assertion: 1 ms is spent before the first solve):
+    the status of the well-conditioned design is passed on (time_limit, success False) with its one
+    start; placement is a direct computation and ignores the budget."""
+    plant = Plant([[0.95, 0.1], [0.0, 0.9]], [[1.0, 0.0]], dt=0.1)
+    for verb in (generalized_observer, noise_rejecting_observer):
+        d = verb(plant, Step(), method="well_conditioned", starts=3, time_limit=1e-3)
+        assert d.status == Status.TIME_LIMIT and not d.success
+        assert d.design.status == Status.TIME_LIMIT and "time limit of 0.001 s reached" in d.design.message
+        assert len(d.design.starts) == 1  # no start after the first once the budget is spent
+        assert verb(plant, Step(), time_limit=1e-3).status == Status.SOLVED
 
 
 # ------------------------------------------------------------------------ reproduction (study)

@@ -342,3 +342,16 @@ def test_bad_input(func):
         func([[1.0, 2.0], [3.0]])
     with pytest.raises(ValidationError, match="must be numeric"):
         func(np.array([["a", "b"], ["c", "d"]]))
+    with pytest.raises(ValidationError, match="must be numeric"):
+        func([["1", "0"], ["0", "2"]])  # numbers written as strings: refused, not converted
+
+
+@pytest.mark.parametrize("func", [kappa2, kappa_fro, min_gap, eta, condition_summary])
+def test_bad_tolerance(func):
+    for X in ([[1.0]], np.diag([1.0, 2.0])):
+        with pytest.raises(ValidationError, match=r"tol must be a real number; found '1e-3' \(a string\)"):
+            func(X, tol="1e-3")
+        with pytest.raises(ValidationError, match="tol must be finite and >= 0; found -1"):
+            func(X, tol=-1.0)
+    with pytest.raises(ValidationError, match="n must be an integer >= 0; found 2.5"):
+        coincidence_tol(2.5)

@@ -231,15 +231,34 @@ def test_simulate_generates_signals_of_the_class(angles, step, seed):
 
 
 def test_signal_and_simulate_validation():
-    with pytest.raises(ValidationError, match=r"steps must be an integer >= r = 2"):
+    with pytest.raises(ValidationError, match=r"steps must be an integer >= 2; found 1"):
         Sinusoid(1, 0.01).simulate(1, [0, 1])
+    with pytest.raises(ValidationError, match=r"steps must be an integer >= 2; found 10.0"):
+        Sinusoid(1, 0.01).simulate(10.0, [0, 1])
+    # issue 11, item 5: numbers written as strings were converted silently (or raised a bare ValueError)
+    with pytest.raises(ValidationError, match="initial must be numeric"):
+        Step().simulate(10, ["1"])
+    with pytest.raises(ValidationError, match="signal must be numeric"):
+        Step().annihilate(["1", "1", "1"])
+    with pytest.raises(ValidationError, match="signal must be numeric"):
+        Step().annihilate(["a", "b", "c"])
+    with pytest.raises(ValidationError, match=r"level must be a real number; found '2' \(a string\)"):
+        Step().signal(5, "2")
+    with pytest.raises(ValidationError, match=r"amplitude must be a real number; found '1' \(a string\)"):
+        Sinusoid(1, 0.01).signal(5, amplitude="1")
+    with pytest.raises(ValidationError, match=r"phase must be a real number; found None"):
+        Sinusoid(1, 0.01).signal(5, phase=None)
+    with pytest.raises(ValidationError, match=r"dt must be a real number; found '0.01' \(a string\)"):
+        Sinusoid(1, "0.01")
+    with pytest.raises(NotFiniteError, match=r"signal must be finite; found nan at index 1"):
+        Step().annihilate([1.0, np.nan, 1.0])
     with pytest.raises(DimensionError, match=r"initial must have shape \(2,\) or \(2, p\); found \(3,\)"):
         Sinusoid(1, 0.01).simulate(10, [0, 1, 2])
     with pytest.raises(NotFiniteError, match="initial must be finite"):
         Step().simulate(10, [np.nan])
     with pytest.raises(DimensionError, match=r"signal must be \(T,\) or \(T, p\) with T > 2"):
         Sinusoid(1, 0.01).annihilate([1.0, 2.0])
-    with pytest.raises(ValidationError, match="steps must be a non-negative integer"):
+    with pytest.raises(ValidationError, match="steps must be an integer >= 0; found -3"):
         Sinusoid(1, 0.01).signal(-3)
 
 

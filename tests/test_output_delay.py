@@ -216,6 +216,64 @@ def test_errors():
             output_delay_kalman([[1.0]], [[0.0]], [[0.0]], H, Q, R, method=method)
 
 
+def test_bad_input_is_typed_and_named():
+    # issue 11, item 5: the convergence study raised a bare LinAlgError for an undetectable system
+    for method in ("pade", "sample"):
+        with pytest.raises(RiccatiError, match=rf"\({method}\) has no stabilizing solution"):
+            output_delay_convergence([[1.0]], [[0.0]], [[0.0]], H, Q, R, method=method, orders=[2])
+    # an unhashable method was a TypeError; numbers written as strings were converted silently
+    with pytest.raises(ValidationError, match=r"method must be one of 'pade', 'sample', 'sampling'; found "
+                                              r"list \['pade'\]"):
+        output_delay_kalman(A, C0, C1, H, Q, R, method=["pade"])
+    with pytest.raises(ValidationError, match=r"h must be a real number; found '1' \(a string\)"):
+        output_delay_kalman(A, C0, C1, "1", Q, R)
+    with pytest.raises(ValidationError, match="order must be an integer >= 1; found '4'"):
+        output_delay_kalman(A, C0, C1, H, Q, R, order="4")
+    with pytest.raises(ValidationError, match="Pade order must be an integer >= 1; found '2'"):
+        pade_delay(0.3, "2")
+    with pytest.raises(ValidationError, match="extrapolate must be true or false; found 1"):
+        output_delay_kalman(A, C0, C1, H, Q, R, method="sample", extrapolate=1)
+    with pytest.raises(ValidationError, match="C0 could not be converted to an array"):
+        output_delay_kalman(A, [[1.0], [1.0, 2.0]], C1, H, Q, R)
+    with pytest.raises(ValidationError, match="sections must be an integer >= 1; found 1.0"):
+        output_delay_convergence(A, C0, C1, H, Q, R, orders=[1], sections=1.0)
+    with pytest.raises(ValidationError, match="orders must be numeric"):
+        output_delay_convergence(A, C0, C1, H, Q, R, orders=["1"])
+    with pytest.raises(ValidationError, match="orders must be integers >= 1 .at least one.; found none"):
+        output_delay_convergence(A, C0, C1, H, Q, R, orders=[])
+
+
+def test_frequency_arguments_are_validated(pade):
+    with pytest.raises(ValidationError, match="omega must be numeric"):
+        pade.return_difference(["1"])
+    with pytest.raises(ValidationError, match=r"omega must be >= 0 \(rad/s\); found -1 at index 0"):
+        pade.circle_condition([-1.0, 1.0])
+    with pytest.raises(ValidationError, match="tol must be finite and >= 0; found -1"):
+        pade.circle_condition(tol=-1.0)
+    with pytest.raises(ValidationError, match="time_limit must be a number of seconds > 0 or None"):
+        pade.circle_condition(time_limit="1")
+
+
+def test_time_limit(pade):
+    # the requested order is always solved; once the limit has passed, the coarser solve (the
+    # convergence estimate) is skipped: status time_limit, the filter and its checks kept
+    cut = output_delay_kalman(A, C0, C1, H, Q, R, method="pade", time_limit=1e-9)
+    assert cut.status == "time_limit" and not cut.success and math.isnan(cut.p0_change)
+    assert "time_limit" in cut.message and "no convergence estimate" in cut.message
+    np.testing.assert_array_equal(cut.p0, pade.p0)
+    np.testing.assert_array_equal(cut.K_theta, pade.K_theta)
+    assert "p0_convergence" not in cut.verification and cut.verification["augmented_riccati_residual"].passed
+    fine = output_delay_kalman(A, C0, C1, H, Q, R, method="sample", order=16, time_limit=1e-9)
+    assert fine.status == "time_limit" and "no Richardson extrapolation" in fine.message
+    np.testing.assert_array_equal(fine.p0, output_delay_kalman(A, C0, C1, H, Q, R, method="sample", order=16,
+                                                               extrapolate=False).p0)
+    same = output_delay_kalman(A, C0, C1, H, Q, R, method="pade", time_limit=3600.0)
+    assert same.success and same.p0_change == pade.p0_change
+    circ = pade.circle_condition(time_limit=1e-9)
+    assert not circ.complete and not circ.passed and "search incomplete" in circ.message
+    assert pade.circle_condition(time_limit=3600.0).passed
+
+
 def test_paper002_reproduction_quick(tmp_path):
     from optdesign.studies import paper002
 

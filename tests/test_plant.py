@@ -7,6 +7,7 @@ import pytest
 
 import optdesign
 from optdesign import Plant
+from optdesign.analysis.metrics import eigenvalue_condition
 from optdesign.errors import (
     DimensionError,
     NotFiniteError,
@@ -63,6 +64,8 @@ def test_replace_revalidates():
     assert q.is_discrete and q.dt == 0.1 and not p.is_discrete
     with pytest.raises(NotPositiveDefiniteError, match="R must be positive definite"):
         p.replace(R=[[0.0]])
+    with pytest.raises(ValidationError, match=r"Plant.replace: 'D' is not a field of Plant; fields are A, C"):
+        p.replace(D=[[0.0]])
 
 
 @pytest.mark.parametrize(
@@ -70,20 +73,31 @@ def test_replace_revalidates():
     [
         (dict(A=[[1.0, 2.0, 3.0]], C=[[1.0]]), DimensionError, r"A must be square; found shape \(1, 3\)"),
         (dict(A=np.zeros((2, 2, 2)), C=[[1.0, 0.0]]), DimensionError, "A must be 2-D"),
-        (dict(A=A2, C=[[1.0, 0.0, 0.0]]), DimensionError, r"C has the wrong shape: expected \(\?, 2\), found \(1, 3\)"),
+        (dict(A=A2, C=[[1.0, 0.0, 0.0]]), DimensionError,
+         r"C has the wrong shape: expected \(\?, 2\), found \(1, 3\)"),
         (dict(A=[[np.nan, 1.0], [0.0, 0.0]], C=C2), NotFiniteError, "A must be finite; found nan at index"),
         (dict(A=A2, C=[[np.inf, 0.0]]), NotFiniteError, "C must be finite"),
-        (dict(A=A2, C=C2, G=[[1.0], [0.0], [0.0]]), DimensionError, r"G has the wrong shape: expected \(2, \?\)"),
+        (dict(A=A2, C=C2, G=[[1.0], [0.0], [0.0]]), DimensionError,
+         r"G has the wrong shape: expected \(2, \?\)"),
         (dict(A=A2, C=C2, Q=[[1.0, 2.0], [0.0, 1.0]]), NotSymmetricError, "Q must be symmetric"),
         (dict(A=A2, C=C2, Q=[[1.0, 0.0], [0.0, -1.0]]), NotPositiveSemidefiniteError,
          "Q must be positive semidefinite; found smallest eigenvalue -1"),
         (dict(A=A2, C=C2, Q=np.eye(3)), ValidationError, "G is required when Q is not n x n"),
-        (dict(A=A2, C=C2, G=[[1.0], [0.0]], Q=np.eye(2)), DimensionError, r"Q has the wrong shape: expected \(1, 1\)"),
+        (dict(A=A2, C=C2, G=[[1.0], [0.0]], Q=np.eye(2)), DimensionError,
+         r"Q has the wrong shape: expected \(1, 1\)"),
         (dict(A=A2, C=C2, R=[[-1.0]]), NotPositiveDefiniteError, "R must be positive definite"),
         (dict(A=A2, C=C2, R=np.eye(2)), DimensionError, r"R has the wrong shape: expected \(1, 1\)"),
         (dict(A=A2, C=C2, dt=0.0), ValidationError, "dt must be finite and > 0"),
         (dict(A=A2, C=C2, dt=-1.0), ValidationError, "dt must be finite and > 0"),
         (dict(A=A2, C=C2, dt="fast"), ValidationError, "dt must be a real number"),
+        # issue 11, item 5: a numeric string was accepted as dt (float("0.1")), a bool too
+        (dict(A=A2, C=C2, dt="0.1"), ValidationError, r"dt must be a real number; found '0.1' \(a string\)"),
+        (dict(A=A2, C=C2, dt=True), ValidationError, r"dt must be a real number; found True \(bool\)"),
+        (dict(A=A2, C=C2, dt=np.nan), NotFiniteError, "dt must be finite and > 0; found nan"),
+        (dict(A=A2, C="1, 0"), ValidationError, "C must be a numeric array; found the string '1, 0'"),
+        (dict(A=A2, C=[["1", "0"]]), ValidationError, "C must be numeric; found dtype <U1"),
+        (dict(A=A2, C=[[1.0, 0.0], [1.0]]), ValidationError, "C could not be converted to an array"),
+        (dict(A=A2, C=C2, Q=[[1.0, 0.0], [1.0]]), ValidationError, "Q could not be converted to an array"),
         (dict(A=[[1j, 0.0], [0.0, 1.0]], C=C2), ValidationError, "A must be real"),
         (dict(A=[[1.0, 2.0], [3.0]], C=C2), ValidationError, "A could not be converted|A must be a numeric"),
         (dict(A=np.zeros((0, 0)), C=np.zeros((1, 0))), ValidationError, "at least one state"),
@@ -225,3 +239,80 @@ def test_unobservable_modes_badly_scaled_plant():
 def test_unobservable_when_C_is_zero():
     p = Plant([[-1.0, 0.0], [0.0, 2.0]], [[0.0, 0.0]])
     np.testing.assert_allclose(np.sort(p.unobservable_modes().real), [-1.0, 2.0])
+
+
+def test_unobservable_modes_tol_is_validated():
+    p = Plant(A2, C2)
+    assert p.unobservable_modes(tol=1e-10).size == 0
+    for bad in ("1e-10", 0.0, -1.0, np.nan):
+        with pytest.raises(ValidationError, match="tol must be"):
+            p.unobservable_modes(tol=bad)
+
+
+def _hidden_plant(rng, n: int, p: int, A22: np.ndarray, *, rotate: bool) -> Plant:
+    """A plant whose last ``len(A22)`` states the output cannot see (``x2`` does not drive ``x1``, C
+    sees ``x1`` only), hidden by a random orthogonal change of basis if ``rotate``.
+
+    Without the rotation the structure is exact in floating point, so the staircase's bookkeeping
+    is tested at any size.  With it, the answer is only as good as the staircase's forward error,
+    which grows like eps over the product of its subdiagonals (the Krylov conditioning): for one
+    output and more than ~20 states no orthogonal method can decide reliably, so the rotated cases
+    stay at a size where the decision is clear (4 hidden modes found on every CPU)."""
+    k = n - A22.shape[0]
+    A = rng.standard_normal((n, n)) / np.sqrt(n) - np.eye(n)
+    A[:k, k:] = 0.0
+    A[k:, k:] = A22
+    C = np.hstack([rng.standard_normal((p, k)), np.zeros((p, n - k))])
+    if not rotate:
+        return Plant(A, C)
+    T = np.linalg.qr(rng.standard_normal((n, n)))[0]
+    return Plant(T.T @ A @ T, C @ T)
+
+
+@pytest.mark.parametrize("n, p, rotate", [(150, 1, False), (120, 3, False), (60, 6, True), (12, 1, True)])
+def test_unobservable_modes_at_scale(rng, n, p, rotate):
+    # issue 11, item 8: the staircase is O(n^3) now (reflectors applied to the rows and columns each
+    # step changes); it must find the hidden modes, a repeated one included, where p = 1 takes n steps
+    A22 = np.diag([-0.2, -0.2, 0.1, 0.3])
+    plant = _hidden_plant(rng, n, p, A22, rotate=rotate)
+    got = np.sort_complex(plant.unobservable_modes())
+    assert got.shape == (4,)
+    # the hidden modes are eigenvalues of the trailing block: computed to about eps ||A|| times
+    # their condition number in A
+    s = eigenvalue_condition(plant.A)[1]
+    tol = 1e3 * n * np.finfo(float).eps * np.linalg.norm(plant.A) * float(np.max(s[np.isfinite(s)]))
+    np.testing.assert_allclose(got, np.sort_complex(np.diag(A22).astype(complex)), atol=tol)
+    assert not plant.is_observable() and not plant.is_detectable()
+
+
+def test_observable_at_scale_where_a_rank_test_fails(rng):
+    n = 150
+    full = Plant(rng.standard_normal((n, n)) / np.sqrt(n), rng.standard_normal((1, n)))
+    assert full.is_observable()
+    # the observability matrix of a single-output plant of this order is numerically singular
+    assert np.linalg.matrix_rank(full.observability_matrix()) < n
+
+
+def test_shared_eigenvalue_between_seen_and_hidden_parts(rng):
+    # -1 is an eigenvalue of the visible and of the hidden part: only one copy is unobservable
+    A11 = np.diag([-1.0, -2.0, -3.0]) + np.diag([1.0, 1.0], 1)
+    A = np.zeros((5, 5))
+    A[:3, :3] = A11
+    A[3:, 3:] = np.diag([-1.0, 4.0])
+    A[3:, :3] = rng.standard_normal((2, 3))
+    C = np.zeros((1, 5))
+    C[0, 0] = 1.0  # x1 is driven by x2, x2 by x3: the output sees the whole chain
+    Qo, _ = np.linalg.qr(rng.standard_normal((5, 5)))
+    plant = Plant(Qo @ A @ Qo.T, C @ Qo.T)
+    np.testing.assert_allclose(np.sort(plant.unobservable_modes().real), [-1.0, 4.0], atol=1e-9)
+
+
+def test_unobservable_modes_are_computed_once_and_safe_to_modify():
+    p = Plant([[-1.0, 0.0], [0.0, 2.0]], [[1.0, 0.0]])
+    first = p.unobservable_modes()
+    first[:] = 99.0  # the caller's copy: the plant's answer does not change
+    np.testing.assert_allclose(p.unobservable_modes(), [2.0])
+    assert p.unobservable_modes() is not p.unobservable_modes()
+    q = p.replace(C=[[0.0, 1.0]])  # a new plant: its own staircase
+    np.testing.assert_allclose(q.unobservable_modes(), [-1.0])
+    assert "_unobservable" not in {f.name for f in __import__("dataclasses").fields(p)}

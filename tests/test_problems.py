@@ -170,6 +170,20 @@ def test_unknown_problem_raises_with_suggestion():
         problems.load("CAREX 1.1")
 
 
+@pytest.mark.parametrize("call, match", [
+    # issue 11, item 5: AttributeError ('int' object has no attribute 'lower') and TypeError before
+    (lambda: problems.load(3), "name must be a string; found int 3"),
+    (lambda: problems.load(None), "name must be a string; found NoneType None"),
+    (lambda: problems.describe(["carex_1.1"]), "name must be a string; found list"),
+    (lambda: problems.names(tag=3), "tag must be a string; found int 3"),
+    (lambda: problems.names(kind=b"kalman"), "kind must be a string; found bytes"),
+    (lambda: problems.load_all(tag=1.5), "tag must be a string; found float 1.5"),
+])
+def test_problem_names_must_be_strings(call, match):
+    with pytest.raises(ValidationError, match=match):
+        call()
+
+
 def test_describe_mentions_citation_and_file():
     text = problems.describe("chang_lee_1984_ex1")
     assert "Chang and Y. B. Lee" in text and "problems/seeds/chang_lee_1984_ex1.json" in text

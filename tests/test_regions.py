@@ -8,7 +8,7 @@ import pickle
 import numpy as np
 import pytest
 
-from optdesign.errors import EmptyRegionError, NotFiniteError, ValidationError
+from optdesign.errors import DimensionError, EmptyRegionError, NotFiniteError, ValidationError
 from optdesign.regions import (
     Disk,
     Ellipse,
@@ -503,11 +503,13 @@ def test_intersection_flattening_dedup_and_operators():
     assert r == Intersection(a, b, c) and hash(r) == hash(Intersection(a, b, c))
     assert repr(r) == ("Intersection(HalfPlane(alpha=1.0), Sector(half_angle=0.5, apex=0.0), "
                        "Disk(center=-1.0, radius=2.0))")
-    with pytest.raises(TypeError):
+    # issue 11, item 5: these were plain TypeErrors
+    with pytest.raises(ValidationError, match=r"a region can only be intersected with a region \(region & "
+                                              r"region\); found int 3"):
         a & 3  # noqa: B018
-    with pytest.raises(TypeError):
+    with pytest.raises(ValidationError, match="a region can only be intersected with a region"):
         3 & a  # noqa: B018
-    with pytest.raises(TypeError, match="must be Regions"):
+    with pytest.raises(ValidationError, match="Intersection members must be Regions; found str: 'disk'"):
         Intersection(a, "disk")
     with pytest.raises(ValidationError, match="at least one region"):
         Intersection()
@@ -564,6 +566,21 @@ def test_frozen_pickle_and_dict_roundtrip():
         (lambda: region_from_dict({"type": "Disk", "center": 0.0}), ValidationError, "bad parameters"),
         (lambda: region_from_dict([1, 2]), ValidationError, "'type' key"),
         (lambda: region_from_dict({"type": "Intersection"}), ValidationError, "'members' list"),
+        # issue 11, item 5: a bare TypeError (rng), a bare ValueError or a silent conversion (strings)
+        (lambda: HalfPlane(1.0).sample_poles(3, rng="abc"), ValidationError,
+         "sample_poles rng must be None, an integer seed >= 0 or a numpy Generator; found str 'abc'"),
+        (lambda: HalfPlane(1.0).sample_poles(3, rng=1.5), ValidationError, "rng must be None, an integer"),
+        (lambda: HalfPlane(1.0).lmi_value("a"), ValidationError, "s must be a numeric vector; found the "),
+        (lambda: HalfPlane(1.0).lmi_value("-1"), ValidationError, "s must be a numeric vector"),
+        (lambda: HalfPlane(1.0).lmi_value([1.0, 2.0]), DimensionError, "s has the wrong length: expected 1"),
+        (lambda: stability_region("yes"), ValidationError, "stability_region discrete must be true or false"),
+        (lambda: stability_region(False, margin="0.1"), ValidationError,
+         r"stability_region margin must be a real number; found '0.1' \(a string\)"),
+        (lambda: HalfPlane(True), ValidationError, r"HalfPlane alpha must be a real number; found True"),
+        (lambda: HalfPlane(1.0).distance(["-1"]), ValidationError, "poles must be numeric"),
+        (lambda: HalfPlane(1.0).contains([-2.0], tol="0"), ValidationError, "tol must be a real number"),
+        (lambda: region_from_dict({"type": "Disk", "center": "0", "radius": 1}), ValidationError,
+         "Disk center must be a real number"),
     ],
 )
 def test_validation_errors(make, exc, match):

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 import optdesign
 from optdesign import Plant, RiccatiTrajectory, Status, problems, riccati_de
-from optdesign.classical.bpf import davison_maki, filter_hamiltonian
+from optdesign.classical.bpf import bpf_riccati, davison_maki, filter_hamiltonian
 from optdesign.classical.riccati import filter_are
 from optdesign.errors import (
     DimensionError,
@@ -235,17 +235,55 @@ def test_ode_failure_is_a_status(monkeypatch, paper):
 
 
 def test_bpf_fails_on_long_horizons_and_says_so():
-    """CAREX 1.2 (Hamiltonian eigenvalue sqrt 2): the paper's recursion inverts phi_k ~ e^{-M t},
-    whose condition number grows like e^{2 sqrt2 t}; at t = 10 the result is still good, by
-    t ~ 11.5 phi_k is singular to working precision -- whatever m -- while the restarted exact
-    transition matrix is unaffected."""
+    """CAREX 1.2 (Hamiltonian eigenvalue sqrt 2): the paper's recursion from t = 0 inverts
+    phi_k ~ e^{-M t}, whose condition number grows like e^{2 sqrt2 t}; at t = 10 the result is
+    still good, by t ~ 11.5 phi_k is singular to working precision -- whatever m -- and the error
+    says so.  riccati_de restarts the recursion (issue 11, item 7): the same method reaches t = 20
+    and t = 1000, still second order, like the restarted exact transition matrix."""
     plant = problems.load("carex_1.2").plant
+    M = filter_hamiltonian(plant.A, plant.C, plant.process_noise(), plant.R)
     ok = riccati_de(plant, np.eye(2), 10.0, method="bpf", steps=400)
     assert ok.success and ok.error_estimate < 1e-4
+    errors = []
     for m in (400, 1600):
-        with pytest.raises(RiccatiError, match="phi_k is singular to working precision"):
-            riccati_de(plant, np.eye(2), 20.0, method="bpf", steps=m)
+        with pytest.raises(RiccatiError, match="phi_k is singular to working precision.*restart it"):
+            bpf_riccati(M, np.eye(2), 20.0, m)                    # the paper's recursion, unrestarted
+        tr = riccati_de(plant, np.eye(2), 20.0, method="bpf", steps=m)
+        assert tr.success and tr.solver_stats.extra["restarts"] > 0, tr.verification.summary()
+        errors.append(tr.error_estimate)
+    assert 15.0 < errors[0] / errors[1] < 17.0                    # 4x the blocks: 16x less error
     assert riccati_de(plant, np.eye(2), 20.0).success
+    # same block width h = 0.05 over 1000 s: the error is the transient's, restarts cost nothing
+    long = riccati_de(plant, np.eye(2), 1000.0, method="bpf", steps=20_000)
+    assert long.success and long.solver_stats.extra["restarts"] > 1000
+    assert 0.9 < long.error_estimate / errors[0] < 1.1
+    assert _rel(long.P[-1:], long.P_steady[None]) < long.error_estimate
+
+
+def test_bpf_does_not_break_on_random_plants():
+    """Issue 11, item 7: on 10 random continuous plants (fixed seed; n = 2..6, stable and unstable,
+    horizons 5-20 s, 400 blocks) the paper's recursion raised 'phi_k singular' on 8, at t = 2.6 to
+    13.8 s.  Restarted, every one is solved; the error is the method's (second order: twice the
+    blocks, a quarter of the error) and the restarted coefficients are the unrestarted ones
+    wherever those are computable."""
+    rng = np.random.default_rng(11)
+    broke = 0
+    for k in range(10):
+        n = int(rng.integers(2, 7))
+        plant = random_observable_plant(rng, n, int(rng.integers(1, 3)), stable=bool(k % 2))
+        tf = float(rng.uniform(5.0, 20.0))
+        tr = riccati_de(plant, np.eye(n), tf, method="bpf", steps=400)
+        assert tr.success and len(tr) == 400, (k, tr.message, tr.verification.summary())
+        fine = riccati_de(plant, np.eye(n), tf, method="bpf", steps=800)
+        assert 3.6 < tr.error_estimate / fine.error_estimate < 4.4, k
+        M = filter_hamiltonian(plant.A, plant.C, plant.process_noise(), plant.R)
+        try:
+            plain = bpf_riccati(M, np.eye(n), tf, 400)
+        except RiccatiError:
+            broke += 1
+            continue
+        assert _rel(tr.P, plain.P) < 1e-6 * tr.error_estimate        # rounding, not the method
+    assert broke == 8
 
 
 def test_hopeless_stiff_plant_raises():
@@ -328,6 +366,198 @@ def test_bad_inputs_discrete(rng):
         riccati_de(plant, P0, 5.0, t_eval=[0.5, 0.75])
     ok = riccati_de(plant, P0, 5.0, steps=10, t_eval=[1.0, 5.0])
     assert np.allclose(ok.t, [1.0, 5.0])
+
+
+def test_numeric_arguments_refuse_strings_nan_and_bools(paper, rng):
+    """Issue 11: every numeric argument is refused as a string (numeric ones too), NaN or bool,
+    with a typed error naming the argument, the expected and the found."""
+    plant, P0, tf, _ = paper
+    cases = [
+        (dict(t_final="10"), r"t_final must be a real number > 0; found '10' \(a string\)"),
+        (dict(t_final=True), r"t_final must be a real number > 0; found True \(bool\)"),
+        (dict(t_final=np.nan), "t_final must be finite and > 0; found nan"),
+        (dict(t_final=None), r"t_final must be a real number > 0; found None \(NoneType\)"),
+        (dict(tol="1e-6"), r"tol must be a real number > 0; found '1e-6' \(a string\)"),
+        (dict(tol=np.nan), "tol must be finite and > 0; found nan"),
+        (dict(tol=-1e-3), "tol must be finite and > 0; found -0.001"),
+        (dict(steps="50"), "steps must be a positive integer; found '50'"),
+        (dict(steps=np.nan), "steps must be a positive integer; found nan"),
+        (dict(t_eval=["0", "1"]), r"t_eval must be a numeric vector of times; found \['0', '1'\]"),
+        (dict(t_eval="0 1"), "t_eval must be a numeric vector of times; found '0 1'"),
+        (dict(time_limit="1"), "time_limit must be a number of seconds > 0 or None; found '1'"),
+        (dict(time_limit=True), "time_limit must be a number of seconds > 0 or None; found True"),
+        (dict(time_limit=np.nan), "time_limit must be a finite number of seconds > 0 or None; found nan"),
+        (dict(time_limit=0), "time_limit must be a finite number of seconds > 0 or None; found 0"),
+        (dict(estimate_error="yes"), "estimate_error must be true or false; found 'yes'"),
+        (dict(steady_state=1), "steady_state must be true or false; found 1"),
+        (dict(method=None), "method must be one of 'transition', 'bpf', 'ode'; found None"),
+        (dict(method=["bpf"]), r"method must be one of .*; found \['bpf'\]"),
+        (dict(P0=[["1", "0"], ["0", "1"]]), "P0 must be numeric"),
+    ]
+    for kw, match in cases:
+        args = {"P0": P0, "t_final": tf}
+        args.update(kw)
+        with pytest.raises(ValidationError, match=match):
+            riccati_de(plant, args.pop("P0"), args.pop("t_final"), **args)
+    dplant = random_observable_plant(rng, 2, 1, dt=0.5)
+    with pytest.raises(ValidationError, match=r"t_final must be a real number > 0; found '5' \(a string\)"):
+        riccati_de(dplant, np.eye(2), "5")
+    with pytest.raises(ValidationError, match="time_limit must be a finite number of seconds"):
+        riccati_de(dplant, np.eye(2), 5.0, time_limit=-1.0)
+
+
+def test_post_processing_only_when_asked(monkeypatch, paper):
+    """Issue 14: with estimate_error=False and steady_state=False the ARE is not solved and the
+    trajectory is propagated once; what stays is the cheap verification (nonfinite, PSD)."""
+    import importlib
+
+    import optdesign.classical.riccati as classical_riccati
+
+    verb = importlib.import_module("optdesign.design.riccati_de")
+    calls = {"are": 0, "flow": 0}
+    real_are, real_flow = classical_riccati.filter_are, verb.riccati_flow
+
+    def are(*a, **k):
+        calls["are"] += 1
+        return real_are(*a, **k)
+
+    def flow(*a, **k):
+        calls["flow"] += 1
+        return real_flow(*a, **k)
+
+    monkeypatch.setattr(classical_riccati, "filter_are", are)
+    monkeypatch.setattr(verb, "riccati_flow", flow)
+    plant, P0, tf, _ = paper
+    lean = riccati_de(plant, P0, tf, estimate_error=False, steady_state=False)
+    assert calls == {"are": 0, "flow": 1}
+    assert lean.success and lean.P_steady is None and lean.L_steady is None
+    assert np.isnan(lean.steady_distance) and np.isnan(lean.error_estimate)
+    assert [c.name for c in lean.verification] == ["nonfinite", "P_min_eig"]
+    assert "steady" not in lean.message
+    full = riccati_de(plant, P0, tf)
+    assert calls == {"are": 1, "flow": 3}                # + the trajectory and its recomputation
+    assert np.array_equal(full.P, lean.P) and full.P_steady is not None
+    assert [c.name for c in full.verification] == ["nonfinite", "P_min_eig", "error_estimate"]
+
+
+def test_psd_check_is_a_certified_bound_or_exact(paper, rng):
+    """P_min_eig: where every P_k plus a rounding-level shift has a Cholesky factor, the value is
+    the certified lower bound -11 n eps of min_k lambda_min(P_k) / max_k ||P_k||_F; otherwise the
+    exact minimum.  Either way it never exceeds the true value; and an indefinite trajectory
+    whose negative part is not explained by a measured error fails the check."""
+    plant = random_observable_plant(rng, 6, 2, stable=False)
+    n = plant.n
+    for method in ("transition", "ode"):
+        tr = riccati_de(plant, np.eye(n), 5.0, method=method, steps=30)
+        chk = tr.verification["P_min_eig"]
+        scale = np.max(np.linalg.norm(tr.P, axis=(1, 2)))
+        true = np.min(np.linalg.eigvalsh(tr.P)) / scale
+        assert chk.passed and chk.value == -11 * n * np.finfo(float).eps <= true, method
+    pl, P0p, tf, m = paper
+    b = riccati_de(pl, P0p, tf, method="bpf", steps=m)
+    true = np.min(np.linalg.eigvalsh(b.P)) / np.max(np.linalg.norm(b.P, axis=(1, 2)))
+    chk = b.verification["P_min_eig"]
+    assert true < 0 and chk.value == pytest.approx(true, rel=1e-12) and chk.passed
+    unexplained = riccati_de(pl, P0p, tf, method="bpf", steps=m, estimate_error=False)
+    assert not unexplained.verification["P_min_eig"].passed and not unexplained.success
+
+
+def test_ode_integrator_follows_the_cost_of_its_linear_algebra():
+    """Issue 14: the ODE method went to Radau whenever rho(M) t_final > 3e3 -- on n = 50 over
+    1000 s a 1275 x 1275 Jacobian (built through 2500 x 2500 Kronecker products) and its LU
+    factors at rtol 1e-12: 1.46 million evaluations, 309 s.  Radau now needs its n^2 x n^2 linear
+    algebra to be affordable (n <= 7); n = 20 over 200 s (rho t = 7e3) is DOP853 and exact."""
+    from optdesign.design.riccati_de import ode_integrator
+
+    carex = problems.load("carex_2.3").plant
+    assert ode_integrator(filter_hamiltonian(carex.A, carex.C, carex.process_noise(), carex.R), 10.0)[0] \
+        == "Radau"
+    rng = np.random.default_rng(1)
+    big = random_observable_plant(rng, 50, 12, stable=True)
+    M = filter_hamiltonian(big.A, big.C, big.process_noise(), big.R)
+    name, why = ode_integrator(M, 1000.0)
+    assert name == "DOP853" and why["stiff"] and not why["implicit_affordable"]
+    assert ode_integrator(M, 10.0)[0] == "DOP853" and not ode_integrator(M, 10.0)[1]["stiff"]
+    plant = random_observable_plant(rng, 20, 5, stable=True)
+    ode = riccati_de(plant, np.eye(20), 200.0, method="ode", steps=20)
+    assert ode.solver_stats.extra["integrator"] == "DOP853" and ode.solver_stats.extra["stiff"]
+    assert ode.success and ode.error_estimate < 1e-9
+    assert np.array_equal(ode.P, np.swapaxes(ode.P, 1, 2))
+    with pytest.raises(DimensionError, match="M must be square"):
+        ode_integrator(np.ones((2, 3)), 1.0)
+
+
+# ------------------------------------------------------------------ time limits
+@pytest.fixture
+def ticking(monkeypatch):
+    """Every look at a limited Deadline's clock advances it by one second: time limits that run out
+    after a fixed number of looks, on any machine."""
+    from optdesign._deadline import Deadline
+
+    looks: dict[int, int] = {}
+    start = Deadline.__init__
+
+    def init(self, time_limit=None):
+        start(self, time_limit)
+        looks[id(self)] = 0
+
+    def elapsed(self):
+        looks[id(self)] += 1
+        return float(looks[id(self)])
+
+    monkeypatch.setattr(Deadline, "__init__", init)
+    monkeypatch.setattr(Deadline, "elapsed", property(elapsed))
+
+
+def _assert_partial(part, full, limit):
+    """A time-limited trajectory: status time_limit, the first times of the full one, the same P
+    there, nothing beyond, and it says so."""
+    k = len(part)
+    assert part.status is Status.TIME_LIMIT and not part.success
+    assert 0 < k < len(full)
+    assert np.array_equal(part.t, full.t[:k])
+    assert np.allclose(part.P, full.P[:k], rtol=1e-12, atol=0)
+    assert part.L.shape == (k,) + full.L.shape[1:]
+    assert f"time limit of {limit:g} s reached: P computed on [0, {part.t[-1]:g}], {k} of" in part.message
+    assert part.solver_stats.extra["completed"] == k
+    assert part.P_steady is None and "steady state not computed (time limit reached)" in part.message
+    assert np.isnan(part.error_estimate) and part.error_kind == "not computed (time limit reached)"
+    assert "error_estimate" not in part.verification and part.verification["nonfinite"].passed
+    if part.method != "bpf":     # bpf's O(h^2) indefiniteness is excused only by a measured error
+        assert part.verification.passed
+    with pytest.raises(optdesign.SolverError, match="status time_limit"):
+        part.raise_for_status()
+
+
+@pytest.mark.parametrize("method", ["transition", "bpf", "ode"])
+def test_time_limit_returns_what_was_computed(ticking, paper, method):
+    plant, P0, tf, _ = paper
+    full = riccati_de(plant, P0, tf, method=method, steps=40)
+    part = riccati_de(plant, P0, tf, method=method, steps=40, time_limit=12.5)
+    _assert_partial(part, full, 12.5)
+    ample = riccati_de(plant, P0, tf, method=method, steps=40, time_limit=1e9)
+    assert ample.status is Status.SOLVED and np.allclose(ample.P, full.P, rtol=1e-13, atol=0)
+
+
+def test_time_limit_discrete_and_with_t_eval(ticking, paper, rng):
+    dplant = random_observable_plant(rng, 3, 1, dt=0.1)
+    full = riccati_de(dplant, np.eye(3), 20.0)
+    _assert_partial(riccati_de(dplant, np.eye(3), 20.0, time_limit=40.5), full, 40.5)
+    plant, P0, tf, _ = paper
+    t = np.linspace(0.5, tf, 30)
+    full = riccati_de(plant, P0, tf, method="bpf", steps=60, t_eval=t)
+    part = riccati_de(plant, P0, tf, method="bpf", steps=60, t_eval=t, time_limit=20.5)
+    _assert_partial(part, full, 20.5)
+
+
+def test_time_limit_on_the_real_clock():
+    """No fake clock: a million output intervals cannot be propagated in 0.2 s; P(0) is always
+    returned (it costs nothing)."""
+    plant = problems.load("carex_1.2").plant
+    part = riccati_de(plant, np.eye(2), 1e5, steps=10**6, time_limit=0.2)
+    assert part.status is Status.TIME_LIMIT and 1 <= len(part) < 10**6 + 1
+    assert part.t[0] == 0.0 and np.array_equal(part.P[0], np.eye(2))
+    assert part.verification.passed and "time limit of 0.2 s reached" in part.message
 
 
 # ------------------------------------------------------------------ the reproduction study

@@ -521,3 +521,97 @@ def test_errors(rng):
     sing = Plant(np.zeros((2, 2)), [[1.0, 1.0]], R=[[1.0]], dt=0.1)
     with pytest.raises(ValidationError, match="pass V|give V"):
         circle_condition(sing, [[0.1], [0.1]])
+
+
+# ============================================================================ bad input (issue 11, item 5)
+def test_frequencies_and_numbers_are_validated(rng):
+    plant = random_observable_plant(rng, 3, 2)
+    L = kalman(plant).L
+    # a bare numpy ValueError before ("could not convert string to float"), and "1" was accepted
+    with pytest.raises(ValidationError, match="omega must be numeric; found dtype <U1"):
+        return_difference(plant, L, ["a"])
+    with pytest.raises(ValidationError, match="omega must be numeric"):
+        return_difference(plant, L, ["1"])
+    with pytest.raises(DimensionError, match=r"omega must be a vector .*found shape \(2, 2\)"):
+        return_difference(plant, L, np.ones((2, 2)))
+    # the search grids: finite, nonnegative, not empty (a NaN frequency gave a NaN verdict)
+    for fn in (circle_condition, filter_margins):
+        with pytest.raises(NotFiniteError, match="omega must be finite; found nan at index 1"):
+            fn(plant, L, omega=[1.0, np.nan])
+        with pytest.raises(ValidationError, match=r"omega must be >= 0 \(rad/s\); found -1 at index 0"):
+            fn(plant, L, omega=[-1.0, 2.0])
+    with pytest.raises(ValidationError, match=r"tol must be a real number; found '1e-8' \(a string\)"):
+        circle_condition(plant, L, tol="1e-8")
+    with pytest.raises(ValidationError, match="refine must be true or false; found 1"):
+        circle_condition(plant, L, refine=1)
+    with pytest.raises(ValidationError, match="points_per_decade must be an integer >= 1; found '30'"):
+        frequency_grid(plant, points_per_decade="30")
+    with pytest.raises(ValidationError, match="extra_poles must be numeric"):
+        frequency_grid(plant, extra_poles=["-1"])
+    with pytest.raises(ValidationError, match=r"alpha must be a real number; found '1' \(a string\)"):
+        margins_from_radius("1")
+    with pytest.raises(ValidationError, match="skew must be 0 .balanced. or 1 .circle.; found True"):
+        margins_from_radius(1.0, skew=True)
+    with pytest.raises(ValidationError, match="n_refine must be an integer >= 0; found -1"):
+        adaptive_minimize(np.abs, np.linspace(0, 1, 5), n_refine=-1)
+    for fn in (circle_condition, filter_margins):
+        with pytest.raises(ValidationError, match="time_limit must be a number of seconds > 0 or None; "
+                                                  "found '5'"):
+            fn(plant, L, time_limit="5")
+    with pytest.raises(ValidationError, match="time_limit must be a finite number of seconds > 0"):
+        return_difference(plant, L, [1.0], time_limit=0.0)
+
+
+# ============================================================================ time limits (issue 11, item 9)
+def test_time_limit_keeps_what_was_evaluated(rng):
+    plant = random_observable_plant(rng, 3, 2)
+    L = kalman(plant).L
+    full = circle_condition(plant, L)
+    same = circle_condition(plant, L, time_limit=3600.0)  # a limit that is not reached changes nothing
+    assert same.complete and same.passed == full.passed
+    np.testing.assert_array_equal(same.omega, full.omega)
+    np.testing.assert_array_equal(same.values, full.values)
+    cut = circle_condition(plant, L, time_limit=1e-9)  # expired at once: one chunk of the grid
+    assert not cut.complete and not cut.passed  # a partial search proves nothing...
+    assert 0 < cut.omega.size < full.omega.size
+    assert "UNDECIDED (time limit)" in cut.summary() and "not proven" in cut.message
+    assert cut.min_eigenvalue >= full.min_eigenvalue  # ...and saw less of the curve
+    assert cut.certificate["complete"] is False
+
+
+def test_time_limit_still_reports_a_violation_it_found():
+    # a placed gain that is not Kalman-optimal: T R T* - R < 0 near its resonance, in the first chunk
+    plant = Plant([[0.0, 1.0], [-1.0, -0.1]], [[1.0, 0.0]], R=[[1.0]])
+    L = place_observer(plant, [-0.05 + 3j, -0.05 - 3j])
+    w = np.linspace(0.0, 4.0, 100)  # fewer than one chunk: evaluated whatever the limit
+    cut = circle_condition(plant, L, omega=w, time_limit=1e-9)
+    assert not cut.complete and not cut.passed and cut.min_eigenvalue < -cut.tol
+    assert "< -tol" in cut.message and "the violation found is certain" in cut.message
+    assert "FAILS" in cut.summary()
+
+
+def test_filter_margins_time_limit(rng):
+    plant = random_observable_plant(rng, 3, 2, stable=True)
+    L = kalman(plant).L
+    fm = filter_margins(plant, L, time_limit=1e-9)
+    assert not fm.complete and not fm.circle.complete
+    assert np.all(np.isnan(fm.gain_margin_lower)) and math.isnan(fm.radius)
+    assert any("time_limit" in note and "0 of 2 channel(s)" in note for note in fm.notes)
+    assert any("stopped by the time limit" in note for note in fm.notes)
+    full = filter_margins(plant, L, time_limit=3600.0)
+    assert full.complete and np.all(np.isfinite(full.disk_margin)) and np.isfinite(full.radius)
+    np.testing.assert_array_equal(full.disk_margin, filter_margins(plant, L).disk_margin)
+
+
+def test_return_difference_time_limit(rng):
+    from optdesign.analysis.frequency import CHUNK
+
+    plant = random_observable_plant(rng, 3, 1)
+    L = kalman(plant).L
+    w = np.linspace(0.1, 50.0, 3 * CHUNK)
+    with pytest.warns(RuntimeWarning, match=rf"reached after {CHUNK} of {3 * CHUNK} frequencies"):
+        T = return_difference(plant, L, w, time_limit=1e-9)
+    np.testing.assert_array_equal(T[:CHUNK], return_difference(plant, L, w[:CHUNK]))
+    assert np.all(np.isnan(T[CHUNK:]))
+    np.testing.assert_array_equal(return_difference(plant, L, w, time_limit=3600.0),
+                                  return_difference(plant, L, w))

@@ -63,6 +63,57 @@ def test_design_place_and_kalman_text(capsys):
     assert code == 0 and "riccati_residual" in out and "kappa2 =" in out
 
 
+@pytest.mark.parametrize("spelling", [["--poles", "-1,-2,-3,-4"], ["--poles=-1,-2,-3,-4"],
+                                      ["--poles", " -1, -2, -3, -4"], ["--poles", "-1, -2, -3, -4"],
+                                      ["--poles", "-4;-3;-2;-1"]])
+def test_design_poles_spellings(spelling, capsys):
+    # issue 11, item 6: `--poles -1,-2` was rejected by argparse ("expected one argument")
+    code, out, err = run(["design", "pp_knv1985_ex1", "--method", "place", *spelling, "--json"], capsys)
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["success"] is True
+    np.testing.assert_allclose(np.sort(np.asarray(d["target"]["re"])), [-4.0, -3.0, -2.0, -1.0])
+    assert d["verification"]["stability"]["passed"] is True
+
+
+def test_negative_values_of_every_numeric_option():
+    from optdesign.cli import build_parser, join_negative_values
+
+    argv = ["design", "compleib_dis2", "--method", "well_conditioned", "--alpha", "-1e-3", "--radius", "-.5",
+            "--max-gain", "-2", "--seed", "-1", "--poles", "-1,-2,-3"]
+    args = build_parser().parse_args(join_negative_values(argv))
+    got = (args.alpha, args.radius, args.max_gain, args.seed, args.poles)
+    assert got == (-1e-3, -0.5, -2.0, -1, "-1,-2,-3")
+    assert join_negative_values(["--poles", "-1", "--json"]) == ["--poles=-1", "--json"]
+    assert join_negative_values(["show", "--", "--x", "-1"]) == ["show", "--", "--x", "-1"]
+    assert join_negative_values(["--region", "halfplane:1"]) == ["--region", "halfplane:1"]
+
+
+def test_design_place_refuses_to_call_unstable_poles_a_success(capsys):
+    # issue 11, item 6: `--method place --poles=1,2,3,4` reported success: True for unstable A - L C
+    code, out, _ = run(["design", "pp_knv1985_ex1", "--method", "place", "--poles=1,2,3,4", "--json"], capsys)
+    d = json.loads(out)
+    assert code == 1 and d["success"] is False and d["status"] == "solved"
+    assert d["verification"]["pole_error"]["passed"] is True  # the poles were placed as asked...
+    assert d["verification"]["stability"]["passed"] is False  # ...but they are not an observer's
+    assert d["verification"]["stability"]["value"] == pytest.approx(4.0)
+    assert "A - L C is not stable" in d["message"] and "Re s < 0" in d["message"]
+    code, out, _ = run(["design", "pp_knv1985_ex1", "--method", "place", "--poles", "-1,-2,-3,0"], capsys)
+    assert code == 1 and "success: False" in out and "[FAIL] stability" in out
+
+
+def test_stability_check_uses_the_time_domain_of_the_plant():
+    from optdesign.studies.cli import with_stability_check
+    from optdesign.studies.designers import place_baseline
+
+    plant = problems.load("pp_knv1985_ex1").plant.replace(dt=0.1)  # discrete: |z| < 1 is stable
+    ok = with_stability_check(plant, place_baseline(plant, [0.5, -0.5, 0.2, 0.1]))
+    assert ok.success and ok.verification["stability"].value == pytest.approx(-0.5)
+    bad = with_stability_check(plant, place_baseline(plant, [-1.5, -0.5, 0.2, 0.1]))  # stable if continuous
+    assert not bad.success and "|z| < 1" in bad.message
+    assert bad.verification["stability"].value == pytest.approx(0.5)
+
+
 def test_design_well_conditioned_in_a_region(capsys):
     code, out, _ = run(["design", "compleib_dis2", "--method", "well_conditioned", "--region",
                         "halfplane:1 & sector:0.7", "--radius", "20", "--starts", "2", "--json"], capsys)
@@ -107,8 +158,10 @@ def test_design_well_conditioned_in_a_region(capsys):
          "needs --poles or a region (--region/--alpha/--zeta/--radius)"),
         (["design", "compleib_dis2", "--method", "well_conditioned", "--poles=-1,-2,-3", "--alpha", "1"],
          "give either --poles (fixed poles) or a region"),
-        (["design", "compleib_dis2", "--method", "place", "--poles", "-1,-2,-3"],
-         "argument --poles: expected one argument"),  # argparse: write --poles=-1,-2,-3 (see the help)
+        (["design", "compleib_dis2", "--method", "place", "--poles", "-1,-2,-3,-4"],
+         "--poles has the wrong length: expected 3, found 4"),  # -1,-2,... is read as a value, not an option
+        (["design", "compleib_dis2", "--method", "place", "--json", "-1,-2,-3"],
+         "argument --json: ignored explicit argument '-1,-2,-3'"),
         (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2, x"], "--poles: 'x' is not a "
                                                                                    "number"),
         (["design", "compleib_dis2", "--method", "place", "--poles", "-1, -2"],

@@ -6,11 +6,17 @@ import numpy as np
 import pytest
 
 from optdesign._validate import (
+    as_array,
     as_bool,
+    as_frequencies,
     as_int,
     as_matrix,
+    as_options,
     as_poles,
     as_positive_float,
+    as_real,
+    as_rng,
+    as_str,
     as_vector,
     check_pd,
     check_psd,
@@ -59,7 +65,8 @@ def test_psd_pd_checks():
         check_psd("Q", np.array([[1.0, 1.0], [0.0, 1.0]]))
     with pytest.raises(NotPositiveSemidefiniteError, match="smallest eigenvalue -2"):
         check_psd("Q", np.diag([1.0, -2.0]))
-    with pytest.raises(NotPositiveDefiniteError, match="R must be positive definite; found smallest eigenvalue 0"):
+    with pytest.raises(NotPositiveDefiniteError,
+                       match="R must be positive definite; found smallest eigenvalue 0"):
         check_pd("R", np.diag([1.0, 0.0]))
     # tiny asymmetry from round-off is accepted and symmetrized
     X = np.array([[2.0, 1.0 + 1e-16], [1.0, 2.0]])
@@ -67,10 +74,99 @@ def test_psd_pd_checks():
 
 
 def test_as_positive_float():
-    assert as_positive_float("dt", "0.5") == 0.5
+    assert as_positive_float("dt", 0.5) == 0.5 and as_positive_float("dt", np.float32(0.5)) == 0.5
+    assert as_positive_float("k", 3) == 3.0 and type(as_positive_float("k", np.int64(3))) is float
+    assert as_positive_float("dt", np.array(0.25)) == 0.25  # a 0-d array is a number
     assert as_positive_float("t", 0, allow_zero=True) == 0.0
-    with pytest.raises(ValidationError, match="dt must be finite and > 0; found nan"):
+    with pytest.raises(NotFiniteError, match="dt must be finite and > 0; found nan"):
         as_positive_float("dt", float("nan"))
+    with pytest.raises(ValidationError, match=r"dt must be finite and > 0; found -1"):
+        as_positive_float("dt", -1)
+    with pytest.raises(ValidationError, match=r"t must be finite and >= 0; found -0.5"):
+        as_positive_float("t", -0.5, allow_zero=True)
+
+
+@pytest.mark.parametrize("bad, kind", [("0.5", "a string"), (b"0.5", "a string"), (True, "bool"),
+                                       (np.bool_(True), "bool"), (1 + 0j, "complex"), (None, "NoneType"),
+                                       ([0.5], "list"), (np.array([0.5]), "ndarray")])
+def test_numbers_written_otherwise_are_refused(bad, kind):
+    # issue 11, item 5: numeric strings were accepted silently (float("0.5"))
+    with pytest.raises(ValidationError, match=rf"dt must be a real number; found .*\({kind}\)"):
+        as_positive_float("dt", bad)
+    with pytest.raises(ValidationError, match=rf"alpha must be a real number; found .*\({kind}\)"):
+        as_real("alpha", bad)
+
+
+def test_as_real():
+    assert as_real("alpha", -2) == -2.0 and as_real("alpha", np.float64(0.5)) == 0.5
+    with pytest.raises(NotFiniteError, match="alpha must be finite; found inf"):
+        as_real("alpha", np.inf)
+
+
+@pytest.mark.parametrize("make", [as_vector, as_poles, as_frequencies])
+@pytest.mark.parametrize("bad", [["a", "b"], ["-1", "-2"], "-1", np.array(["1.0"])])
+def test_vectors_refuse_strings(make, bad):
+    # issue 11, item 5: ["a", "b"] raised a bare numpy ValueError, ["-1", "-2"] was accepted
+    with pytest.raises(ValidationError, match=r"x must be (a )?numeric"):
+        make("x", bad)
+
+
+def test_vector_shapes():
+    """A (1, k) or (k, 1) array is an unambiguous vector; (2, 2) or (1, 1, k) is not."""
+    np.testing.assert_array_equal(as_vector("x", [[1.0, 2.0, 3.0]]), [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(as_vector("x", [[1.0], [2.0]]), [1.0, 2.0])
+    np.testing.assert_allclose(as_poles("poles", [[-1.0], [-2.0]], 2), [-2.0, -1.0])
+    for bad in (np.ones((2, 2)), np.ones((1, 1, 3)), np.ones((2, 3))):
+        with pytest.raises(DimensionError, match=r"poles must be a vector \(shape \(k,\), or \(1, k\) / "
+                                                 r"\(k, 1\)\); found shape"):
+            as_poles("poles", bad)
+    with pytest.raises(ValidationError, match="poles could not be converted to an array"):
+        as_poles("poles", [[-1.0, -2.0], [-3.0]])
+    with pytest.raises(NotFiniteError, match=r"x must be finite; found nan at index 1"):
+        as_vector("x", [1.0, np.nan])
+
+
+def test_as_frequencies():
+    np.testing.assert_array_equal(as_frequencies("omega", [0, 2.5]), [0.0, 2.5])
+    assert as_frequencies("omega", [-1.0], nonnegative=False)[0] == -1.0
+    with pytest.raises(NotFiniteError, match=r"omega must be finite; found nan at index 1"):
+        as_frequencies("omega", [1.0, np.nan])
+    with pytest.raises(ValidationError, match=r"omega must be >= 0 \(rad/s\); found -2 at index 1"):
+        as_frequencies("omega", [1.0, -2.0])
+    with pytest.raises(DimensionError, match="omega must contain at least one frequency"):
+        as_frequencies("omega", [])
+
+
+def test_as_array():
+    assert as_array("signal", [1.0, 2.0], (1, 2)).shape == (2,)
+    assert as_array("signal", [[1.0], [2.0]], (1, 2)).shape == (2, 1)
+    with pytest.raises(DimensionError, match=r"signal must be 1-D or 2-D; found 0-D shape \(\)"):
+        as_array("signal", 3.0, (1, 2))
+    with pytest.raises(ValidationError, match="signal must be numeric"):
+        as_array("signal", ["1", "2"], (1, 2))
+    with pytest.raises(NotFiniteError, match=r"signal must be finite; found inf at index \(1, 0\)"):
+        as_array("signal", [[1.0], [np.inf]], (1, 2))
+
+
+def test_as_options_as_str_as_rng():
+    assert as_options("options", None) == {} and as_options("options", {"ipopt.max_iter": 5}) == {
+        "ipopt.max_iter": 5}
+    with pytest.raises(ValidationError, match=r"options must be a dict of solver options \(name -> value\) "
+                                              r"or None; found list \[1, 2\]"):
+        as_options("options", [1, 2])
+    with pytest.raises(ValidationError, match="options keys must be option names \\(strings\\); found 1"):
+        as_options("options", {1: 2})
+    assert as_str("method", "pade", ("pade", "sample")) == "pade"
+    with pytest.raises(ValidationError, match="method must be one of 'pade', 'sample'; found 'x'"):
+        as_str("method", "x", ("pade", "sample"))
+    with pytest.raises(ValidationError, match="name must be a string; found int 3"):
+        as_str("name", 3)
+    g = np.random.default_rng(1)
+    assert as_rng("rng", g) is g and isinstance(as_rng("rng", 3), np.random.Generator)
+    for bad in (1.5, True, "abc", -1):
+        with pytest.raises(ValidationError, match="rng must be None, an integer seed >= 0 or a numpy "
+                                                  "Generator; found"):
+            as_rng("rng", bad)
 
 
 def test_as_poles_orders_and_pairs():

@@ -58,7 +58,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_matrix
+from .._validate import as_int, as_matrix, as_positive_float
 from ..errors import DimensionError
 
 __all__ = [
@@ -81,8 +81,13 @@ def coincidence_tol(n: int) -> float:
     """Default relative tolerance ``8 n eps`` for declaring two eigenvalues coincident.
 
     See the module docstring for the criterion it enters.
+
+    Raises
+    ------
+    ValidationError
+        ``n`` is not an integer ``>= 0``.
     """
-    return 8.0 * max(1, int(n)) * _EPS
+    return 8.0 * max(1, as_int("n", n, 0)) * _EPS
 
 
 def _as_square(X: ArrayLike, name: str = "X") -> NDArray:
@@ -168,6 +173,7 @@ def _pow2_scale(X: NDArray) -> float:
 
 def _spectrum(X: NDArray, tol: float | None) -> _Spectrum:
     n = X.shape[0]
+    tol = coincidence_tol(n) if tol is None else as_positive_float("tol", tol, allow_zero=True)
     scale = _pow2_scale(X)
     X = X / scale
     w, V, T = _unit_eigvecs(X)
@@ -175,7 +181,6 @@ def _spectrum(X: NDArray, tol: float | None) -> _Spectrum:
     dep = float(np.linalg.norm(np.triu(T, 1))) * scale
     if n == 1:
         return _Spectrum(w, V, np.ones((1, 1), complex), float("inf"), False, dep)
-    tol = coincidence_tol(n) if tol is None else float(tol)
     Vinv = None
     if np.all(np.isfinite(V)):
         try:
@@ -319,6 +324,8 @@ def kappa2(X: ArrayLike, *, tol: float | None = None) -> float:
     ------
     DimensionError, NotFiniteError
         ``X`` not square / not finite.
+    ValidationError
+        ``X`` not numeric; ``tol`` not a finite number ``>= 0``.
 
     Examples
     --------
@@ -442,10 +449,9 @@ def eta(X: ArrayLike, *, tol: float | None = None) -> float:
     For 2 x 2 matrices ``kappa2(X) = eta + sqrt(1 + eta^2)`` (seed 001 eq (19)); in general
     Huh & Stein bound kappa2 by a monotone function of eta.
     """
-    A = _as_square(X)
-    if A.shape[0] == 1:
+    sp = _spectrum(_as_square(X), tol)
+    if sp.w.size == 1:
         return 0.0
-    sp = _spectrum(A, tol)
     if sp.coincident:
         return float("inf")
     return sp.departure / sp.gap

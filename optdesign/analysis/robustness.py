@@ -89,9 +89,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_matrix, as_vector, check_pd
-from ..errors import DimensionError, ValidationError
+from .._deadline import Deadline
+from .._validate import as_bool, as_frequencies, as_matrix, as_positive_float, as_real, as_vector, check_pd
+from ..errors import ValidationError
 from ..model.plant import Plant
+from .frequency import CHUNK, adaptive_minimize, as_gain, frequency_grid, frequency_points, nudge_off_poles
 
 __all__ = [
     "return_difference",
@@ -104,6 +106,7 @@ __all__ = [
     "margins_from_radius",
     "adaptive_minimize",
     "circle_search",
+    "search_stopped",
     "worst_case_parts",
 ]
 
@@ -111,19 +114,6 @@ _EPS = np.finfo(float).eps
 
 
 # --------------------------------------------------------------------------- helpers
-def _gain(plant: Plant, L: ArrayLike) -> NDArray[np.float64]:
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
-    return as_matrix("L", L, (plant.n, plant.p))
-
-
-def _points(plant: Plant, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
-    """s = j w (continuous) or z = exp(j w dt) (discrete)."""
-    if plant.is_discrete:
-        return np.exp(1j * omega * plant.dt)
-    return 1j * omega
-
-
 def _resolvent(A: NDArray, B: NDArray, pts: NDArray[np.complex128]) -> NDArray[np.complex128]:
     """(s I - A)^-1 B for every s in pts, shape (k, n, m).  Raises LinAlgError if singular."""
     n = A.shape[0]
@@ -161,7 +151,9 @@ def _resolve_R(plant: Plant, R: ArrayLike | None, what: str) -> NDArray[np.float
 
 
 # --------------------------------------------------------------------------- return difference
-def return_difference(plant: Plant, L: ArrayLike, omega: ArrayLike) -> NDArray[np.complex128]:
+def return_difference(
+    plant: Plant, L: ArrayLike, omega: ArrayLike, *, time_limit: float | Deadline | None = None
+) -> NDArray[np.complex128]:
     r"""Return difference of the filter loop broken at the filter input (the innovation).
 
     Continuous time: ``T(jw) = I + C (jw I - A)^-1 L``.
@@ -175,7 +167,12 @@ def return_difference(plant: Plant, L: ArrayLike, omega: ArrayLike) -> NDArray[n
     L : (n, p) array_like
         Filter (observer) gain, ``x_hat' = A x_hat + L (y - C x_hat)``.
     omega : (k,) array_like of float
-        Frequencies in rad/s (a scalar is accepted).
+        Frequencies in rad/s (a scalar is accepted; a negative frequency gives the conjugate of
+        the positive one).
+    time_limit : float, optional
+        Seconds (``None``: no limit).  The frequencies are then evaluated in chunks of
+        :data:`~optdesign.analysis.frequency.CHUNK`; those not reached when the limit expires
+        (the first chunk always is) are NaN in ``T``, and a ``RuntimeWarning`` says how many.
 
     Returns
     -------
@@ -188,15 +185,33 @@ def return_difference(plant: Plant, L: ArrayLike, omega: ArrayLike) -> NDArray[n
     NotFiniteError
         L or omega contains NaN or Inf.
     ValidationError
-        A frequency is a pole of the loop (``jw`` or ``z`` an eigenvalue of A), where T is undefined.
+        omega not numeric (strings are refused); a bad ``time_limit``; a frequency is a pole of
+        the loop (``jw`` or ``z`` an eigenvalue of A), where T is undefined.
 
     References
     ----------
     Seed 002 (S. J. Lee), eq (16) with ``c1 = 0``.
     """
-    L = _gain(plant, L)
+    L = as_gain(plant, L)
     w = as_vector("omega", omega)
-    pts = _points(plant, w)
+    deadline = Deadline.of(time_limit)
+    if not deadline.limited:
+        return _return_difference(plant, L, w)
+    T = np.full((w.size, plant.p, plant.p), np.nan, dtype=complex)
+    done = 0
+    while done < w.size and (done == 0 or not deadline.expired):  # the first chunk always
+        T[done:done + CHUNK] = _return_difference(plant, L, w[done:done + CHUNK])
+        done = min(done + CHUNK, w.size)
+    if done < w.size:
+        import warnings
+
+        warnings.warn(f"return_difference: time_limit {deadline.limit:g} s reached after {done} of {w.size} "
+                      "frequencies; T is NaN at the others", RuntimeWarning, stacklevel=2)
+    return T
+
+
+def _return_difference(plant: Plant, L: NDArray, w: NDArray) -> NDArray[np.complex128]:
+    pts = frequency_points(plant, w)
     try:
         X = _resolvent(plant.A, L, pts)
     except np.linalg.LinAlgError:
@@ -208,146 +223,6 @@ def return_difference(plant: Plant, L: ArrayLike, omega: ArrayLike) -> NDArray[n
             f"{'on the unit circle' if plant.is_discrete else 'on the imaginary axis'} there): T is undefined"
         ) from None
     return np.eye(plant.p)[None] + np.einsum("ij,kjl->kil", plant.C, X)
-
-
-# --------------------------------------------------------------------------- frequency grid
-_CLUSTER = np.array([-16.0, -8, -4, -2, -1, -0.5, -0.25, 0, 0.25, 0.5, 1, 2, 4, 8, 16])
-
-
-def frequency_grid(
-    plant: Plant,
-    L: ArrayLike | None = None,
-    *,
-    points_per_decade: int = 30,
-    extra_poles: ArrayLike | None = None,
-) -> NDArray[np.float64]:
-    """Frequency grid (rad/s) seeded at the open- and closed-loop pole frequencies.
-
-    Continuous time: a log grid from ``1e-3`` times the smallest to ``1e3`` times the largest
-    pole modulus, ``w = 0``, and around every complex pole ``lambda`` a cluster
-    ``|Im lambda| + |Re lambda| * t`` (``|t| <= 16``) that resolves a dip or peak of width
-    ``|Re lambda|`` however lightly damped.  Discrete time: a uniform grid of ``[0, pi/dt]``, a log
-    grid near 0, and clusters ``|arg z| + (1 - |z|) t`` around the poles.
-
-    Parameters
-    ----------
-    plant : Plant
-    L : (n, p) array_like, optional
-        If given, the poles of ``A - L C`` seed the grid too.
-    points_per_decade : int
-        Density of the base log grid.
-    extra_poles : array_like of complex, optional
-        More seeds (e.g. the poles of a perturbed loop).
-
-    Returns
-    -------
-    (k,) ndarray, sorted, nonnegative (within ``[0, pi/dt]`` in discrete time).
-    """
-    poles = [np.linalg.eigvals(plant.A)]
-    if L is not None:
-        Lm = _gain(plant, L)
-        poles.append(np.linalg.eigvals(plant.A - Lm @ plant.C))
-    if extra_poles is not None:
-        poles.append(np.asarray(extra_poles, dtype=complex).ravel())
-    lam = np.concatenate(poles)
-    lam = lam[np.isfinite(lam)]
-    ppd = max(4, int(points_per_decade))
-    if plant.is_discrete:
-        dt = plant.dt
-        theta = [np.linspace(0.0, np.pi, 24 * ppd), np.pi * np.logspace(-6, 0, 6 * ppd)]
-        for z in lam:
-            if abs(z) < 1e-12:
-                continue
-            c = abs(np.angle(z))
-            width = max(abs(1.0 - abs(z)), 1e-9)
-            theta.append(c + width * _CLUSTER)
-        th = np.concatenate(theta)
-        th = th[(th >= 0.0) & (th <= np.pi)]
-        return np.unique(np.concatenate([th, [0.0, np.pi]])) / dt
-    mags = np.abs(lam)
-    mags = mags[mags > 1e-12 * max(1.0, float(np.max(mags, initial=0.0)))]
-    lo, hi = (float(np.min(mags)), float(np.max(mags))) if mags.size else (1.0, 1.0)
-    lo, hi = math.log10(lo) - 3.0, math.log10(hi) + 3.0
-    parts = [np.logspace(lo, hi, int(np.ceil((hi - lo) * ppd)) + 1), [0.0]]
-    for z in lam:
-        if abs(z.imag) > 0:
-            parts.append(abs(z.imag) + max(abs(z.real), 1e-12 * abs(z)) * _CLUSTER)
-        if abs(z) > 0:
-            parts.append([abs(z)])
-    w = np.concatenate(parts)
-    return np.unique(w[w >= 0.0])
-
-
-def _nudge(w: NDArray, pts_of: Callable[[NDArray], NDArray], poles: NDArray, scale: float) -> NDArray:
-    """Move frequencies off the open-loop poles on the stability boundary (T is infinite there)."""
-    if poles.size == 0 or w.size == 0:
-        return w
-    w = w.copy()
-    for _ in range(3):
-        d = np.min(np.abs(pts_of(w)[:, None] - poles[None, :]), axis=1)
-        bad = d < 1e-9 * scale
-        if not np.any(bad):
-            break
-        w[bad] = w[bad] + 1e-7 * scale
-    return w
-
-
-# --------------------------------------------------------------------------- adaptive minimization
-def adaptive_minimize(
-    f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
-    grid: NDArray[np.float64],
-    *,
-    n_refine: int = 8,
-    log: bool = True,
-    xatol: float = 1e-10,
-    values: NDArray[np.float64] | None = None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Minimize a function of frequency: grid evaluation, then local bounded refinement.
-
-    ``f`` maps a vector of frequencies to a vector of values.  After evaluating the grid, the
-    ``n_refine`` lowest local minima are each refined by bounded Brent minimization
-    (``scipy.optimize.minimize_scalar``) between their grid neighbours, in ``log w`` when
-    ``log`` and the bracket is positive.  ``values`` may give ``f(grid)`` if already known
-    (``grid`` must then be sorted and unique).
-
-    Returns
-    -------
-    omega, values : (k,) ndarrays
-        Every evaluated point (grid and refinement), sorted by frequency.
-    """
-    from scipy.optimize import minimize_scalar
-
-    if values is None:
-        grid = np.unique(np.asarray(grid, dtype=float))
-        vals = np.asarray(f(grid), dtype=float)
-    else:
-        grid = np.asarray(grid, dtype=float)
-        vals = np.asarray(values, dtype=float)
-    k = grid.size
-    left = np.concatenate([[np.inf], vals[:-1]])
-    right = np.concatenate([vals[1:], [np.inf]])
-    cand = np.flatnonzero((vals <= left) & (vals <= right))
-    cand = cand[np.argsort(vals[cand])][:n_refine]
-    xs, ys = [grid], [vals]
-    for i in cand:
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, k - 1)]
-        if not b > a:
-            continue
-        use_log = log and a > 0
-        if use_log:
-            g = lambda x: float(f(np.array([math.exp(x)]))[0])  # noqa: E731
-            lo, hi, tol = math.log(a), math.log(b), xatol
-        else:
-            g = lambda x: float(f(np.array([x]))[0])  # noqa: E731
-            lo, hi, tol = a, b, xatol * max(b, 1e-300)
-        res = minimize_scalar(g, bounds=(lo, hi), method="bounded", options={"xatol": tol, "maxiter": 200})
-        x = math.exp(res.x) if use_log else float(res.x)
-        xs.append(np.array([x]))
-        ys.append(np.array([float(res.fun)]))
-    w = np.concatenate(xs)
-    v = np.concatenate(ys)
-    order = np.argsort(w, kind="stable")
-    return w[order], v[order]
 
 
 # --------------------------------------------------------------------------- circle condition
@@ -378,7 +253,7 @@ def innovation_covariance(
     if not plant.is_discrete:
         raise ValidationError(
             "innovation_covariance is for discrete plants (dt given); in continuous time V = R")
-    L = _gain(plant, L)
+    L = as_gain(plant, L)
     R = _resolve_R(plant, R, "the discrete circle condition")
     A, C = plant.A, plant.C
     if np.linalg.cond(A) < 1e8:
@@ -419,7 +294,9 @@ class CircleConditionResult:
     omega_worst : float
         Frequency (rad/s) of that minimum.
     passed : bool
-        ``min_eigenvalue >= -tol`` (and, in discrete time, V symmetric positive definite).
+        ``min_eigenvalue >= -tol`` (and, in discrete time, V symmetric positive definite) over a
+        complete search.  A search stopped by its time limit never passes: a violation it found
+        is certain, the absence of one is not.
     omega, values : (k,) ndarrays
         Every frequency evaluated (grid and local refinement, sorted) and the smallest
         eigenvalue there.
@@ -442,6 +319,9 @@ class CircleConditionResult:
         When the continuous circle condition fails this lies inside the set the condition would
         cover, which is what makes it a certificate.
     message : str
+    complete : bool
+        False when ``time_limit`` stopped the search before the whole grid was evaluated and every
+        local minimum refined.
     """
 
     min_eigenvalue: float
@@ -459,6 +339,7 @@ class CircleConditionResult:
     direction: NDArray[np.complex128]
     perturbation: NDArray[np.complex128]
     message: str = ""
+    complete: bool = True
 
     @property
     def certificate(self) -> dict[str, Any]:
@@ -480,10 +361,12 @@ class CircleConditionResult:
             "direction": c(self.direction),
             "T_worst": c(self.T_worst),
             "destabilizing_perturbation": c(self.perturbation),
+            "complete": self.complete,
         }
 
     def summary(self) -> str:
-        verdict = "holds" if self.passed else "FAILS"
+        undecided = not self.complete and self.min_eigenvalue >= -self.tol
+        verdict = "holds" if self.passed else "UNDECIDED (time limit)" if undecided else "FAILS"
         ineq = "T V T* >= R" if self.discrete else "T R T* >= R"
         return (
             f"circle condition {ineq} {verdict}: min eigenvalue {self.min_eigenvalue:.4g} at "
@@ -523,21 +406,21 @@ def circle_search(
     log: bool = True,
     refine: bool = True,
     n_refine: int = 8,
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    deadline: Deadline | float | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
     """Adaptive search of ``min_w lambda_min(T(w) V T(w)^* - R)`` for any return difference ``T_of``.
 
     Used by :func:`circle_condition` and by the output-delay filter (whose T is not rational).
-    Returns all evaluated frequencies and values, sorted by frequency.
+    Returns all evaluated frequencies and values, sorted by frequency, and whether the search
+    completed within ``deadline`` (:func:`~optdesign.analysis.frequency.adaptive_minimize`).
     """
     Vs = 0.5 * (V + V.T)
 
     def f(w: NDArray) -> NDArray:
         return _min_eig_values(T_of(w), Vs, R)
 
-    if not refine:
-        g = np.unique(grid)
-        return g, f(g)
-    return adaptive_minimize(f, grid, n_refine=n_refine, log=log)
+    return adaptive_minimize(f, grid, n_refine=n_refine if refine else 0, log=log, deadline=deadline,
+                             full_output=True)
 
 
 def circle_condition(
@@ -549,6 +432,7 @@ def circle_condition(
     V: ArrayLike | None = None,
     tol: float | None = None,
     refine: bool = True,
+    time_limit: float | Deadline | None = None,
 ) -> CircleConditionResult:
     r"""Check the Kalman circle condition (return-difference inequality) of a filter gain.
 
@@ -577,13 +461,19 @@ def circle_condition(
     R : (p, p) array_like, optional
         Measurement-noise covariance (symmetric PD); default ``plant.R``.
     omega : (k,) array_like, optional
-        Frequencies (rad/s) to use as the seed grid instead of :func:`frequency_grid`.
+        Frequencies (rad/s, finite, ``>= 0``, at least one) to use as the seed grid instead of
+        :func:`frequency_grid`.
     V : (p, p) array_like, optional
         Discrete time only: innovation covariance.
     tol : float, optional
-        Absolute tolerance for ``passed``; default ``1e-8 * ||R||_2``.
+        Absolute tolerance for ``passed`` (finite, ``>= 0``); default ``1e-8 * ||R||_2``.
     refine : bool
         Refine local minima by bounded scalar minimization (default True).
+    time_limit : float, optional
+        Seconds (``None``: no limit).  When it runs out the search stops between chunks of the
+        grid or between refinements, and the result has ``complete = False``: a violation found is
+        reported (``passed`` False, with the frequency), otherwise the verdict is undecided
+        (``passed`` False, the message says so).
 
     Returns
     -------
@@ -597,14 +487,17 @@ def circle_condition(
         R not positive definite.
     ValidationError
         No R available; V given for a continuous plant; V cannot be determined (discrete, A singular,
-        no Q).
+        no Q); omega empty, negative or not numeric; tol not a finite number >= 0; refine not a
+        bool; a bad time_limit.
 
     References
     ----------
     Seed 002 (S. J. Lee), Theorem 1 / eq (17).  U. Shaked (1986) for the discrete-time form.
     """
-    L = _gain(plant, L)
+    deadline = Deadline.of(time_limit)
+    L = as_gain(plant, L)
     R = _resolve_R(plant, R, "the circle condition")
+    refine = as_bool("refine", refine)
     p = plant.p
     message = ""
     if plant.is_discrete:
@@ -626,12 +519,11 @@ def circle_condition(
             raise ValidationError(
                 "V is only used in discrete time; in continuous time the inequality is T R T* >= R")
         Vs, V_source, v_ok = R, "R", True
-    tol = 1e-8 * float(np.linalg.norm(R, 2)) if tol is None else float(tol)
-    if not (tol >= 0 and np.isfinite(tol)):
-        raise ValidationError(f"tol must be finite and >= 0; found {tol!r}")
-    grid = frequency_grid(plant, L) if omega is None else np.unique(as_vector("omega", omega))
-    if grid.size == 0:
-        raise DimensionError("omega must contain at least one frequency; found an empty array")
+    if tol is None:
+        tol = 1e-8 * float(np.linalg.norm(R, 2))
+    else:
+        tol = as_positive_float("tol", tol, allow_zero=True)
+    grid = frequency_grid(plant, L) if omega is None else np.unique(as_frequencies("omega", omega))
     eigA = np.linalg.eigvals(plant.A)
     if plant.is_discrete:
         boundary = eigA[np.abs(np.abs(eigA) - 1.0) < 1e-9]
@@ -639,31 +531,43 @@ def circle_condition(
     else:
         boundary = eigA[np.abs(eigA.real) < 1e-9 * max(1.0, float(np.max(np.abs(eigA))))]
         scale = max(1.0, float(np.max(np.abs(eigA))))
-    pts_of = lambda w: _points(plant, w)  # noqa: E731
-    grid = _nudge(grid, pts_of, boundary, scale)
+    pts_of = lambda w: frequency_points(plant, w)  # noqa: E731
+    grid = nudge_off_poles(grid, pts_of, boundary, scale)
 
     def T_of(w: NDArray) -> NDArray:
-        w = _nudge(np.asarray(w, dtype=float), pts_of, boundary, scale)
-        return return_difference(plant, L, w)
+        w = nudge_off_poles(np.asarray(w, dtype=float), pts_of, boundary, scale)
+        return _return_difference(plant, L, w)
 
-    w_all, vals = circle_search(T_of, grid, R, Vs, log=not plant.is_discrete, refine=refine)
+    w_all, vals, complete = circle_search(T_of, grid, R, Vs, log=not plant.is_discrete, refine=refine,
+                                          deadline=deadline)
     i = int(np.argmin(vals))
     w_star = float(w_all[i])
     T_star = T_of(np.array([w_star]))[0]
     direction, Delta = worst_case_parts(T_star, Vs, R)
     min_eig = float(vals[i])
-    passed = bool(min_eig >= -tol) and v_ok
-    if not passed and not message:
+    holds = bool(min_eig >= -tol)
+    passed = holds and v_ok and complete
+    if not holds and not message:
         ineq = "T V T* - R" if plant.is_discrete else "T R T* - R"
         message = (f"{ineq} has eigenvalue {min_eig:.4g} < -tol at omega = {w_star:.6g} rad/s: "
                    "L is not a Kalman gain for this R")
+    if not complete:
+        message = "; ".join(filter(None, [message, search_stopped(deadline, w_all.size, holds)]))
     for a in (w_all, vals):
         a.setflags(write=False)
     return CircleConditionResult(
         min_eigenvalue=min_eig, omega_worst=w_star, passed=passed, omega=w_all, values=vals, tol=tol,
         R=R, V=np.asarray(V, dtype=float), discrete=plant.is_discrete, dt=plant.dt, V_source=V_source,
-        T_worst=T_star, direction=direction, perturbation=Delta, message=message,
+        T_worst=T_star, direction=direction, perturbation=Delta, message=message, complete=complete,
     )
+
+
+def search_stopped(deadline: Deadline, evaluated: int, holds: bool) -> str:
+    """The message of a frequency search stopped by its time limit (shared with the output-delay filter)."""
+    verdict = ("no violation among them, but the condition is not proven" if holds
+               else "the violation found is certain")
+    return (f"time_limit {deadline.limit:g} s reached after {evaluated} frequencies (search incomplete): "
+            f"{verdict}")
 
 
 # --------------------------------------------------------------------------- margins
@@ -674,8 +578,19 @@ def margins_from_radius(alpha: float, skew: float = 1.0) -> tuple[tuple[float, f
     gains ``(1/(1+alpha), 1/(1-alpha))`` and phase ``2 arcsin(alpha/2)``; ``alpha = 1`` gives
     ``(1/2, inf)`` and 60 deg.  ``skew = 0`` (balanced disk): ``f = (1 + d/2)/(1 - d/2)``,
     ``|d| < alpha``, gains ``((2-alpha)/(2+alpha), (2+alpha)/(2-alpha))``, phase ``2 atan(alpha/2)``.
+
+    Raises
+    ------
+    ValidationError
+        ``alpha`` not a real number, ``skew`` not 0 or 1.  (A NaN ``alpha`` -- a margin not
+        computed -- gives no margin; ``inf`` the whole disk.)
     """
-    a = float(alpha)
+    if isinstance(alpha, (float, np.floating)) and not math.isfinite(alpha):
+        a = float(alpha)
+    else:
+        a = as_real("alpha", alpha)
+    if skew not in (0.0, 1.0) or isinstance(skew, bool):
+        raise ValidationError(f"skew must be 0 (balanced) or 1 (circle); found {skew!r}")
     if not a > 0:
         return (1.0, 1.0), 0.0
     if skew == 1.0:
@@ -730,6 +645,9 @@ class FilterMargins:
         Loop-at-a-time balanced disk margin ``2 / max_w |S_ii - T_ii|`` (Seiler et al.).
     circle_disk_margin : (p,) ndarray
         Loop-at-a-time skew-1 disk margin ``1 / max_w |S_ii|`` (the per-channel circle radius).
+    notes : tuple of str
+    complete : bool
+        False when ``time_limit`` stopped the analysis (the margins not computed are NaN).
     """
 
     discrete: bool
@@ -748,6 +666,7 @@ class FilterMargins:
     disk_margin: NDArray[np.float64]
     circle_disk_margin: NDArray[np.float64]
     notes: tuple[str, ...] = field(default_factory=tuple)
+    complete: bool = True
 
     @property
     def simultaneous_gain_margin(self) -> tuple[float, float]:
@@ -796,7 +715,8 @@ def _crossings(g: Callable[[NDArray], NDArray], grid: NDArray, v: NDArray) -> li
 
 
 def filter_margins(
-    plant: Plant, L: ArrayLike, *, R: ArrayLike | None = None, omega: ArrayLike | None = None
+    plant: Plant, L: ArrayLike, *, R: ArrayLike | None = None, omega: ArrayLike | None = None,
+    time_limit: float | Deadline | None = None,
 ) -> FilterMargins:
     r"""Guaranteed and actual stability margins of a filter, loop broken at the filter input.
 
@@ -822,7 +742,11 @@ def filter_margins(
     R : (p, p) array_like, optional
         Default ``plant.R``.
     omega : array_like, optional
-        Seed grid (rad/s) instead of :func:`frequency_grid`.
+        Seed grid (rad/s, finite, ``>= 0``) instead of :func:`frequency_grid`.
+    time_limit : float, optional
+        Seconds for the whole analysis (``None``: no limit), shared by its stages (circle
+        condition, multiloop radius, channel by channel).  When it runs out, the margins not yet
+        computed are NaN, ``complete`` is False and a note says where it stopped.
 
     Returns
     -------
@@ -838,9 +762,11 @@ def filter_margins(
     Seed 002 (S. J. Lee), Theorem 2, eqs (20)-(24); Lehtomaki, Sandell & Athans (1981); Seiler,
     Packard & Gahinet (2020).
     """
-    L = _gain(plant, L)
+    deadline = Deadline.of(time_limit)
+    L = as_gain(plant, L)
     R = _resolve_R(plant, R, "filter_margins")
-    circ = circle_condition(plant, L, R=R, omega=omega)
+    seed = None if omega is None else as_frequencies("omega", omega)
+    circ = circle_condition(plant, L, R=R, omega=seed, time_limit=deadline)
     p, disc = plant.p, plant.is_discrete
     R_diag = _is_diagonal(R)
     notes: list[str] = []
@@ -854,7 +780,8 @@ def filter_margins(
             implied = 1.0
     else:
         implied = 0.0
-        notes.append("the circle condition fails, so it implies no margin")
+        notes.append("the circle condition fails, so it implies no margin" if circ.complete else
+                     "the circle-condition search was stopped by the time limit, so it implies no margin")
     (glo, ghi), gpm = margins_from_radius(implied)
     if R_diag:
         scope = ("diagonal perturbations delta_i with |1/delta_i - 1| < radius in all channels "
@@ -864,17 +791,17 @@ def filter_margins(
                  "e.g. the uniform delta*I in all channels")
         notes.append("R is not diagonal: the per-channel gain/phase statement of seed 002 Theorem 2 "
                      "does not apply")
-    nanp = np.full(p, np.nan)
+    head = (disc, stable, R_diag, circ, implied, (glo, ghi), gpm, scope)
+    margins = np.full((6, p), np.nan)  # gain lower/upper, phase, phase crossover, disk, circle disk
     if not stable:
         notes.append("A - L C is unstable: margins of an unstable loop are not defined (NaN)")
-        return FilterMargins(disc, False, R_diag, circ, implied, (glo, ghi), gpm, scope, float("nan"),
-                             *(nanp.copy() for _ in range(6)), tuple(notes))
-    grid = frequency_grid(plant, L) if omega is None else np.unique(as_vector("omega", omega))
+        return FilterMargins(*head, float("nan"), *margins, tuple(notes), complete=circ.complete)
+    grid = frequency_grid(plant, L) if seed is None else np.unique(seed)
     grid = np.union1d(grid, circ.omega)
     if disc:
         grid = grid[grid <= math.pi / plant.dt]
     grid = np.unique(grid)
-    pts_of = lambda w: _points(plant, np.asarray(w, dtype=float))  # noqa: E731
+    pts_of = lambda w: frequency_points(plant, np.asarray(w, dtype=float))  # noqa: E731
 
     def M_of(w: NDArray) -> NDArray:
         return _transfer(Acl, L, plant.C, pts_of(w))
@@ -885,40 +812,51 @@ def filter_margins(
         S = np.eye(p)[None] - M_of(w)
         return -np.linalg.svd(Rih[None] @ S @ Rh[None], compute_uv=False)[:, 0]
 
-    log = not disc
-    _, v = adaptive_minimize(neg_smax, grid, log=log)
-    radius = 1.0 / float(-np.min(v))
-    Mgrid = M_of(grid)
-    glo_i, ghi_i, pm_i, pmw_i, dm_i, cdm_i = (np.empty(p) for _ in range(6))
+    radius = float("nan")
+    complete = circ.complete and not deadline.expired
+    if complete:
+        _, v, complete = adaptive_minimize(neg_smax, grid, log=not disc, deadline=deadline, full_output=True)
+        radius = 1.0 / float(-np.min(v)) if complete else radius
+    Mgrid = M_of(grid) if complete else None
     for i in range(p):
-        def Mi(w: NDArray, i: int = i) -> NDArray:
-            return M_of(w)[:, i, i]
+        if not complete or deadline.expired:
+            complete = False
+            break
+        margins[:, i] = _channel_margins(M_of, grid, Mgrid[:, i, i], i, plant.dt if disc else None)
+    if not complete:
+        done = int(np.sum(np.isfinite(margins[4])))
+        notes.append(f"time_limit {deadline.limit:g} s reached: margins computed for {done} of {p} channel(s)"
+                     + ("" if np.isfinite(radius) else ", no multiloop radius") + " (the rest are NaN)")
+    return FilterMargins(*head, radius, *margins, tuple(notes), complete=complete)
 
-        # M_ii is real at w = 0 (and at the Nyquist frequency in discrete time): always candidates
-        ends = [0.0] + ([math.pi / plant.dt] if disc else [])
-        Mg = Mgrid[:, i, i]
-        roots = ends + _crossings(lambda w, Mi=Mi: Mi(w).imag, grid, Mg.imag)
-        deltas = []
-        for w0 in roots:
-            m = Mi(np.array([w0]))[0]
-            if abs(m) > 1e-14:
-                deltas.append(1.0 - 1.0 / m.real)
-        d = np.asarray(deltas)
-        ghi_i[i] = float(np.min(d[d > 1.0], initial=np.inf))
-        glo_i[i] = float(np.max(d[d < 1.0], initial=-np.inf))
-        proots = _crossings(lambda w, Mi=Mi: Mi(w).real - 0.5, grid, Mg.real - 0.5)
-        best, bw = np.inf, np.nan
-        for w0 in proots:
-            m = Mi(np.array([w0]))[0]
-            phi = abs(math.degrees(np.angle(1.0 - 1.0 / m)))
-            if phi < best:
-                best, bw = phi, w0
-        pm_i[i], pmw_i[i] = best, bw
-        _, v0 = adaptive_minimize(lambda w, Mi=Mi: -np.abs(1.0 - 2.0 * Mi(w)), grid, log=log,
-                                  values=-np.abs(1.0 - 2.0 * Mg))
-        _, v1 = adaptive_minimize(lambda w, Mi=Mi: -np.abs(1.0 - Mi(w)), grid, log=log,
-                                  values=-np.abs(1.0 - Mg))
-        dm_i[i] = 2.0 / float(-np.min(v0))
-        cdm_i[i] = 1.0 / float(-np.min(v1))
-    return FilterMargins(disc, True, R_diag, circ, implied, (glo, ghi), gpm, scope, radius,
-                         glo_i, ghi_i, pm_i, pmw_i, dm_i, cdm_i, tuple(notes))
+
+def _channel_margins(M_of: Callable[[NDArray], NDArray], grid: NDArray, Mg: NDArray, i: int,
+                     dt: float | None) -> NDArray[np.float64]:
+    """Loop-at-a-time margins of channel ``i`` from ``M = C (sI - A + L C)^-1 L`` (``Mg``: ``M_ii`` on
+    ``grid``): gain lower/upper, phase margin (deg), its crossover, balanced and skew-1 disk margins."""
+
+    def Mi(w: NDArray) -> NDArray:
+        return M_of(w)[:, i, i]
+
+    log = dt is None
+    # M_ii is real at w = 0 (and at the Nyquist frequency in discrete time): always candidates
+    ends = [0.0] + ([math.pi / dt] if dt is not None else [])
+    roots = ends + _crossings(lambda w: Mi(w).imag, grid, Mg.imag)
+    deltas = []
+    for w0 in roots:
+        m = Mi(np.array([w0]))[0]
+        if abs(m) > 1e-14:
+            deltas.append(1.0 - 1.0 / m.real)
+    d = np.asarray(deltas)
+    ghi = float(np.min(d[d > 1.0], initial=np.inf))
+    glo = float(np.max(d[d < 1.0], initial=-np.inf))
+    best, bw = np.inf, np.nan
+    for w0 in _crossings(lambda w: Mi(w).real - 0.5, grid, Mg.real - 0.5):
+        m = Mi(np.array([w0]))[0]
+        phi = abs(math.degrees(np.angle(1.0 - 1.0 / m)))
+        if phi < best:
+            best, bw = phi, w0
+    _, v0 = adaptive_minimize(lambda w: -np.abs(1.0 - 2.0 * Mi(w)), grid, log=log,
+                              values=-np.abs(1.0 - 2.0 * Mg))
+    _, v1 = adaptive_minimize(lambda w: -np.abs(1.0 - Mi(w)), grid, log=log, values=-np.abs(1.0 - Mg))
+    return np.array([glo, ghi, best, bw, 2.0 / float(-np.min(v0)), 1.0 / float(-np.min(v1))])

@@ -117,7 +117,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_matrix, as_poles
+from .._deadline import as_time_limit
+from .._validate import as_matrix, as_options, as_poles
 from ..classical.placement import place_observer, pole_error
 from ..errors import DimensionError, NotObservableError, ValidationError
 from ..model.noise import NoiseModel
@@ -328,11 +329,29 @@ def _well_conditioned_setup(plant: Plant, noise: NoiseModel, count: int, region:
     return region, target
 
 
-def _call_well_conditioned(aug: Plant, region, poles, objective, starts, seed, structure=None):
+def _call_well_conditioned(aug: Plant, region, poles, objective, starts, seed, structure=None, *,
+                           options=None, time_limit=None):
     from . import well_conditioned as wc  # imported lazily: CasADi is loaded only when needed
 
     return wc.well_conditioned_observer(aug, region=region, poles=poles, objective=objective,
-                                        structure=structure, starts=starts, seed=seed)
+                                        structure=structure, starts=starts, seed=seed, options=options,
+                                        time_limit=time_limit)
+
+
+def _check_common(method: Any, region: Any, options: Any, time_limit: Any) -> float | None:
+    """Validate ``method``, ``region``, ``options`` and ``time_limit`` (returned: seconds or None) of the
+    two verbs; IPOPT checks the option names and values (in the well-conditioned verb)."""
+    from ..model.regions import Region
+
+    if not isinstance(method, str) or method not in _METHODS:
+        raise ValidationError(f"method must be one of {_METHODS}; found {method!r}")
+    if region is not None and not isinstance(region, Region):
+        raise ValidationError(f"region must be an optdesign.regions.Region (e.g. Disk(0, 0.95)) or None; "
+                              f"found {type(region).__name__} {region!r}")
+    if as_options("options", options) and method == "place":
+        raise ValidationError("options (IPOPT options) apply to method='well_conditioned' only; "
+                              f"method='place' is a direct computation; found {options!r}")
+    return as_time_limit(time_limit)
 
 
 def _renamed(checks, prefix: str) -> list[Check]:
@@ -701,6 +720,8 @@ def generalized_observer(
     coupling: str | ArrayLike | None = None,
     starts: int = 8,
     seed: int = 0,
+    options: dict[str, Any] | None = None,
+    time_limit: float | None = None,
 ) -> GeneralizedObserver:
     r"""Design a generalized observer (seed 003) for an output-noise model.
 
@@ -736,6 +757,12 @@ def generalized_observer(
         ``"direct"``, ``"zero_free"`` that keeps ``(C_a, A_a)`` observable.
     starts, seed : int
         Multi-start settings of the well-conditioned design.
+    options : dict, optional
+        IPOPT options of the well-conditioned design (string keys).
+    time_limit : float, optional
+        Seconds of wall time of the well-conditioned design (None: no limit); when it runs out the
+        status is ``time_limit`` with the best verified design so far (``success`` False).
+        ``"place"`` is a direct computation and ignores it.
 
     Returns
     -------
@@ -777,8 +804,7 @@ def generalized_observer(
     """
     plant = _check_plant(plant, "a generalized observer")
     noise = _check_noise(noise, plant)
-    if method not in _METHODS:
-        raise ValidationError(f"method must be one of {_METHODS}; found {method!r}")
+    time_limit = _check_common(method, region, options, time_limit)
     what = "a generalized observer (seed 003 Theorem 2)"
     plant.require_observable(what=what)
     _require_full_row_rank_C(plant, noise, what)
@@ -794,7 +820,7 @@ def generalized_observer(
             raise ValidationError("coupling applies to method='place' only (the well-conditioned design "
                                   "optimizes H and K directly)")
         return _generalized_well_conditioned(plant, noise, N, M, count, region, target, objective,
-                                             starts, seed)
+                                             starts, seed, options=options, time_limit=time_limit)
 
     # coupling E: the first of "output", "direct", "zero_free" that keeps (C_a, A_a) observable
     Ca = np.hstack([plant.C, np.zeros((p, rp))])
@@ -853,12 +879,14 @@ def structured_pair(plant: Plant, noise: NoiseModel) -> tuple[NDArray, NDArray, 
     return As, Cs, mask
 
 
-def _generalized_well_conditioned(plant, noise, N, M, count, region, target, objective, starts, seed):
+def _generalized_well_conditioned(plant, noise, N, M, count, region, target, objective, starts, seed, *,
+                                  options=None, time_limit=None):
     n, p = plant.n, plant.p
     As, Cs, mask = structured_pair(plant, noise)
     aug = Plant(As, Cs, dt=plant.dt, name=f"generalized-observer structured pair ({noise.label})")
     reg, target = _well_conditioned_setup(plant, noise, count, region, target)
-    design = _call_well_conditioned(aug, reg, target, objective, starts, seed, structure=mask)
+    design = _call_well_conditioned(aug, reg, target, objective, starts, seed, structure=mask,
+                                    options=options, time_limit=time_limit)
     Ls = np.asarray(design.L, dtype=float)
     H, K = Ls[:n, :p], Ls[:n, p:]
     extra = _renamed(design.verification, "nlp:")
@@ -881,6 +909,8 @@ def noise_rejecting_observer(
     objective: str = "kappa2",
     starts: int = 8,
     seed: int = 0,
+    options: dict[str, Any] | None = None,
+    time_limit: float | None = None,
 ) -> NoiseRejectingObserver:
     r"""An observer that estimates the output noise as part of the state, so ``xh -> x``.
 
@@ -897,7 +927,7 @@ def noise_rejecting_observer(
     poles : (n + r p,) array_like of complex, optional
         Eigenvalues of ``A_a - L C_a``, strictly inside the unit circle (default
         :func:`default_poles`).
-    region, objective, starts, seed
+    region, objective, starts, seed, options, time_limit
         As :func:`generalized_observer`.
 
     Returns
@@ -919,8 +949,7 @@ def noise_rejecting_observer(
     """
     plant = _check_plant(plant, "a noise-rejecting observer")
     noise = _check_noise(noise, plant)
-    if method not in _METHODS:
-        raise ValidationError(f"method must be one of {_METHODS}; found {method!r}")
+    time_limit = _check_common(method, region, options, time_limit)
     plant.require_observable(what="a noise-rejecting observer")
     n, p = plant.n, plant.p
     N, _, Gamma = noise.realization(p)
@@ -956,7 +985,8 @@ def noise_rejecting_observer(
         check_region = region
     else:
         check_region, target = _well_conditioned_setup(plant, noise, count, region, target)
-        design = _call_well_conditioned(aug, check_region, target, objective, starts, seed)
+        design = _call_well_conditioned(aug, check_region, target, objective, starts, seed, options=options,
+                                        time_limit=time_limit)
         L = np.asarray(design.L, dtype=float)
         status = Status(design.status)
         message = f"well-conditioned output-disturbance observer: {design.message}"

@@ -79,10 +79,8 @@ How an answer is computed and checked
 from __future__ import annotations
 
 import dataclasses
-import threading
 import time
 import warnings
-from collections import OrderedDict
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
@@ -90,8 +88,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, check_symmetric
-from ..analysis.robustness import _resolve_R
+from .._deadline import Deadline
+from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, as_vector, check_symmetric
+from ..analysis.robustness import _resolve_R, circle_condition
 from ..classical.placement import place_observer, pole_error
 from ..classical.riccati import _fmt, filter_are
 from ..classical.riccati import _sort_poles as _sorted_poles
@@ -669,55 +668,72 @@ def _sdp_solvers() -> tuple[str, ...]:
     return _SOLVERS_CACHE[0]
 
 
-#: per-thread cache of parametric fixed-gain SDPs (one per plant, structure and objective)
-_SDP_CACHE = threading.local()
-_SDP_CACHE_SIZE = 8
-_SDP_REUSE = [True]
-
-
 @contextmanager
 def sdp_reuse(enabled: bool):
-    """Context manager: re-use (default) or rebuild the fixed-gain SDP for every gain.
+    """Deprecated no-op context manager (kept for one release).
 
-    :func:`kalman_for_poles` keeps, per thread, the last few continuous-time fixed-gain SDPs it
-    built (keyed by
-    the plant's A, C, R, G, dt, the structure and the objective) and only re-binds the gain
-    parameters when it sees the same plant again -- as a sweep over target poles does
-    (:class:`optdesign.studies.PoleTargetDesigner`).  ``with sdp_reuse(False):`` rebuilds every
-    problem (for measuring the difference: ``benchmarks/bench_sweep.py``).
+    :func:`kalman_for_poles` used to keep a hidden per-thread cache of parametric fixed-gain SDPs,
+    so that the same call could give a (slightly) different answer depending on what ran before
+    in the process.  Every call now builds its own problem; re-use is explicit through the
+    caller-held problem objects.
     """
-    old = _SDP_REUSE[0]
-    _SDP_REUSE[0] = bool(enabled)
-    try:
-        yield
-    finally:
-        _SDP_REUSE[0] = old
+    warnings.warn("sdp_reuse() has no effect: kalman_for_poles no longer caches SDPs between calls",
+                  DeprecationWarning, stacklevel=3)
+    yield
+
+
+def _whitening(plant: Plant, L: NDArray, R: NDArray) -> NDArray | None:
+    """A state transformation ``T`` (``x = T x~``) that whitens the error covariance of the
+    observer driven by its measurement noise alone, ``P_v`` (``F P_v + P_v F' + L R L' = 0``,
+    discrete ``P_v = F P_v F' + L R L'``, ``F = A - L C``): ``T = U diag(sqrt(lambda))`` from
+    ``P_v = U diag(lambda) U'`` (eigenvalues floored at 1e-10 of the largest).  The Kalman P of
+    any Q in the gain's family is ``P_v`` plus the process-noise part, so in these coordinates the
+    fixed-gain SDP sees P of order one instead of spanning the decades the physical P may span
+    (the regression case ``tests/data/is_kalman_optimal_false_no_discrete_n8_p2.npz``: P from 0.87
+    to 1.1e7, the SDP inaccurate; whitened, it solves to optimal).  None (identity) when F is not
+    stable, ``L R L' = 0`` or P_v is well scaled already."""
+    import scipy.linalg
+
+    F = plant.A - L @ plant.C
+    lam_F = np.linalg.eigvals(F)
+    if (np.max(np.abs(lam_F)) >= 1.0) if plant.is_discrete else (np.max(lam_F.real) >= 0.0):
+        return None
+    LRL = L @ R @ L.T
+    LRL = 0.5 * (LRL + LRL.T)
+    if not np.any(LRL):
+        return None
+    with np.errstate(all="ignore"):
+        try:
+            Pv = (scipy.linalg.solve_discrete_lyapunov(F, LRL) if plant.is_discrete
+                  else scipy.linalg.solve_continuous_lyapunov(F, -LRL))
+        except (np.linalg.LinAlgError, ValueError):
+            return None
+    lam, U = np.linalg.eigh(0.5 * (Pv + Pv.T))
+    if not (np.all(np.isfinite(lam)) and lam[-1] > 0):
+        return None
+    d = np.sqrt(np.maximum(lam, 1e-10 * lam[-1]))
+    if d[-1] / d[0] < 10.0:  # well scaled already: the physical coordinates are fine
+        return None
+    return U * d
+
+
+def _transformed(plant: Plant, T: NDArray) -> Plant:
+    """The plant in the coordinates ``x = T x~`` (A~ = T^-1 A T, C~ = C T, G~ = T^-1 G)."""
+    Ti = np.linalg.inv(T)
+    return plant.replace(A=Ti @ plant.A @ T, C=plant.C @ T, G=Ti @ plant.G)
 
 
 def _fixed_gain_sdp(plant: Plant, L: NDArray, R: NDArray, structure: str, objective: str,
-                    Qn: NDArray | None):
-    """The fixed-gain SDP of ``plant`` bound to ``L``: from the per-thread cache when possible."""
-    def build():
+                    Qn: NDArray | None, T: NDArray | None = None, physical: bool = True):
+    """The fixed-gain SDP of ``plant`` bound to ``L`` (built for this call: no hidden re-use),
+    in the coordinates ``x = T x~`` when T is given; the objective is the physical noise's
+    (``physical``) or the whitened one's."""
+    if T is None:
         return build_fixed_gain_sdp(plant.A, plant.C, L, R, dt=plant.dt, structure=structure,
                                     G=plant.G, objective=objective, Q_nominal=Qn)
-
-    if not _SDP_REUSE[0] or plant.dt is not None:  # discrete-time SDPs are built for one gain
-        return build()
-    G = plant.G
-    key = (plant.A.tobytes(), plant.A.shape, plant.C.tobytes(), plant.C.shape, np.asarray(R).tobytes(),
-           plant.dt, structure, objective, None if G is None else (G.tobytes(), G.shape),
-           None if Qn is None else np.shape(Qn))
-    cache = getattr(_SDP_CACHE, "entries", None)
-    if cache is None:
-        cache = _SDP_CACHE.entries = OrderedDict()
-    sdp = cache.get(key)
-    if sdp is None:
-        sdp = cache[key] = build()
-        while len(cache) > _SDP_CACHE_SIZE:
-            cache.popitem(last=False)
-        return sdp
-    cache.move_to_end(key)
-    return sdp.set_gain(L, Qn)
+    pt = _transformed(plant, T)
+    return build_fixed_gain_sdp(pt.A, pt.C, np.linalg.solve(T, L), R, dt=plant.dt, structure=structure,
+                                G=pt.G, objective=objective, Q_nominal=Qn, T=T if physical else None)
 
 
 #: retries after a numerical failure of the SDP solver: (solver, extra options)
@@ -744,9 +760,17 @@ def _sdp_attempts(solver: str | None):
 
 
 def _sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, objective: str,
-                    Qn: NDArray | None, solver: str | None):
-    """Solve the fixed-gain SDP.  Returns ``(P, Wdec, report, sdp)`` (physical units) or
+                    Qn: NDArray | None, solver: str | None, deadline: Deadline | None = None, *,
+                    whiten: bool = False, physical: bool = True):
+    """Solve the fixed-gain SDP.  Returns ``(P, Wdec, report, sdp)`` in physical units, or
     ``(None, None, report, sdp)`` on failure.
+
+    ``whiten``: in the whitened coordinates of :func:`_whitening` (a retry for badly scaled
+    families: an inconclusive or unverified physical answer), with the physical objective
+    (``physical``) or the whitened one (certificates, where any PSD member will do).  Whitening
+    is a preconditioner, not a safe default: where the observer-noise covariance is itself nearly
+    singular it makes the problem worse (measured: a rank-one-Q boundary gain whose whitened SDP
+    reported "optimal" with a wrong margin), so a whitened answer is used only when it verifies.
 
     A numerical failure of the backend (not an infeasibility verdict) is retried: Clarabel
     with stronger static regularization, then SCS -- the latter only when no solver was
@@ -754,30 +778,48 @@ def _sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, object
     """
     from ..solvers.cvxpy_backend import solve_cvxpy
 
+    deadline = Deadline.of(deadline)
+    T = _whitening(plant, L, R) if whiten else None
     attempts = []
     rep = sdp = None
     for name, opts in _sdp_attempts(solver):
-        sdp = _fixed_gain_sdp(plant, L, R, structure, objective, Qn)
-        rep = solve_cvxpy(sdp.problem, name, opts)
+        sdp = _fixed_gain_sdp(plant, L, R, structure, objective, Qn, T, physical)
+        rep = solve_cvxpy(sdp.problem, name, {**(opts or {}), **deadline.sdp_options(name)})
         attempts.append(f"{name.lower()}{'' if not opts else ' ' + str(opts)}: {rep.stats.native_status}")
-        if rep.status.is_solved or rep.status.is_infeasible or rep.status == Status.UNBOUNDED:
+        if rep.status.is_solved or rep.status.is_infeasible or rep.status == Status.UNBOUNDED \
+                or deadline.expired:
             break
     rep.stats.extra["attempts"] = attempts
+    rep.stats.extra["whitened"] = T is not None
     if not rep.status.is_solved or sdp.P.value is None:
         return None, None, rep, sdp
-    return sdp.scale * np.asarray(sdp.P.value), _sdp_decision(sdp, structure), rep, sdp
+    P = sdp.scale * np.asarray(sdp.P.value)
+    W = _sdp_decision(sdp, structure)
+    if T is not None:
+        P = _sym(T @ P @ T.T)
+        if structure == "full":
+            W = _sym(T @ W @ T.T)
+    return P, W, rep, sdp
 
 
 def _sdp_decision(sdp, structure: str) -> NDArray:
-    """The decision covariance of a solved SDP in physical units: Q (``"full"``), Qw
-    (``"input"``) or the vector qw (``"diagonal"``)."""
+    """The decision covariance of a solved SDP in the SDP's units times its scale: Q (``"full"``),
+    Qw (``"input"``) or the vector qw (``"diagonal"``)."""
     W = sdp.scale * np.asarray((sdp.Q if structure == "full" else sdp.Qw).value)
     return W.ravel() if structure == "diagonal" else W
 
 
-def _margin(plant: Plant, L: NDArray, R: NDArray, structure: str, solver: str | None):
-    """Max over the Q family of the smallest eigenvalue of the decision covariance."""
-    P0, W0, rep, sdp = _sdp_fixed_gain(plant, L, R, structure, "feasibility", None, solver)
+def _margin(plant: Plant, L: NDArray, R: NDArray, structure: str, solver: str | None,
+            deadline: Deadline | None = None, *, whiten: bool = False):
+    """Max over the Q family of the smallest eigenvalue of the decision covariance: the
+    feasibility SDP.  Returns ``(t, P, Wdec, report)`` (P, Wdec physical).
+
+    ``whiten``: solve in the whitened coordinates of :func:`_whitening`, maximizing the smallest
+    eigenvalue of the *whitened* covariance -- a search for a certificate (any PSD member will
+    do), used only when the physical SDP is inconclusive; its ``t`` is then in whitened units and
+    is never used for a verdict."""
+    P0, W0, rep, sdp = _sdp_fixed_gain(plant, L, R, structure, "feasibility", None, solver, deadline,
+                                       whiten=whiten, physical=not whiten)
     if P0 is None:
         return float("nan"), None, None, rep
     return float(sdp.scale * sdp.t.value), P0, W0, rep
@@ -944,9 +986,21 @@ def _run_sequential(plant, target, common, tol, t_start):
         details={"solheim": sol}, **common)
 
 
-def _polished(plant, L, R, structure, P0, W0):
-    """Face polish of an SDP point; None when no face fits."""
-    return _face_polish(plant.A, plant.C, L, R, plant.dt, structure, plant.G, P0, W0, 1e-9)
+def _polished(plant, L, R, structure, P0, W0, *, whiten: bool = False):
+    """Face polish of an SDP point (:func:`_face_polish`; in the whitened coordinates of
+    :func:`_whitening` with ``whiten``); ``(P, Wdec, residual)`` in physical units, or None when
+    no face fits."""
+    T = _whitening(plant, L, R) if whiten else None
+    if T is None:
+        return _face_polish(plant.A, plant.C, L, R, plant.dt, structure, plant.G, P0, W0, 1e-9)
+    Ti = np.linalg.inv(T)
+    pt = _transformed(plant, T)
+    W0t = _sym(Ti @ W0 @ Ti.T) if structure == "full" else W0
+    pol = _face_polish(pt.A, pt.C, Ti @ L, R, plant.dt, structure, pt.G, _sym(Ti @ P0 @ Ti.T), W0t, 1e-9)
+    if pol is None:
+        return None
+    P, W, res = pol
+    return _sym(T @ P @ T.T), (_sym(T @ W @ T.T) if structure == "full" else W), res
 
 
 def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L=None):
@@ -1194,7 +1248,6 @@ def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
 
 def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, t_start, details):
     """Single-output target out of reach: circle-condition certificate + closest poles."""
-    from ..analysis.robustness import circle_condition
 
     structure = common["structure"]
     circ = None
@@ -1644,7 +1697,6 @@ def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
 def _unique_gain_circle(plant: Plant, target: NDArray, starts: list, details: dict):
     """One output: ``(circle condition at the gain fixed by the poles, fixed-gain SDP margin)``
     (either None when unavailable)."""
-    from ..analysis.robustness import circle_condition
 
     L0 = next((st["L"] for st in starts if st.get("kind") == "fixed-gain SDP"), None)
     margin = next((st["margin"] for st in starts if st.get("kind") == "fixed-gain SDP"), None)
@@ -1843,6 +1895,7 @@ def is_kalman_optimal(
     omega: ArrayLike | None = None,
     solver: str | None = None,
     tol: float = 1e-8,
+    time_limit: float | None = None,
 ) -> KalmanOptimalityResult:
     r"""Is L the steady-state Kalman gain of the plant for some process noise ``Q >= 0``?
 
@@ -1877,6 +1930,9 @@ def is_kalman_optimal(
     solver : {"CLARABEL", "SCS"} or None
     tol : float
         Relative tolerance: optimal when ``t >= -tol * max(1, ||Q||)``.
+    time_limit : float, optional
+        Seconds of wall time for the SDP stages; when it runs out before a verdict the status is
+        ``time_limit`` (never a false "not optimal").
 
     Returns
     -------
@@ -1902,112 +1958,202 @@ def is_kalman_optimal(
     (True, False)
     """
     with _quiet():
-        return _is_kalman_optimal(plant, L, R, omega, solver, tol)
+        return _is_kalman_optimal(plant, L, R, omega, solver, tol, time_limit)
 
 
-def _is_kalman_optimal(plant, L, R, omega, solver, tol) -> KalmanOptimalityResult:
-    from ..analysis.robustness import circle_condition
+def _gain_relation(plant: Plant, L: NDArray, R: NDArray):
+    """The algebraic necessary condition of optimality: ``C P C'`` (fixed by L: continuous
+    ``C L R``; discrete ``C P C'`` from ``(A - L C) P C' = L R``) must be symmetric PSD.
 
+    Returns ``(checks, what)``; the tolerances are the rounding level of the computation
+    (``10 n eps`` times the size of what is formed, divided by the size of ``C P C'``; in discrete
+    time ``P C'`` comes from a solve with ``A - L C`` and inherits its condition number) -- an
+    asymmetry below it is rounding, not evidence (the regression case
+    ``tests/data/is_kalman_optimal_false_no_discrete_n8_p2.npz``: 3.7e-9 against a fixed 1e-9
+    called a true DARE gain "not optimal")."""
+    A, C = plant.A, plant.C
+    n = plant.n
+    LR = L @ R
+    if plant.is_discrete:
+        Fc = A - L @ C
+        PCt = _lstsq(Fc, LR)
+        CPC = C @ PCt
+        cond = float(np.linalg.cond(Fc))
+        size = float(np.linalg.norm(C)) * (cond * float(np.linalg.norm(PCt)) + float(np.linalg.norm(L))
+                                           * float(np.linalg.norm(R)))
+        gap = float(np.linalg.norm(Fc @ PCt - LR)) / max(1e-300, float(np.linalg.norm(LR)))
+        gap_tol = 10.0 * n * _EPS * cond
+    else:
+        CPC = C @ LR
+        size = float(np.linalg.norm(C)) * float(np.linalg.norm(L)) * float(np.linalg.norm(R))
+        gap, gap_tol = 0.0, 1.0
+    scale = max(1.0, float(np.linalg.norm(CPC)))
+    tol = 10.0 * n * _EPS * size / scale
+    asym = float(np.linalg.norm(CPC - CPC.T)) / scale
+    cmin = float(np.linalg.eigvalsh(_sym(CPC))[0]) / scale
+    what = "C L R" if not plant.is_discrete else "C P C' (from (A - LC) P C' = L R)"
+    checks = [Check.at_most("gain_relation_asymmetry", asym, tol, f"{what} symmetric (to its rounding level)"),
+              Check.at_least("gain_relation_min_eig", cmin, -tol, f"{what} PSD (to its rounding level)")]
+    if plant.is_discrete:
+        checks.append(Check.at_most("gain_relation_residual", gap, gap_tol,
+                                    "(A - LC) P C' = L R solvable (to the rounding level of the solve)"))
+    return checks, what
+
+
+def _is_kalman_optimal(plant, L, R, omega, solver, tol, time_limit) -> KalmanOptimalityResult:
     t0 = time.perf_counter()
+    deadline = Deadline(time_limit)
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
     L = as_matrix("L", L, (plant.n, plant.p))
     R = _resolve_R(plant, R, "is_kalman_optimal")
     tol = as_positive_float("tol", tol)
-    A, C = plant.A, plant.C
+    if omega is not None:
+        w = as_vector("omega", omega)
+        if np.any(w < 0):
+            raise ValidationError(f"omega must be frequencies >= 0 (rad/s); found {w[w < 0][0]:g}")
+    poles = np.linalg.eigvals(plant.A - L @ plant.C)
+    ctx = _OptimalityContext(plant, L, R, t0)
     disc = plant.is_discrete
-    poles = np.linalg.eigvals(A - L @ C)
-    nan = float("nan")
+    if not np.all(_stable(poles, disc)):
+        worst = poles[np.argmax(np.abs(poles))] if disc else poles[np.argmax(poles.real)]
+        return ctx.no("unstable_target", f"A - L C is not stable (eigenvalue {_fmt(worst)}); a steady-state "
+                                         f"Kalman filter always is",
+                      checks=[Check.at_most("stability", float(abs(worst) - 1 if disc else worst.real), 0.0,
+                                            "A - L C must be stable")])
+    if not np.any(L):  # the filter of Q = 0 of a stable plant: P = 0 solves the Riccati equation exactly
+        Z = np.zeros((plant.n, plant.n))
+        ver = Verification.of(riccati_checks(plant.replace(R=R), L, Z, Z, what="Q = 0")[0])
+        return ctx.yes(Z, Z, ver, margin=0.0, status=Status.SOLVED, circ=None,
+                       msg="Kalman-optimal: L = 0 is the Kalman gain of Q = 0 (A is stable, P = 0 exactly)")
+    circ = None
+    try:
+        circ = circle_condition(plant, L, R=R, omega=omega)
+    except np.linalg.LinAlgError:
+        circ = None
+    checks, _ = _gain_relation(plant, L, R)
+    if not all(c.passed for c in checks):
+        val = {c.name: c.value for c in checks}
+        return ctx.no("gain_relation",
+                      f"{checks[0].detail.split(' symmetric')[0]} must be symmetric positive semidefinite (it is "
+                      f"C P C'); asymmetry {val['gain_relation_asymmetry']:.3g}, smallest eigenvalue "
+                      f"{val['gain_relation_min_eig']:.3g} (beyond their rounding level "
+                      f"{checks[0].tolerance:.2g})", circ=circ, checks=checks)
+    return _optimality_by_sdp(ctx, circ, solver, tol, deadline)
 
-    def no(kind, reason, status=Status.INFEASIBLE, margin=nan, circ=None, checks=(), stats=None):
+
+@dataclass
+class _OptimalityContext:
+    """What the stages of :func:`is_kalman_optimal` share: the question and how to answer it."""
+
+    plant: Plant
+    L: NDArray
+    R: NDArray
+    t0: float
+
+    def stats(self, rep=None) -> SolverStats:
+        if rep is None:
+            return _stats("none", t=time.perf_counter() - self.t0)
+        return _stats(rep.stats.backend, rep.stats.native_status, time.perf_counter() - self.t0,
+                      rep.stats.iterations)
+
+    def no(self, kind, reason, status=Status.INFEASIBLE, margin=float("nan"), circ=None, checks=(),
+           stats=None) -> KalmanOptimalityResult:
+        nan = float("nan")
         cert = InfeasibilityCertificate(
             kind=kind, reason=reason, margin=None if not np.isfinite(margin) else margin,
             omega=None if circ is None else circ.omega_worst,
             min_eigenvalue=None if circ is None else circ.min_eigenvalue, circle=circ)
         return KalmanOptimalityResult(
-            optimal=False, L=L, R=R, Q=None, P=None, margin=margin,
+            optimal=False, L=self.L, R=self.R, Q=None, P=None, margin=margin,
             min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
             omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=cert,
             status=status, message=f"not Kalman-optimal: {cert}", verification=Verification.of(checks),
-            solver_stats=stats or _stats("none", t=time.perf_counter() - t0))
+            solver_stats=stats or self.stats())
 
-    if not np.all(_stable(poles, disc)):
-        worst = poles[np.argmax(np.abs(poles))] if disc else poles[np.argmax(poles.real)]
-        return no("unstable_target", f"A - L C is not stable (eigenvalue {_fmt(worst)}); a steady-state "
-                                     f"Kalman filter always is",
-                  checks=[Check.at_most("stability", float(abs(worst) - 1 if disc else worst.real), 0.0,
-                                        "A - L C must be stable")])
-    circ = None
-    try:
-        circ = circle_condition(plant, L, R=R, omega=omega)
-    except (ValidationError, np.linalg.LinAlgError):
-        circ = None
-    # algebraic necessary condition: C P C' (symmetric PSD) is fixed by L
-    if disc:
-        Fc = A - L @ C
-        PCt = _lstsq(Fc, L @ R)
-        CPC = C @ PCt
-        rel_gap = float(np.linalg.norm(Fc @ PCt - L @ R)) / max(1e-300, float(np.linalg.norm(L @ R)) + 1e-300)
-    else:
-        CPC = C @ L @ R
-        rel_gap = 0.0
-    asym = float(np.linalg.norm(CPC - CPC.T)) / max(1.0, float(np.linalg.norm(CPC)))
-    cmin = float(np.linalg.eigvalsh(_sym(CPC))[0]) / max(1.0, float(np.linalg.norm(CPC)))
-    if asym > 1e-9 or cmin < -1e-9 or rel_gap > 1e-9:
-        what = "C L R" if not disc else "C P C' (from (A - LC) P C' = L R)"
-        return no("gain_relation",
-                  f"{what} must be symmetric positive semidefinite (it is C P C'); asymmetry {asym:.3g}, "
-                  f"smallest eigenvalue {cmin:.3g}", circ=circ,
-                  checks=[Check.at_most("gain_relation_asymmetry", asym, 1e-9, f"{what} symmetric"),
-                          Check.at_least("gain_relation_min_eig", cmin, -1e-9, f"{what} PSD")])
-    t_star, P0, W0, rep = _margin(plant, L, R, "full", solver)
-    stats = _stats(rep.stats.backend, rep.stats.native_status, time.perf_counter() - t0, rep.stats.iterations)
-    qscale = max(1.0, float(np.linalg.norm(W0, 2))) if P0 is not None else 1.0
-    margin_ok = P0 is not None and t_star >= -tol * qscale
-    circle_fails = circ is not None and not circ.passed
-    notes: list[str] = []
+    def yes(self, P, Q, ver, *, margin, status, circ, msg, rep=None) -> KalmanOptimalityResult:
+        nan = float("nan")
+        return KalmanOptimalityResult(
+            optimal=True, L=self.L, R=self.R, Q=Q, P=P, margin=margin,
+            min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
+            omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=None,
+            status=status, message=msg, verification=ver, solver_stats=self.stats(rep))
+
+    def inconclusive(self, status, msg, margin, circ, checks, rep) -> KalmanOptimalityResult:
+        nan = float("nan")
+        return KalmanOptimalityResult(
+            optimal=False, L=self.L, R=self.R, Q=None, P=None, margin=margin,
+            min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
+            omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=None,
+            status=status, message=msg, verification=Verification.of(checks), solver_stats=self.stats(rep))
+
+
+def _certificate_search(ctx: _OptimalityContext, t_star, P0, W0, rep, margin_ok, circle_fails, solver,
+                        deadline, notes):
+    """A verified Q for the gain: the margin SDP's point (polished), the min-trace SDP's point
+    (polished), then -- for badly scaled families -- the same in whitened coordinates.  Returns
+    ``(cert, rep)``: ``cert = (P, Q, verification)`` or None."""
+    plant, L, R = ctx.plant, ctx.L, ctx.R
     cert = None
     if margin_ok:
         cert = _optimality_certificate(plant, L, R, P0, W0, project=True)
         if cert is None:
             notes.append("the margin SDP's point fails the checks")
-    if cert is None and not (circle_fails and not margin_ok):
-        # a boundary gain (rank-deficient Q: margin 0) is where the margin SDP is least
-        # accurate: polish its point onto its face of the PSD cone, then the min-trace SDP's
-        # point, before any verdict
-        if P0 is not None and not margin_ok:
-            cert = _optimality_certificate(plant, L, R, P0, W0, project=False)
-        if cert is None:
-            P1, W1, rep1, _ = _sdp_fixed_gain(plant, L, R, "full", "min_trace", None, solver)
-            if P1 is not None:
-                cert = _optimality_certificate(plant, L, R, P1, W1, project=False)
-                if cert is not None:
-                    rep = rep1
-                    notes.append("certificate from the min-trace SDP, polished")
-            else:
-                notes.append(f"the min-trace SDP failed ({rep1.message})")
-        elif not margin_ok:
+    if cert is not None or (circle_fails and not margin_ok):
+        return cert, rep
+    # a boundary gain (rank-deficient Q: margin 0) is where the margin SDP is least accurate:
+    # polish its point onto its face of the PSD cone, then the min-trace SDP's point
+    if P0 is not None and not margin_ok:
+        cert = _optimality_certificate(plant, L, R, P0, W0, project=False)
+        if cert is not None:
             notes.append("the margin SDP's point polished onto its face of the PSD cone")
-        stats = _stats(rep.stats.backend, rep.stats.native_status, time.perf_counter() - t0,
-                       rep.stats.iterations)
+            return cert, rep
+    if not deadline.expired:
+        P1, W1, rep1, _ = _sdp_fixed_gain(plant, L, R, "full", "min_trace", None, solver, deadline)
+        if P1 is not None:
+            cert = _optimality_certificate(plant, L, R, P1, W1, project=False)
+            if cert is not None:
+                notes.append("certificate from the min-trace SDP, polished")
+                return cert, rep1
+        else:
+            notes.append(f"the min-trace SDP failed ({rep1.message})")
+    if not deadline.expired and _whitening(plant, L, R) is not None:
+        # badly scaled family (P over many decades): the same search whitened; only a verified
+        # certificate is taken from it, never a verdict
+        _, P2, W2, rep2 = _margin(plant, L, R, "full", solver, deadline, whiten=True)
+        if P2 is not None:
+            cert = _optimality_certificate(plant, L, R, P2, W2, project=False, whiten=True)
+            if cert is not None:
+                notes.append("certificate from the margin SDP in whitened coordinates, polished")
+                return cert, rep2
+    return None, rep
+
+
+def _optimality_by_sdp(ctx: _OptimalityContext, circ, solver, tol, deadline) -> KalmanOptimalityResult:
+    """The SDP stage of :func:`is_kalman_optimal`: a verified Q, or a sound verdict, or "inconclusive"."""
+    plant, L, R = ctx.plant, ctx.L, ctx.R
+    disc = plant.is_discrete
+    t_star, P0, W0, rep = _margin(plant, L, R, "full", solver, deadline)
+    qscale = max(1.0, float(np.linalg.norm(W0, 2))) if P0 is not None else 1.0
+    margin_ok = P0 is not None and t_star >= -tol * qscale
+    circle_fails = circ is not None and not circ.passed
+    notes: list[str] = []
+    cert, rep_c = _certificate_search(ctx, t_star, P0, W0, rep, margin_ok, circle_fails, solver, deadline,
+                                      notes)
     if cert is not None:
         P, Q, ver = cert
         q_min = float(np.linalg.eigvalsh(Q)[0])
-        margin = t_star if margin_ok else max(q_min, t_star if np.isfinite(t_star) else q_min)
-        msg = f"Kalman-optimal: Q certificate with smallest eigenvalue margin {margin:.4g}"
+        msg = f"Kalman-optimal: Q certificate with smallest eigenvalue {q_min:.4g}"
         if not margin_ok:
-            msg += (f" (a boundary gain: the margin SDP reported {t_star:.4g}"
-                    f"{'' if P0 is not None else ' / failed'}; its inaccuracy, the polished Q is exact)")
+            msg += (f" (a boundary or badly scaled gain: the margin SDP reported {t_star:.4g}"
+                    f"{'' if P0 is not None else ' / failed'}; the polished Q is exact)")
         if notes:
             msg += "; " + "; ".join(notes)
         if circ is not None:
             msg += f"; circle condition min eigenvalue {circ.min_eigenvalue:.3g}"
-        status = rep.status if (margin_ok and rep.status.is_solved) else Status.OPTIMAL_INACCURATE
-        return KalmanOptimalityResult(
-            optimal=True, L=L, R=R, Q=Q, P=P, margin=margin,
-            min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
-            omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=None,
-            status=status, message=msg, verification=ver, solver_stats=stats)
+        status = rep_c.status if (margin_ok and rep_c is rep and rep.status.is_solved) else Status.OPTIMAL_INACCURATE
+        return ctx.yes(P, Q, ver, margin=t_star if margin_ok else q_min, status=status, circ=circ, msg=msg,
+                       rep=rep_c)
     # no verified Q: a verdict only where the evidence is sound
     checks = []
     if P0 is not None:
@@ -2031,26 +2177,25 @@ def _is_kalman_optimal(plant, L, R, omega, solver, tol) -> KalmanOptimalityResul
                   + ("" if circle_fails or circ is None else
                      "; the frequency scan found no violation (a narrow dip between grid points "
                      "can be missed; the SDP margin is accurate)"))
-        return no(kind, reason, margin=t_star if P0 is not None else nan, circ=circ, checks=checks,
-                  stats=stats)
+        return ctx.no(kind, reason, margin=t_star if P0 is not None else float("nan"), circ=circ,
+                      checks=checks, stats=ctx.stats(rep))
+    if deadline.expired:
+        return ctx.inconclusive(Status.TIME_LIMIT, f"time limit reached before a verdict ({deadline})",
+                                t_star if P0 is not None else float("nan"), circ, checks, rep)
     what = (f"the margin SDP gave {t_star:.4g} ({rep.stats.native_status})" if P0 is not None else
             f"the fixed-gain SDP failed ({rep.message})")
     msg = (f"inconclusive: {what}, but no polished PSD Q reproduces L"
            + (f", while the return-difference inequality holds ({circ_txt})" if circ is not None else "")
            + ("; " + "; ".join(notes) if notes else ""))
     status = Status.NUMERICAL_ERROR if rep.status.is_solved or rep.status.is_infeasible else rep.status
-    return KalmanOptimalityResult(
-        optimal=False, L=L, R=R, Q=None, P=None, margin=t_star if P0 is not None else nan,
-        min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
-        omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=None,
-        status=status, message=msg, verification=Verification.of(checks), solver_stats=stats)
+    return ctx.inconclusive(status, msg, t_star if P0 is not None else float("nan"), circ, checks, rep)
 
 
-def _optimality_certificate(plant, L, R, P0, W0, *, project: bool):
+def _optimality_certificate(plant, L, R, P0, W0, *, project: bool, whiten: bool = False):
     """``(P, Q, verification)`` from an SDP point for the gain L, polished onto its face of the
     PSD cone (``project``: else the PSD projection of the unpolished point), when every check
     passes; None otherwise."""
-    pol = _face_polish(plant.A, plant.C, L, R, plant.dt, "full", None, P0, W0, 1e-9)
+    pol = _polished(plant.replace(R=R), L, R, "full", P0, W0, whiten=whiten)
     if pol is not None:
         P, Q, _ = pol
     elif project:

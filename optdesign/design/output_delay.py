@@ -60,10 +60,24 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_int, as_matrix, as_positive_float, as_square, as_vector, check_pd, check_psd
+from .._deadline import Deadline
+from .._validate import (
+    as_array,
+    as_bool,
+    as_frequencies,
+    as_int,
+    as_matrix,
+    as_positive_float,
+    as_square,
+    as_str,
+    as_vector,
+    check_pd,
+    check_psd,
+)
 from ..analysis.robustness import (
     CircleConditionResult,
     circle_search,
+    search_stopped,
     worst_case_parts,
 )
 from ..errors import RiccatiError, ValidationError
@@ -88,12 +102,10 @@ def pade_delay(tau: float, order: int) -> tuple[NDArray, NDArray, NDArray, NDArr
     Raises
     ------
     ValidationError
-        ``tau <= 0`` or ``order < 1``.
+        ``tau`` not a number ``> 0``, or ``order`` not an integer ``>= 1``.
     """
     tau = as_positive_float("tau", tau)
-    m = int(order)
-    if m < 1 or m != order:
-        raise ValidationError(f"Pade order must be an integer >= 1; found {order!r}")
+    m = as_int("Pade order", order, 1)
     f = math.factorial
     c = np.array([f(2 * m - k) * f(m) / (f(2 * m) * f(k) * f(m - k)) for k in range(m + 1)])
     den = c[::-1] / c[m]                       # monic, highest power first
@@ -265,7 +277,8 @@ class OutputDelayKalman(ResultMixin):
         return np.unique(np.concatenate([[0.0], np.logspace(math.log10(lo) - 2, math.log10(hi) + 2, k), lin]))
 
     def circle_condition(
-        self, omega: ArrayLike | None = None, *, tol: float | None = None
+        self, omega: ArrayLike | None = None, *, tol: float | None = None,
+        time_limit: float | Deadline | None = None,
     ) -> CircleConditionResult:
         r"""Seed 002 Theorem 1 (eq 17): ``min_w lambda_min(T R T^* - R)`` with the true delay.
 
@@ -273,24 +286,39 @@ class OutputDelayKalman(ResultMixin):
         grid -- the approximation error of the finite-dimensional filter, which the verdict must
         allow for (the exact filter satisfies (19) exactly).  Compare ``min_eigenvalue`` with
         ``tol``: for the seed example the minimum is positive, so no allowance is needed.
+
+        ``omega`` (rad/s, finite, ``>= 0``) replaces :meth:`frequency_grid` as the seed grid;
+        ``time_limit`` (seconds) stops the search as in
+        :func:`~optdesign.analysis.robustness.circle_condition` (``complete = False``).
+
+        Raises
+        ------
+        ValidationError, DimensionError, NotFiniteError
+            A bad ``omega``, ``tol`` (finite, ``>= 0``) or ``time_limit``.
         """
+        deadline = Deadline.of(time_limit)
         R = self.R
-        grid = self.frequency_grid() if omega is None else np.unique(as_vector("omega", omega))
-        w_all, vals = circle_search(self.return_difference, grid, R, R, log=True)
+        grid = self.frequency_grid() if omega is None else np.unique(as_frequencies("omega", omega))
+        if tol is not None:
+            tol = as_positive_float("tol", tol, allow_zero=True)
+        w_all, vals, complete = circle_search(self.return_difference, grid, R, R, log=True,
+                                              deadline=deadline)
         i = int(np.argmin(vals))
         w_star = float(w_all[i])
         if tol is None:
-            approx = float(np.max(self.spectral_residual(grid, relative=False)))
+            approx = float(np.max(self.spectral_residual(w_all, relative=False)))
             tol = 1e-8 * float(np.linalg.norm(R, 2)) + approx
         T_star = self.return_difference(np.array([w_star]))[0]
         direction, Delta = worst_case_parts(T_star, R, R)
         min_eig = float(vals[i])
-        passed = min_eig >= -tol
+        holds = min_eig >= -tol
+        message = "" if holds else f"T R T* - R has eigenvalue {min_eig:.4g} at omega = {w_star:.6g}"
+        if not complete:
+            message = "; ".join(filter(None, [message, search_stopped(deadline, w_all.size, holds)]))
         return CircleConditionResult(
-            min_eigenvalue=min_eig, omega_worst=w_star, passed=passed, omega=w_all, values=vals, tol=tol,
-            R=R, V=R, discrete=False, dt=None, V_source="R", T_worst=T_star, direction=direction,
-            perturbation=Delta,
-            message="" if passed else f"T R T* - R has eigenvalue {min_eig:.4g} at omega = {w_star:.6g}",
+            min_eigenvalue=min_eig, omega_worst=w_star, passed=holds and complete, omega=w_all, values=vals,
+            tol=tol, R=R, V=R, discrete=False, dt=None, V_source="R", T_worst=T_star, direction=direction,
+            perturbation=Delta, message=message, complete=complete,
         )
 
     def summary(self) -> str:
@@ -314,6 +342,20 @@ def _van_loan(A: NDArray, W: NDArray, dt: float) -> tuple[NDArray, NDArray]:
     Phi = E[n:, n:].T
     Qd = Phi @ E[:n, n:]
     return Phi, 0.5 * (Qd + Qd.T)
+
+
+def _solve(method: str, A, C0, C1, W, R, h, m, N) -> dict[str, Any]:
+    """The finite-dimensional filter of one order; every failure is a :class:`RiccatiError`."""
+    try:
+        if method == "pade":
+            return _solve_pade(A, C0, C1, W, R, h, m, N)
+        return _solve_sample(A, C0, C1, W, R, h, N)
+    except RiccatiError:
+        raise
+    except (np.linalg.LinAlgError, ValueError) as exc:
+        raise RiccatiError(
+            f"the augmented Riccati equation of the delayed-output system ({method}) has no stabilizing "
+            f"solution: {exc}") from exc
 
 
 def _solve_pade(A, C0, C1, W, R, h, m, N):
@@ -364,9 +406,10 @@ def _solve_pade(A, C0, C1, W, R, h, m, N):
     eig = np.linalg.eigvals(Aa - Ka @ Ca)
     stable = bool(np.max(eig.real) < 0)
     if not stable:
-        raise np.linalg.LinAlgError(
-            f"the ARE solution is not stabilizing (eigenvalue {eig[np.argmax(eig.real)]:.4g} of the "
-            "augmented filter): is the delayed-output system detectable?")
+        raise RiccatiError(
+            "the augmented Riccati equation of the delayed-output system (pade) has no stabilizing "
+            f"solution: eigenvalue {eig[np.argmax(eig.real)]:.4g} of the augmented filter (is the "
+            "delayed-output system detectable?)")
     K_theta = np.stack([Mj @ Ka for Mj in Ms])
     p1 = np.stack([Mj @ P @ Ms[0].T for Mj in Ms])
     return dict(p0=p1[0].copy(), K0=K_theta[0].copy(), K_theta=K_theta, p1=p1, dim=dim, residual=rel,
@@ -398,9 +441,10 @@ def _solve_sample(A, C0, C1, W, R, h, N):
     rho = float(np.max(np.abs(np.linalg.eigvals(F - Lp @ Ca))))
     stable = rho < 1
     if not stable:
-        raise np.linalg.LinAlgError(
-            f"the DARE solution is not stabilizing (spectral radius {rho:.6g}): is the delayed-output system "
-            "detectable?")
+        raise RiccatiError(
+            "the augmented Riccati equation of the delayed-output system (sample) has no stabilizing "
+            f"solution: spectral radius {rho:.6g} of the augmented filter (is the delayed-output system "
+            "detectable?)")
     # a-priori and a-posteriori covariances are both O(dt) from the continuous limit, with
     # opposite leading errors: their mean is O(dt^2)
     Pplus = P - P @ Ca.T @ np.linalg.solve(Vd, Ca @ P)
@@ -417,7 +461,8 @@ def _solve_sample(A, C0, C1, W, R, h, N):
 def _validate(A, C0, C1, h, Q, R, G):
     A = as_square("A", A)
     n = A.shape[0]
-    C0 = as_matrix("C0", C0, (None, n)) if np.ndim(C0) != 1 else as_matrix("C0", C0, (1, n))
+    C0 = as_array("C0", C0, (0, 1, 2))
+    C0 = as_matrix("C0", C0, (1, n) if C0.ndim == 1 else (None, n))
     p = C0.shape[0]
     C1 = as_matrix("C1", C1, (p, n))
     h = as_positive_float("h", h)
@@ -441,6 +486,7 @@ def output_delay_kalman(
     sections: int | None = None,
     G: ArrayLike | None = None,
     extrapolate: bool = True,
+    time_limit: float | None = None,
 ) -> OutputDelayKalman:
     r"""Stationary Kalman filter for ``y = C0 x(t) + C1 x(t-h) + v`` (seed 002 eqs 3-8).
 
@@ -469,6 +515,11 @@ def output_delay_kalman(
         Process-noise input matrix (default I).
     extrapolate : bool
         Sampling only: Richardson extrapolation ``(4 X_N - X_{N/2}) / 3`` (fourth-order accurate).
+    time_limit : float, optional
+        Seconds (``None``: no limit).  The filter of the requested order is always computed (one
+        Riccati solve, not interruptible); if the limit has expired by then, the coarser solve (the
+        convergence estimate, or the second half of the Richardson step) is skipped and the result
+        has status ``time_limit`` with the order-``order`` filter, its checks, and ``p0_change`` NaN.
 
     Returns
     -------
@@ -481,7 +532,8 @@ def output_delay_kalman(
     NotPositiveDefiniteError
         Malformed system matrices.
     ValidationError
-        Unknown method, bad order/sections, ``h <= 0``, or an odd ``order`` with extrapolation.
+        Unknown method (or not a string), bad order/sections, ``h`` not a number ``> 0``, an odd
+        ``order`` with extrapolation, ``extrapolate`` not a bool, a bad ``time_limit``.
     RiccatiError
         The augmented Riccati equation has no stabilizing solution (undetectable delayed system).
 
@@ -489,48 +541,11 @@ def output_delay_kalman(
     ----------
     Seed 002 (S. J. Lee), eqs (3)-(8), (16)-(19).
     """
+    deadline = Deadline.of(time_limit)
     A, C0, C1, h, W, R = _validate(A, C0, C1, h, Q, R, G)
-    method = {"sampling": "sample"}.get(method, method)
-    if method not in ("pade", "sample"):
-        raise ValidationError(f"method must be 'pade' or 'sample'; found {method!r}")
-
-    def _int(name, v, default, lo):
-        return default if v is None else as_int(name, v, lo)
-
-    if method == "pade":
-        m = _int("order", order, 4, 1)
-        N = _int("sections", sections, 8, 1)
-    else:
-        if sections is not None:
-            raise ValidationError("sections is only used with method='pade'")
-        N = _int("order", order, 32, 1)
-        m = N
-        if extrapolate and N % 2:
-            raise ValidationError(f"extrapolate=True needs an even order; found {N}")
+    method, m, N, extrapolate = _options(method, order, sections, extrapolate)
     t0 = time.perf_counter()
-    try:
-        if method == "pade":
-            sol = _solve_pade(A, C0, C1, W, R, h, m, N)
-            coarse = _solve_pade(A, C0, C1, W, R, h, m - 1, N) if m > 1 else None
-        elif extrapolate:
-            fine = _solve_sample(A, C0, C1, W, R, h, N)
-            half = _solve_sample(A, C0, C1, W, R, h, N // 2)
-            sol = dict(fine)
-            sol["K_theta"] = (4 * fine["K_theta"][::2] - half["K_theta"]) / 3
-            sol["p1"] = (4 * fine["p1"][::2] - half["p1"]) / 3
-            sol["p0"] = sol["p1"][0].copy()
-            sol["K0"] = sol["K_theta"][0].copy()
-            sol["residual"] = max(fine["residual"], half["residual"])
-            sol["stable"] = fine["stable"] and half["stable"]
-            coarse = half   # |extrapolated - half| over-estimates the error of the extrapolation
-        else:
-            sol = _solve_sample(A, C0, C1, W, R, h, N)
-            coarse = _solve_sample(A, C0, C1, W, R, h, N // 2) if N >= 2 else None
-    except (np.linalg.LinAlgError, ValueError) as exc:
-        raise RiccatiError(
-            f"the augmented Riccati equation of the delayed-output system ({method}) has no stabilizing "
-            f"solution: {exc}"
-        ) from exc
+    sol, coarse, stopped = _solve_with_estimate(method, m, N, extrapolate, (A, C0, C1, W, R, h), deadline)
     elapsed = time.perf_counter() - t0
     p0 = 0.5 * (sol["p0"] + sol["p0"].T)
     nrm = max(float(np.linalg.norm(p0)), 1e-300)
@@ -561,8 +576,57 @@ def output_delay_kalman(
         checks.append(Check.at_most("p0_convergence", change, 1e-2,
                                     "relative change of p0 vs a coarser order"))
     ver = Verification.of(checks)
-    msg = "" if ver.passed else "; ".join(str(c) for c in ver.failed)
-    return _replace(res, verification=ver, message=msg)
+    msg = "; ".join(filter(None, [stopped, "; ".join(str(c) for c in ver.failed)]))
+    status = Status.TIME_LIMIT if stopped else Status.SOLVED
+    return _replace(res, verification=ver, message=msg, status=status)
+
+
+def _options(
+    method: object, order: object, sections: object, extrapolate: object
+) -> tuple[str, int, int, bool]:
+    """``(method, m, N, extrapolate)`` of :func:`output_delay_kalman`, validated (``m``: Pade degree or
+    sampling steps, ``N``: sections or sampling steps)."""
+    method = as_str("method", method, ("pade", "sample", "sampling"))
+    method = "sample" if method == "sampling" else method
+    extrapolate = as_bool("extrapolate", extrapolate)
+    if method == "pade":
+        m = 4 if order is None else as_int("order", order, 1)
+        N = 8 if sections is None else as_int("sections", sections, 1)
+        return method, m, N, extrapolate
+    if sections is not None:
+        raise ValidationError(f"sections is only used with method='pade'; found sections={sections!r}")
+    N = 32 if order is None else as_int("order", order, 1)
+    if extrapolate and N % 2:
+        raise ValidationError(f"extrapolate=True needs an even order; found {N}")
+    return method, N, N, extrapolate
+
+
+def _solve_with_estimate(method: str, m: int, N: int, extrapolate: bool, system: tuple, deadline: Deadline
+                         ) -> tuple[dict[str, Any], dict[str, Any] | None, str]:
+    """The filter of the requested order and a coarser one (the convergence estimate, or the second
+    half of the Richardson step).  The coarser solve is skipped once ``deadline`` has expired: the
+    finer answer is returned (not extrapolated) with the reason as the third value."""
+    sol = _solve(method, *system, m, N)
+    has_coarse = m > 1 if method == "pade" else N >= 2
+    if not has_coarse:
+        return sol, None, ""
+    if deadline.expired:
+        what = "Richardson extrapolation" if method == "sample" and extrapolate else "convergence estimate"
+        return sol, None, (f"time_limit {deadline.limit:g} s reached after the order-{m} solve: no {what} "
+                           f"(coarser order not solved); the answer is the order-{m} filter")
+    if method == "pade":
+        return sol, _solve(method, *system, m - 1, N), ""
+    half = _solve(method, *system, N // 2, N // 2)
+    if not extrapolate:
+        return sol, half, ""
+    out = dict(sol)
+    out["K_theta"] = (4 * sol["K_theta"][::2] - half["K_theta"]) / 3
+    out["p1"] = (4 * sol["p1"][::2] - half["p1"]) / 3
+    out["p0"] = out["p1"][0].copy()
+    out["K0"] = out["K_theta"][0].copy()
+    out["residual"] = max(sol["residual"], half["residual"])
+    out["stable"] = sol["stable"] and half["stable"]
+    return out, half, ""   # |extrapolated - half| over-estimates the error of the extrapolation
 
 
 def _replace(obj: Any, **kw: Any) -> Any:
@@ -593,21 +657,29 @@ def output_delay_convergence(
     Returns
     -------
     tuple of ConvergenceRow
+
+    Raises
+    ------
+    ValidationError
+        Unknown method, ``orders`` not integers ``>= 1``, ``sections`` not an integer ``>= 1``, and
+        the errors of :func:`output_delay_kalman` for the system matrices.
+    RiccatiError
+        An augmented Riccati equation has no stabilizing solution.
     """
     A, C0, C1, h, W, R = _validate(A, C0, C1, h, Q, R, G)
+    method = as_str("method", method, ("pade", "sample"))
+    sections = as_int("sections", sections, 1)
+    ks = as_vector("orders", orders)
+    bad = [o for o in ks if not (o == int(o) and o >= 1)]
+    if bad or ks.size == 0:
+        found = f"{bad[0]:g}" if bad else "none"
+        raise ValidationError(f"orders must be integers >= 1 (at least one); found {found}")
     rows = []
-    for o in as_vector("orders", orders):
-        k = int(o)
-        if k != o or k < 1:
-            raise ValidationError(f"orders must be integers >= 1; found {o!r}")
+    for k in (int(o) for o in ks):
         if method == "pade":
-            s = _solve_pade(A, C0, C1, W, R, h, k, int(sections))
-            rows.append(ConvergenceRow("pade", k, int(sections), h / sections, s["dim"], s["p0"], s["K0"]))
-        elif method == "sample":
-            s = _solve_sample(A, C0, C1, W, R, h, k)
-            rows.append(ConvergenceRow("sample", k, k, h / k, s["dim"], s["p0"], s["K0"]))
+            s = _solve(method, A, C0, C1, W, R, h, k, sections)
+            rows.append(ConvergenceRow("pade", k, sections, h / sections, s["dim"], s["p0"], s["K0"]))
         else:
-            raise ValidationError(f"method must be 'pade' or 'sample'; found {method!r}")
+            s = _solve(method, A, C0, C1, W, R, h, k, k)
+            rows.append(ConvergenceRow("sample", k, k, h / k, s["dim"], s["p0"], s["K0"]))
     return tuple(rows)
-
-

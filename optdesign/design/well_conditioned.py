@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import warnings
 from dataclasses import dataclass, field
 from functools import partial
@@ -42,13 +43,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_int, as_poles, as_positive_float
+from .._deadline import Deadline, as_time_limit
+from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
 from ..analysis import metrics
 from ..classical.placement import place_observer, pole_error
 from ..classical.riccati import _sort_poles, filter_are, filter_are_residual
 from ..errors import DimensionError, ValidationError
 from ..formulate.well_conditioned import (
-    KAPPA2_STAGES,
     NLPScaling,
     PoleStructure,
     build_kalman_nlp,
@@ -70,6 +71,16 @@ __all__ = [
     "suggested_region",
     "start_real_counts",
     "start_real_count",
+    # building blocks shared with the sweep designers (studies.designers)
+    "Candidate",
+    "evaluate_candidate",
+    "kappa2_agreement_tol",
+    "check_region_stable",
+    "check_ipopt_options",
+    "placement_start",
+    "solve_nlp",
+    "pick_best",
+    "design_outcome",
 ]
 
 #: continuation stages of the free-pole NLP (the fixed-pole polish at its poles runs them all):
@@ -247,7 +258,14 @@ def _check_plant(plant: Any) -> Plant:
 def _check_mask(structure: Any, n: int, p: int) -> NDArray[np.bool_] | None:
     if structure is None:
         return None
-    m = np.asarray(structure)
+    try:
+        m = np.asarray(structure)
+    except (ValueError, TypeError):  # ragged nests
+        raise ValidationError(f"structure must be a boolean mask of shape ({n}, {p}) (True = free entry of "
+                              f"L); found a ragged or non-numeric {type(structure).__name__}") from None
+    if m.dtype.kind not in "biuf":
+        raise ValidationError(f"structure must be a boolean mask of shape ({n}, {p}) (True = free entry of "
+                              f"L); found dtype {m.dtype}")
     if m.shape != (n, p):
         raise DimensionError(
             f"structure (mask of free entries of L) must have shape ({n}, {p}); found {m.shape}"
@@ -272,9 +290,50 @@ def _check_region(region: Any) -> Region:
     return region
 
 
-def _ipopt_options(options: dict[str, Any] | None) -> dict[str, Any]:
-    """The verbs' IPOPT defaults with the caller's ``options`` merged over them."""
-    return {**_IPOPT_DEFAULTS, **(options or {})}
+def _ipopt_options(options: Any) -> dict[str, Any]:
+    """The verbs' IPOPT defaults with the caller's ``options`` (a dict with string keys, or None)
+    merged over them.
+
+    Raises
+    ------
+    ValidationError
+        ``options`` is not a dict (or None), or has a key that is not a string.
+    """
+    user = as_options("options", options)
+    if user:
+        check_ipopt_options(user)
+    return {**_IPOPT_DEFAULTS, **user}
+
+
+def check_ipopt_options(options: dict[str, Any]) -> None:
+    """Refuse ``options`` (a dict with string keys) that CasADi or IPOPT do not accept (unknown
+    name, wrong type, invalid value) up front, by configuring IPOPT for a one-variable problem
+    with them (a few ms): a bad option is the caller's error, not a failed start.
+
+    Raises
+    ------
+    ValidationError
+        Naming ``options`` and CasADi's / IPOPT's reason.
+    """
+    from ..solvers.casadi_backend import DEFAULT_IPOPT_OPTIONS, import_casadi
+
+    ca = import_casadi()
+    opts = {**DEFAULT_IPOPT_OPTIONS, **options}
+    plugin = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
+    plugin["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
+    plugin["ipopt"].update({"print_level": 0, "sb": "yes"})  # (x0 = 0 is optimal: no iteration)
+    plugin["print_time"] = False
+    x = ca.MX.sym("x")
+    try:
+        ca.nlpsol("options_check", "ipopt", {"x": x, "f": x * x}, plugin)(x0=0.0)
+    except (RuntimeError, TypeError, NotImplementedError) as exc:
+        lines = [ln.strip() for ln in str(exc).splitlines()]
+        lines = [ln for ln in lines if ln and not ln.startswith((">", "Did you mean", "Use print_options"))]
+        why = re.sub(r"^.*?\.(?:cpp|hpp):\d+:\s*", "", lines[-1]) if lines else repr(exc)
+        raise ValidationError(
+            f"options must be IPOPT / CasADi options that IPOPT accepts (e.g. {{'ipopt.max_iter': 200}}); "
+            f"found {options!r}: {why}"
+        ) from None
 
 
 def _metric_of(objective: str, m: dict[str, float]) -> float:
@@ -284,7 +343,7 @@ def _metric_of(objective: str, m: dict[str, float]) -> float:
 def _checker(evaluate, objective: str):
     """``check(candidate) -> (verified, objective metric)`` from an ``evaluate`` function."""
 
-    def check(c: _Candidate) -> tuple[bool, float]:
+    def check(c: Candidate) -> tuple[bool, float]:
         m, v = evaluate(c)
         return v.passed, _metric_of(objective, m)
 
@@ -295,7 +354,11 @@ def _checker(evaluate, objective: str):
 
 
 @dataclass
-class _Candidate:
+class Candidate:
+    """One solver answer before verification: the gain, the solver's eigenbasis ``Z`` (columns) and
+    its poles when it could be read, and what the solver said (status, native status, message,
+    iterations, seconds, the continuation stage)."""
+
     L: NDArray
     Z: NDArray | None
     Zpoles: NDArray | None
@@ -307,9 +370,9 @@ class _Candidate:
     stage: str = ""
 
 
-def _evaluate(
+def evaluate_candidate(
     plant: Plant,
-    cand: _Candidate,
+    cand: Candidate,
     *,
     target: NDArray | None,
     region: Region | None,
@@ -395,8 +458,9 @@ def _evaluate(
         checks.append(Check.at_most("mask", off, 0.0, "largest |L| entry outside the structure mask"))
     if max_gain is not None:
         checks.append(Check.at_most("gain_bound", gn, max_gain * (1 + 1e-6), "||L||_2 <= max_gain"))
-    if kappa2_max is not None:
-        checks.append(Check.at_most("kappa2_bound", k2, kappa2_max * (1 + 1e-6), "kappa2 <= kappa2_max"))
+    if kappa2_max is not None:  # to the accuracy of a computed kappa2 (kappa2_agreement_tol)
+        checks.append(Check.at_most("kappa2_bound", k2, kappa2_max * (1 + kappa2_agreement_tol(kappa2_max)),
+                                    "kappa2 <= kappa2_max"))
     if eta_max is not None:
         checks.append(Check.at_most("eta_bound", eta_v, eta_max * (1 + 1e-6), "eta <= eta_max"))
     if not checks:
@@ -458,7 +522,7 @@ def _region_sup_modulus(region: Region) -> float:
     return max(float(vals[k]), float(radii(np.array([t]))[0]))
 
 
-def _check_region_stable(region: Region, discrete: bool) -> None:
+def check_region_stable(region: Region, discrete: bool) -> None:
     """A pole region must lie in the (closed) stability region of the plant's time domain.
 
     Raises
@@ -498,38 +562,82 @@ def _check_target_stable(target: NDArray, discrete: bool) -> None:
 # --------------------------------------------------------------------------- solving
 
 
-def _run_start(
-    nlp, L0: NDArray, objective: str, options: dict[str, Any], check, stages: tuple[int, ...] | None = None
-) -> list[_Candidate]:
-    """Solve from one initial gain (continuation stages for kappa2); every stage's candidate."""
+def solve_nlp(nlp, options: dict[str, Any], deadline: Deadline):
+    """Solve a built observer NLP with IPOPT within ``deadline`` (a :class:`SolverReport`).
+
+    IPOPT is configured on the first solve and re-used after (``nlp.solver_ready``); under a time
+    limit its ``max_wall_time`` is the time left (:meth:`Deadline.ipopt_options`), and the solver
+    is re-configured when the cap it has exceeds the time left by more than a tenth of the limit
+    (at least 0.05 s) -- so a solve overruns the deadline by at most that, and IPOPT is configured
+    at most about ten times per design.
+    """
     from ..solvers.casadi_backend import solve_opti
 
-    if objective != "kappa2":
-        stages = (None,)
-    elif stages is None:
-        stages = KAPPA2_STAGES
+    configure = not nlp.solver_ready
+    opts = options
+    cap = getattr(nlp, "solver_wall_time", None)
+    if deadline.limited:
+        rem = deadline.remaining()
+        wall = deadline.ipopt_options()["ipopt.max_wall_time"]
+        user = options.get("ipopt.max_wall_time")
+        if user is not None:
+            wall = min(wall, float(user))
+        if configure or cap is None or cap > rem + max(0.1 * float(deadline.limit), 0.05):
+            configure, cap = True, wall
+        opts = {**options, "ipopt.max_wall_time": cap}
+    elif cap is not None:  # configured under an earlier budget: lift it
+        configure, cap = True, None
+    rep = solve_opti(nlp.opti, opts, configure=configure)
+    nlp.solver_ready = True
+    nlp.solver_wall_time = cap
+    return rep
+
+
+def _stage_plan(nlp, objective: str, stages: tuple[int, ...] | None):
+    """``(stages, set_stage, give_up_after_two_failures)`` of one start (:meth:`ObserverNLP.continuation`).
+
+    A start of the kappa2 objective is given up after two failed stages; the stages of a kappa2
+    bound are all tried (a bound too tight for the conservative order-64 surrogate may still be
+    met at a higher order).
+    """
+    plan, set_stage = nlp.continuation(stages if objective == "kappa2" else None)
+    return plan, set_stage, objective == "kappa2" or set_stage is None
+
+
+def _run_start(
+    nlp, L0: NDArray, objective: str, options: dict[str, Any], check, stages: tuple[int, ...] | None = None,
+    deadline: Deadline | None = None, force: bool = False,
+) -> list[Candidate]:
+    """Solve from one initial gain through the continuation stages; every stage's candidate.
+
+    No stage is started once ``deadline`` has expired (the list may then be empty), except the
+    first one with ``force`` (the first start of a design: IPOPT then gets at least 0.01 s).
+    """
+    deadline = Deadline.of(deadline)
+    plan, set_stage, give_up = _stage_plan(nlp, objective, stages)
     nlp.set_initial_gain(L0)
-    history: list[_Candidate] = []
+    history: list[Candidate] = []
     last_good = None
-    for J in stages:
+    for J in plan:
+        if deadline.expired and (history or not force):
+            break
         if J is not None:
-            nlp.set_stage(J)
+            set_stage(J)
         if last_good is not None:
             nlp.warm_start(last_good)
-        rep = solve_opti(nlp.opti, options, configure=not nlp.solver_ready)
-        nlp.solver_ready = True
+        rep = solve_nlp(nlp, options, deadline)
         cand, _ = _read_candidate(nlp, rep, type(nlp).__name__ + ("" if J is None else f" J={J}"))
         history.append(cand)
         if check(cand)[0]:  # (a candidate CasADi could not evaluate has a NaN gain: it fails)
             last_good = nlp.snapshot(rep.value)
         elif last_good is None:
-            if len(history) >= 2:  # two failed stages from this start: give it up
+            if give_up and len(history) >= 2:  # two failed stages from this start: give it up
                 break
             nlp.set_initial_gain(L0)  # retry the next stage from the same start
     return history
 
 
-def _read_candidate(nlp, rep, stage: str) -> tuple[_Candidate, bool]:
+def _read_candidate(nlp, rep, stage: str) -> tuple[Candidate, bool]:
     """The candidate of one solve (gain and, if it can be read, the solver's eigenbasis) and
     whether the iterate could be evaluated at all; if not, a failed candidate (NaN gain, status
     solver_error) giving CasADi's reason (seen after e.g. a failed restoration phase)."""
@@ -541,21 +649,21 @@ def _read_candidate(nlp, rep, stage: str) -> tuple[_Candidate, bool]:
         Z, zp = nlp.basis(rep.value)
     except (ValueError, np.linalg.LinAlgError, FloatingPointError, RuntimeError):
         Z, zp = None, None
-    return _Candidate(L, Z, zp, *_report_fields(rep), stage=stage), True
+    return Candidate(L, Z, zp, *_report_fields(rep), stage=stage), True
 
 
 def _report_fields(rep) -> tuple[Status, str, str, int, float]:
-    """``(status, native status, message, iterations, time)`` of a SolverReport (_Candidate's order)."""
+    """``(status, native status, message, iterations, time)`` of a SolverReport (Candidate's order)."""
     st = rep.stats
     return rep.status, st.native_status, rep.message, int(st.iterations or 0), float(st.time)
 
 
-def _solver_error_candidate(plant: Plant, rep, exc: Exception, stage: str) -> _Candidate:
+def _solver_error_candidate(plant: Plant, rep, exc: Exception, stage: str) -> Candidate:
     """A failed candidate (NaN gain, status solver_error) for an iterate CasADi could not evaluate."""
     first = str(exc).strip().splitlines()
     why = first[-1] if first else repr(exc)
     _, native, message, iterations, time = _report_fields(rep)
-    return _Candidate(
+    return Candidate(
         np.full((plant.n, plant.p), np.nan),
         None,
         None,
@@ -568,26 +676,31 @@ def _solver_error_candidate(plant: Plant, rep, exc: Exception, stage: str) -> _C
     )
 
 
-def _start_record(idx: int, origin: str, cand: _Candidate, m: dict, v: Verification, obj: float,
+def _start_record(idx: int, origin: str, cand: Candidate, m: dict, v: Verification, obj: float,
                   message: str) -> StartRecord:
     """The history entry of one start whose chosen candidate carries the start's totals."""
     return StartRecord(idx, origin, Status(cand.status), v.passed, m["kappa2"], m["eta"], m["gain_norm"], obj,
                        cand.iterations, cand.time, message)
 
 
-def _rank_key(obj: float, v: Verification, c: _Candidate, idx: int = 0) -> tuple[int, float, int]:
+def _rank_key(obj: float, v: Verification, c: Candidate, idx: int = 0) -> tuple[int, float, int]:
     """Verified and solved first, then verified (e.g. an iteration limit), then the rest; by objective."""
     solved = Status(c.status).is_solved
     rank = 0 if (v.passed and solved) else 1 if v.passed else 2
     return (rank, obj if math.isfinite(obj) else float("inf"), idx)
 
 
-def _solve_starts(starts_list, runner, objective, evaluate):
-    """Run every start through ``runner`` (-> candidates); keep each start's best verified one."""
+def _solve_starts(starts_list, runner, objective, evaluate, deadline: Deadline):
+    """Run the starts through ``runner(L0, structure, first)`` (-> candidates); keep each start's best
+    verified candidate.  No start after the first is begun once ``deadline`` has expired."""
     records: list[StartRecord] = []
-    evaluated: list[tuple[float, int, dict, Verification, _Candidate]] = []
+    evaluated: list[tuple[float, int, dict, Verification, Candidate]] = []
     for idx, (origin, L0, structure) in enumerate(starts_list):
-        hist = runner(L0, structure)
+        if idx and deadline.expired:
+            break
+        hist = runner(L0, structure, idx == 0)
+        if not hist:
+            continue
         t = sum(c.time for c in hist)
         it = sum(c.iterations for c in hist)
         scored = []
@@ -604,40 +717,82 @@ def _solve_starts(starts_list, runner, objective, evaluate):
     return records, evaluated
 
 
-def _pick(evaluated):
+def pick_best(evaluated):
+    """The best of ``(objective, index, metrics, verification, candidate)`` entries: solved and
+    verified first, then verified (e.g. an iteration limit), then the rest; by objective, then index."""
     return min(evaluated, key=lambda e: _rank_key(e[0], e[3], e[4], e[1]))
 
 
-def _result_from(records, evaluated, *, objective, target, region, kalman=None) -> ObserverDesign:
-    obj, idx, m, v, cand = _pick(evaluated)
-    status = Status(cand.status)
-    all_infeasible = all(Status(r.status).is_infeasible for r in records)
-    certificate = None
-    if not v.passed and all_infeasible:
-        status = Status.INFEASIBLE
-        certificate = {
-            "reason": "IPOPT converged to a point of local infeasibility from "
-            "every start (not a proof: the NLP is non-convex)",
-            "starts": len(records),
-        }
+def design_outcome(records, evaluated, objective: str, *, deadline: Deadline, planned: int):
+    """Status and message of a multi-start design from its records.
+
+    Parameters
+    ----------
+    records : list of StartRecord
+    evaluated : list of (objective, index, metrics, Verification, Candidate)
+        Non-empty, as returned with ``records``.
+    objective : str
+    deadline : Deadline
+        Expired at the end: status ``time_limit`` (the budget ran out before the design finished).
+    planned : int
+        Number of starts the design would have run without a time limit.
+
+    Returns
+    -------
+    best : tuple
+        The :func:`pick_best` entry.
+    status : Status
+        ``time_limit`` (budget spent; the best verified design so far is kept); the best candidate's
+        status when it passed verification (a solved one, or e.g. ``iteration_limit``);
+        ``solver_error`` when every start crashed; otherwise ``not_found``: no start gave a
+        verified design, which is local evidence only -- never ``infeasible``.
+    message : str
+    """
+    best = pick_best(evaluated)
+    obj, idx, _, v, cand = best
     converged = _n_converged(records)
-    if v.passed and status.is_solved:
-        msg = (
-            f"best of {len(records)} starts (start {idx}, {records[idx].origin}): {objective} = {obj:.6g}; "
-            f"{converged} of {len(records)} starts converged to verified designs"
-        )
+    origin = records[[r.index for r in records].index(idx)].origin
+    where = f"start {idx} ({origin})"
+    failed = "; ".join(c.name for c in v.failed)
+    if deadline.expired:
+        status = Status.TIME_LIMIT
+        ran = f"time limit of {deadline.limit:g} s reached after {len(records)} of {planned} starts"
+        msg = (f"{ran}; best verified design so far: {where}, {objective} = {obj:.6g}" if v.passed else
+               f"{ran}; no verified design yet (best {where}: {cand.message}"
+               + (f"; failed checks: {failed})" if failed else ")"))
+        return best, status, msg
+    if v.passed:
+        status = Status(cand.status)
+        if status.is_solved:
+            msg = (f"best of {len(records)} starts (start {idx}, {origin}): {objective} = {obj:.6g}; "
+                   f"{converged} of {len(records)} starts converged to verified designs")
+            return best, status, msg
+    elif records and all(Status(r.status) == Status.SOLVER_ERROR for r in records):
+        status = Status.SOLVER_ERROR
     else:
-        failed = "; ".join(f"{c.name}" for c in v.failed)
-        msg = (
-            f"no start gave a solved and verified design ({converged} of {len(records)}); best start {idx} "
-            f"({records[idx].origin}): {cand.message}" + (f"; failed checks: {failed}" if failed else "")
-        )
+        status = Status.NOT_FOUND
+    msg = (f"no start gave a solved and verified design ({converged} of {len(records)}); best {where}: "
+           f"{cand.message}" + (f"; failed checks: {failed}" if failed else ""))
+    if status == Status.NOT_FOUND:
+        msg += " (not found by a local method: feasibility unknown)"
+    return best, status, msg
+
+
+def _result_from(plant, records, evaluated, *, objective, target, region, deadline: Deadline, planned: int,
+                 kalman=None) -> ObserverDesign:
+    if not evaluated:  # the time ran out before any start could run
+        reason = f"time limit of {deadline.limit:g} s reached before any of the {planned} starts could run"
+        return _no_design(plant, objective, Status.TIME_LIMIT, reason, None, target=target, region=region,
+                          **(kalman or {}))
+    (obj, idx, m, v, cand), status, msg = design_outcome(records, evaluated, objective, deadline=deadline,
+                                                         planned=planned)
     stats = SolverStats(
         backend="ipopt",
         native_status=cand.native,
         time=float(sum(r.time for r in records)),
         iterations=int(sum(r.iterations for r in records)),
-        extra={"starts": len(records), "converged": converged, "best_start": idx, "objective": obj},
+        extra={"starts": len(records), "planned_starts": planned, "converged": _n_converged(records),
+               "best_start": idx, "objective": obj},
     )
     kw = kalman or {}
     return ObserverDesign(
@@ -656,12 +811,13 @@ def _result_from(records, evaluated, *, objective, target, region, kalman=None) 
         V=m["V"],
         target_poles=target,
         region=region,
-        certificate=certificate,
         **kw,
     )
 
 
-def _infeasible(plant, objective, reason: str, certificate: dict, target=None, region=None) -> ObserverDesign:
+def _no_design(plant, objective, status: Status, reason: str, certificate: dict | None, target=None,
+               region=None, **fields) -> ObserverDesign:
+    """A result without a gain (NaN): ``infeasible`` with a proof, or ``time_limit`` before any start."""
     n, p = plant.n, plant.p
     nan = float("nan")
     return ObserverDesign(
@@ -672,15 +828,23 @@ def _infeasible(plant, objective, reason: str, certificate: dict, target=None, r
         kappa_fro=float("inf"),
         gain_norm=nan,
         objective=objective,
-        status=Status.INFEASIBLE,
+        status=status,
         message=reason,
-        solver_stats=SolverStats(backend="analytic", native_status="infeasible"),
-        verification=Verification.of([Check.at_most("feasible", 1.0, 0.0, reason)]),
+        solver_stats=SolverStats(backend="analytic" if status.is_infeasible else "ipopt",
+                                 native_status=status.value),
+        verification=Verification.of([Check.at_most("feasible" if status.is_infeasible else "finite_gain",
+                                                    float("inf"), 0.0, reason)]),
         starts=(),
         target_poles=target,
         region=region,
         certificate=certificate,
+        **fields,
     )
+
+
+def _infeasible(plant, objective, reason: str, certificate: dict, target=None, region=None) -> ObserverDesign:
+    """Infeasible with a proof (``certificate`` says which)."""
+    return _no_design(plant, objective, Status.INFEASIBLE, reason, certificate, target=target, region=region)
 
 
 def _better_yt(plant: Plant, poles: NDArray, L0: NDArray, region: Region) -> NDArray:
@@ -705,7 +869,8 @@ def _better_yt(plant: Plant, poles: NDArray, L0: NDArray, region: Region) -> NDA
     return L1 if key(L1) < key(L0) else L0
 
 
-def _placement_start(plant: Plant, poles: NDArray, method: str) -> NDArray | None:
+def placement_start(plant: Plant, poles: NDArray, method: str) -> NDArray | None:
+    """scipy's robust placement (``method`` "YT" or "KNV0") as a start gain; None when it fails."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -746,6 +911,7 @@ def well_conditioned_observer(
     scaling: bool = True,
     options: dict[str, Any] | None = None,
     allow_unstable: bool = False,
+    time_limit: float | None = None,
 ) -> ObserverDesign:
     """Observer gain whose error dynamics ``A - L C`` have a well-conditioned eigenbasis.
 
@@ -790,11 +956,16 @@ def well_conditioned_observer(
         Time scaling (continuous time) and unit-norm output rows: both leave kappa2 and eta
         unchanged.
     options : dict, optional
-        IPOPT options (``"ipopt.max_iter"``, ...) merged over the defaults.
+        IPOPT options (string keys, ``"ipopt.max_iter"``, ...) merged over the defaults; names
+        and values IPOPT refuses raise ValidationError before anything runs.
     allow_unstable : bool, default False
         Fixed poles only: accept unstable ``poles`` (pole-assignment benchmarks, e.g. Byers 6,
         are state-feedback problems that assign unstable poles); the verification then does not
         require stability.  An observer with unstable error dynamics is otherwise refused.
+    time_limit : float, optional
+        Seconds of wall time (None: no limit).  IPOPT gets the time left (``max_wall_time``); no
+        start after the first begins once it is spent (the first start always makes its first
+        solve, so a quick verified design is not lost to a tiny budget).
 
     Returns
     -------
@@ -803,17 +974,28 @@ def well_conditioned_observer(
         (stability and the poles recomputed with numpy against the target or the region, the
         solver's eigenbasis against ``metrics.kappa2``, mask, gain and metric bounds).  A
         verified design whose solver stopped early (``iteration_limit``) is returned with that
-        status (so ``success`` is False) only when no solved and verified candidate exists;
-        a solver crash is recorded as a ``solver_error`` start with its reason.  Infeasible
-        questions (a pole repeated more than ``rank(C)`` times; IPOPT infeasible from every
-        start) come back with ``status`` infeasible and a ``certificate``.
+        status (so ``success`` is False) only when no solved and verified candidate exists.
+        Other statuses:
+
+        * ``time_limit`` -- the budget ran out before the design finished: ``success`` is
+          False (the search was cut short), and ``L``, ``poles`` and the metrics are those of
+          the best verified design found so far (``verification.passed`` says whether there
+          is one; ``starts`` lists the runs made);
+        * ``not_found`` -- no start gave a verified design (e.g. IPOPT stopped at a point of
+          local infeasibility, or no placement reaches the region, COMPleib REA4): local
+          evidence only, feasibility unknown, no certificate;
+        * ``solver_error`` -- every start crashed (the reasons are in ``starts``);
+        * ``infeasible`` -- only with a proof in ``certificate``: a pole repeated more than
+          ``rank(C)`` times (``A - LC`` would be defective), a repeated pole with objective
+          eta (infinite), an unobservable mode outside the region.
 
     Raises
     ------
     ValidationError
-        Both or wrong ``poles``/``region``, unknown objective or solver, bad mask, bounds or
-        ``starts``; unstable fixed poles (named; unless ``allow_unstable``); a region reaching
-        outside the stability region; ``allow_unstable`` with a region.
+        Both or wrong ``poles``/``region``, unknown objective or solver, bad mask, bounds,
+        ``starts``, ``options`` or ``time_limit``; unstable fixed poles (named; unless
+        ``allow_unstable``); a region reaching outside the stability region;
+        ``allow_unstable`` with a region.
     NotObservableError
         ``(C, A)`` is not observable (names the unobservable modes).
     NotConjugateClosedError, DimensionError
@@ -825,6 +1007,11 @@ def well_conditioned_observer(
     (:mod:`optdesign.formulate.well_conditioned`); the reported kappa2 is recomputed with
     numpy.  The problem is non-convex: the best of ``starts`` local solutions is returned
     and ``starts`` holds every run.
+
+    A kappa2 bound with another objective goes through its own continuation (the orders 64,
+    512, 4096 of the surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
+    every order guarantees ``kappa2 <= kappa2_max``, the low one converges robustly, the higher
+    ones recover the few tenths of a percent it gives away.
 
     Fixed poles use the reduced (left-eigenvector) NLP.  In a region each start contributes
     (0) its own gain, unoptimized, (A) the fixed-pole NLP at the start's poles, (B) the
@@ -846,16 +1033,19 @@ def well_conditioned_observer(
     >>> bool(d.success), round(d.kappa2, 4)   # a SISO gain is fixed by its poles: 3 + sqrt(10)
     (True, 6.1623)
     """
+    deadline = Deadline(as_time_limit(time_limit))
     plant = _check_plant(plant)
     check_objective(objective)
     _check_solver(solver)
     starts = as_int("starts", starts, 1)
     seed = as_int("seed", seed, 0)
+    scaling = as_bool("scaling", scaling)
     n, p = plant.n, plant.p
     mask = _check_mask(structure, n, p)
     max_gain = None if max_gain is None else as_positive_float("max_gain", max_gain)
     eta_max = None if eta_max is None else as_positive_float("eta_max", eta_max)
     kappa2_max = _kappa2_bound(kappa2_max)
+    opts = _ipopt_options(options)
     if region is not None and poles is not None:
         raise ValidationError("give either poles (fixed) or region (free poles), not both")
     if not isinstance(allow_unstable, (bool, np.bool_)):
@@ -868,77 +1058,74 @@ def well_conditioned_observer(
         _check_region(region)
     if poles is not None:
         plant.require_observable(what="well-conditioned observer design with fixed poles")
-    opts = _ipopt_options(options)
+    bounds = dict(mask=mask, max_gain=max_gain, kappa2_max=kappa2_max, eta_max=eta_max)
     rng = np.random.default_rng(seed)
-
     if poles is not None:
         target = as_poles("poles", poles, n)
-        if not allow_unstable:
-            _check_target_stable(target, plant.is_discrete)
-        rank = int(np.linalg.matrix_rank(plant.C))
-        vals, counts = np.unique(np.round(target, 10), return_counts=True)
-        if counts.max() > rank:
-            k = int(np.argmax(counts))
-            reason = (
-                f"pole {vals[k]} is requested {counts[k]} times but rank(C) = {rank}: the eigenspace of "
-                f"A - LC for it has dimension <= rank(C), so A - LC would be defective (kappa2 = inf)"
-            )
-            return _infeasible(
-                plant,
-                objective,
-                reason,
-                {
-                    "reason": "multiplicity exceeds rank(C)",
-                    "pole": complex(vals[k]),
-                    "multiplicity": int(counts[k]),
-                    "rank_C": rank,
-                },
-                target=target,
-            )
-        if objective == "eta" and counts.max() > 1:
-            return _infeasible(
-                plant,
-                objective,
-                "eta is infinite for repeated poles (zero eigenvalue gap)",
-                {"reason": "repeated pole with objective eta", "pole": complex(vals[np.argmax(counts)])},
-                target=target,
-            )
-        pstruct = PoleStructure.of(target)
-        sc = (
-            NLPScaling.for_plant(plant, float(np.max(np.abs(target))), balance=False)
-            if scaling
-            else NLPScaling.identity(n, p)
-        )
-        start_list = _fixed_starts(plant, target, starts, rng, pstruct)
-
-        nlp = build_observer_nlp(
-            plant,
-            pstruct,
-            fixed_poles=True,
-            objective=objective,
-            mask=mask,
-            max_gain=max_gain,
-            kappa2_max=kappa2_max,
-            eta_max=eta_max,
-            scaling=sc,
-        )
-        nlp.set_poles(target)
-        evaluate = partial(
-            _evaluate, plant, target=target, region=None, mask=mask, max_gain=max_gain,
-            kappa2_max=kappa2_max, eta_max=eta_max, stable=not allow_unstable,
-        )
-        check = _checker(evaluate, objective)
-
-        def runner(L0, st):
-            return _run_start(nlp, L0, objective, opts, check)
-
-        records, evaluated = _solve_starts(start_list, runner, objective, evaluate)
-        return _result_from(records, evaluated, objective=objective, target=target, region=None)
-
+        return _fixed_design(plant, target, objective, bounds, starts, rng, scaling, opts, allow_unstable,
+                             deadline)
     if region is None:
         region = stability_region(plant.is_discrete)
-    _check_region_stable(region, plant.is_discrete)
-    if not region.bounded and max_gain is None:
+    return _region_design(plant, region, objective, bounds, starts, rng, scaling, opts, deadline)
+
+
+def _repeated_pole_proof(plant: Plant, target: NDArray, objective: str) -> ObserverDesign | None:
+    """The infeasible result of a fixed pole set that no diagonalizable ``A - LC`` (or finite eta)
+    has, with its proof; None if there is none."""
+    rank = int(np.linalg.matrix_rank(plant.C))
+    vals, counts = np.unique(np.round(target, 10), return_counts=True)
+    k = int(np.argmax(counts))
+    if counts[k] > rank:
+        reason = (
+            f"pole {vals[k]} is requested {counts[k]} times but rank(C) = {rank}: the eigenspace of "
+            f"A - LC for it has dimension <= rank(C), so A - LC would be defective (kappa2 = inf)"
+        )
+        cert = {"reason": "multiplicity exceeds rank(C)", "pole": complex(vals[k]),
+                "multiplicity": int(counts[k]), "rank_C": rank}
+        return _infeasible(plant, objective, reason, cert, target=target)
+    if objective == "eta" and counts[k] > 1:
+        return _infeasible(plant, objective, "eta is infinite for repeated poles (zero eigenvalue gap)",
+                           {"reason": "repeated pole with objective eta", "pole": complex(vals[k])},
+                           target=target)
+    return None
+
+
+def _fixed_design(plant, target, objective, bounds, starts, rng, scaling, opts, allow_unstable,
+                  deadline) -> ObserverDesign:
+    """Fixed poles: the reduced NLP from scipy's YT / KNV0 and random assignments."""
+    n, p = plant.n, plant.p
+    if not allow_unstable:
+        _check_target_stable(target, plant.is_discrete)
+    proof = _repeated_pole_proof(plant, target, objective)
+    if proof is not None:
+        return proof
+    pstruct = PoleStructure.of(target)
+    sc = (
+        NLPScaling.for_plant(plant, float(np.max(np.abs(target))), balance=False)
+        if scaling
+        else NLPScaling.identity(n, p)
+    )
+    start_list = _fixed_starts(plant, target, starts, rng, pstruct)
+    nlp = build_observer_nlp(plant, pstruct, fixed_poles=True, objective=objective, scaling=sc, **bounds)
+    nlp.set_poles(target)
+    evaluate = partial(evaluate_candidate, plant, target=target, region=None, stable=not allow_unstable,
+                       **bounds)
+    check = _checker(evaluate, objective)
+
+    def runner(L0, st, first):
+        return _run_start(nlp, L0, objective, opts, check, deadline=deadline, force=first)
+
+    records, evaluated = _solve_starts(start_list, runner, objective, evaluate, deadline)
+    return _result_from(plant, records, evaluated, objective=objective, target=target, region=None,
+                        deadline=deadline, planned=len(start_list))
+
+
+def _region_design(plant, region, objective, bounds, starts, rng, scaling, opts, deadline) -> ObserverDesign:
+    """Poles free in ``region``: every start through placements, the free-pole NLP and polishes."""
+    n, p = plant.n, plant.p
+    mask = bounds["mask"]
+    check_region_stable(region, plant.is_discrete)
+    if not region.bounded and bounds["max_gain"] is None:
         raise ValidationError(
             f"the pole region {region!r} is unbounded and no max_gain was given: kappa2 and eta can keep "
             "improving as poles (and ||L||) grow without bound; give max_gain or intersect the region with "
@@ -969,14 +1156,8 @@ def well_conditioned_observer(
 
     fixed_cache: dict[PoleStructure, Any] = {}
     region_cache: dict[PoleStructure, Any] = {}
-    kw = dict(
-        objective=objective, mask=mask, max_gain=max_gain, kappa2_max=kappa2_max, eta_max=eta_max, scaling=sc
-    )
-
-    evaluate = partial(
-        _evaluate, plant, target=None, region=region, mask=mask, max_gain=max_gain,
-        kappa2_max=kappa2_max, eta_max=eta_max,
-    )
+    kw = dict(objective=objective, scaling=sc, **bounds)
+    evaluate = partial(evaluate_candidate, plant, target=None, region=region, **bounds)
     check = _checker(evaluate, objective)
     observable = plant.is_observable()
     rank_c = int(np.linalg.matrix_rank(plant.C))
@@ -1000,25 +1181,26 @@ def well_conditioned_observer(
             nlp.set_poles(P)
         except ValidationError:
             return []
-        return _run_start(nlp, L0, objective, opts, check)
+        return _run_start(nlp, L0, objective, opts, check, deadline=deadline)
 
-    def runner(L0, st):
+    def runner(L0, st, first):
         # (0) the start's gain itself, (A) the best eigenbasis at the sampled poles, (B) free poles
         # from there, (C) the best eigenbasis at B's poles -- each verified; the best is kept, so a
         # design is never worse than its start (e.g. scipy YT at the naive poles)
         P0 = np.linalg.eigvals(plant.A - L0 @ plant.C)
-        raw = _Candidate(
+        raw = Candidate(
             np.asarray(L0, dtype=float), None, None, Status.SOLVED, "direct",
             "the start's gain itself (not improved by IPOPT)", 0, 0.0, stage="start gain",
         )
         hist = [raw]
         hist += fixed_at(P0, L0) if observable and region.contains(P0) else []
-        if st not in region_cache:
+        if st not in region_cache and not deadline.expired:
             region_cache[st] = build_observer_nlp(plant, st, fixed_poles=False, region=region, **kw)
         # the free-pole NLP from the start itself, with the whole continuation: measured on COMPleib
         # AC6, starting it from the fixed-pole optimum (stages 9, 12 only) ended at kappa2 18.9,
         # from the placement start at 1.27
-        hb = _run_start(region_cache[st], L0, objective, region_opts, check, stages=REGION_STAGES)
+        hb = [] if deadline.expired else _run_start(region_cache[st], L0, objective, region_opts, check,
+                                                    stages=REGION_STAGES, deadline=deadline)
         hist += hb
         checked = [(check(c), c) for c in hb]
         okb = [(obj, c) for (ok, obj), c in checked if ok]
@@ -1026,13 +1208,14 @@ def well_conditioned_observer(
             cb = min(okb, key=lambda t: t[0])[1]
             Pb = np.linalg.eigvals(plant.A - cb.L @ plant.C)
             hist += fixed_at(Pb, cb.L)
-            Lyt = _placement_start(plant, Pb, "YT") if mask is None else None
+            Lyt = placement_start(plant, Pb, "YT") if mask is None else None
             if Lyt is not None:  # robust placement at the same poles may sit in a better basin
                 hist += fixed_at(Pb, Lyt)
         return hist
 
-    records, evaluated = _solve_starts(start_list, runner, objective, evaluate)
-    return _result_from(records, evaluated, objective=objective, target=None, region=region)
+    records, evaluated = _solve_starts(start_list, runner, objective, evaluate, deadline)
+    return _result_from(plant, records, evaluated, objective=objective, target=None, region=region,
+                        deadline=deadline, planned=len(start_list))
 
 
 def _fixed_starts(plant, target, starts, rng, pstruct):
@@ -1042,7 +1225,7 @@ def _fixed_starts(plant, target, starts, rng, pstruct):
             break
         if method == "KNV0" and np.any(target.imag != 0):
             continue
-        L0 = _placement_start(plant, target, method)
+        L0 = placement_start(plant, target, method)
         if L0 is not None:
             out.append((method, L0, pstruct))
     tries = 0
@@ -1056,7 +1239,7 @@ def _fixed_starts(plant, target, starts, rng, pstruct):
             out.append(("random", L0, pstruct))
     if not out:  # repeated poles YT cannot take and no random start: perturb the poles
         pert = target + 1e-3 * max(1.0, float(np.max(np.abs(target)))) * np.arange(target.size)
-        L0 = _placement_start(plant, as_poles("poles", pert), "YT")
+        L0 = placement_start(plant, as_poles("poles", pert), "YT")
         out.append(("YT (perturbed poles)", np.zeros((plant.n, plant.p)) if L0 is None else L0, pstruct))
     return out
 
@@ -1279,7 +1462,7 @@ def _region_starts(plant, region, starts, rng, mask):
                 n_sampled += 1
                 origin = "region sample + YT"
             st = PoleStructure.of(P0)
-            L0 = _placement_start(plant, P0, "YT") if observable else None
+            L0 = placement_start(plant, P0, "YT") if observable else None
             if k == 0 and L0 is not None:
                 L0 = _better_yt(plant, P0, L0, region)
             if L0 is None and observable:
@@ -1313,6 +1496,7 @@ def well_conditioned_kalman(
     seed: int = 0,
     solver: str = "ipopt",
     options: dict[str, Any] | None = None,
+    time_limit: float | None = None,
 ) -> ObserverDesign:
     """A steady-state Kalman filter whose error dynamics are well conditioned.
 
@@ -1341,20 +1525,25 @@ def well_conditioned_kalman(
     seed : int, default 0
     solver : {"ipopt"}
     options : dict, optional
-        IPOPT options.
+        IPOPT options (string keys), merged over the defaults.
+    time_limit : float, optional
+        Seconds of wall time (None: no limit); see :func:`well_conditioned_observer`.
 
     Returns
     -------
     ObserverDesign
         With ``Q``, ``P``, ``R``; verification adds the Riccati residual (recomputed with
         :func:`optdesign.riccati.filter_are_residual`), ``P >= 0``, ``Q >= 0`` and the gain
-        against an independent Riccati solve for the returned ``Q``.
+        against an independent Riccati solve for the returned ``Q``.  Status as for
+        :func:`well_conditioned_observer` (``not_found`` when no start gave a verified filter,
+        ``time_limit`` when the budget ran out).
 
     Raises
     ------
     ValidationError
-        Unknown objective, q_structure or solver; bad bounds; ``q_range`` not ``0 < lo <= hi``;
-        a region reaching outside the stability region.
+        Unknown objective, q_structure or solver; bad bounds, ``options`` or ``time_limit``;
+        ``q_range`` not two numbers ``0 < lo <= hi < inf``; a region reaching outside the
+        stability region.
     NotObservableError
         ``(C, A)`` not detectable.
 
@@ -1362,6 +1551,7 @@ def well_conditioned_kalman(
     ----------
     Seed 001, section 2.3 and Example 2 (the gain depends on ``q/r`` only, eq 29).
     """
+    deadline = Deadline(as_time_limit(time_limit))
     plant = _check_plant(plant)
     check_objective(objective)
     check_q_structure(q_structure)
@@ -1370,23 +1560,75 @@ def well_conditioned_kalman(
     seed = as_int("seed", seed, 0)
     eta_max = None if eta_max is None else as_positive_float("eta_max", eta_max)
     kappa2_max = _kappa2_bound(kappa2_max)
-    if region is not None:
-        _check_region_stable(_check_region(region), plant.is_discrete)
-    try:
-        lo, hi = (float(q_range[0]), float(q_range[1]))
-    except (TypeError, ValueError, IndexError):
-        raise ValidationError(f"q_range must be a pair (lo, hi); found {q_range!r}") from None
-    if not (0 < lo <= hi and math.isfinite(hi)):
-        raise ValidationError(f"q_range must satisfy 0 < lo <= hi < inf; found {q_range!r}")
-    plant.require_observable(detectable_ok=True, what="a well-conditioned Kalman filter")
-    n, p, m = plant.n, plant.p, plant.m
-    R = plant.R if plant.R is not None else np.eye(p)
-    Q0 = plant.Q if plant.Q is not None else np.eye(m)
-    base = plant.replace(R=R, Q=Q0)
     opts = _ipopt_options(options)
-    rng = np.random.default_rng(seed)
+    if region is not None:
+        check_region_stable(_check_region(region), plant.is_discrete)
+    lo, hi = _check_q_range(q_range)
+    plant.require_observable(detectable_ok=True, what="a well-conditioned Kalman filter")
+    R = plant.R if plant.R is not None else np.eye(plant.p)
+    Q0 = plant.Q if plant.Q is not None else np.eye(plant.m)
+    base = plant.replace(R=R, Q=Q0)
+    start_list = _kalman_starts(base, q_structure, lo, hi, starts, np.random.default_rng(seed))
 
-    # starting points: Kalman filters for log-spaced multiples of Q0 (random diagonal jitter)
+    def build(st):
+        return build_kalman_nlp(base, st, objective=objective, q_structure=q_structure, region=region,
+                                kappa2_max=kappa2_max, eta_max=eta_max,
+                                scaling=NLPScaling.identity(base.n, base.p))
+
+    evaluate = partial(
+        evaluate_candidate, base, target=None, region=region, mask=None, max_gain=None,
+        kappa2_max=kappa2_max, eta_max=eta_max,
+    )
+    records: list[StartRecord] = []
+    evaluated = []
+    cache: dict[Any, Any] = {}
+    qinfo: dict[int, tuple[NDArray, NDArray]] = {}
+    for idx, (origin, init, st) in enumerate(start_list):
+        if idx and deadline.expired:
+            break
+        if st not in cache:
+            cache[st] = build(st)
+        run = _kalman_start(cache[st], init, objective, opts, evaluate, deadline, force=idx == 0)
+        if run is None:
+            continue
+        cand, qinfo[idx] = run
+        mtr, v = evaluate(cand)
+        v = v + _kalman_checks(base, cand.L, *qinfo[idx])
+        obj = _metric_of(objective, mtr)
+        records.append(_start_record(idx, origin, cand, mtr, v, obj, cand.message))
+        evaluated.append((obj, idx, mtr, v, cand))
+    nan_qp = (np.full((plant.m, plant.m), np.nan), np.full((plant.n, plant.n), np.nan))
+    Qb, Pb = qinfo[pick_best(evaluated)[1]] if evaluated else nan_qp
+    return _result_from(base, records, evaluated, objective=objective, target=None, region=region,
+                        deadline=deadline, planned=len(start_list),
+                        kalman={"Q": Qb, "P": Pb, "R": np.asarray(R, dtype=float)})
+
+
+def _check_q_range(q_range: Any) -> tuple[float, float]:
+    """``(lo, hi)`` with ``0 < lo <= hi < inf`` from a pair of numbers."""
+    if isinstance(q_range, (str, bytes)) or not hasattr(q_range, "__len__") or len(q_range) != 2:
+        raise ValidationError(f"q_range must be a pair (lo, hi) of numbers; found {q_range!r}")
+    try:
+        lo, hi = (as_positive_float("q_range", q_range[0], allow_zero=True),
+                  as_positive_float("q_range", q_range[1], allow_zero=True))
+    except ValidationError:
+        raise ValidationError(f"q_range must be a pair (lo, hi) of numbers; found {q_range!r}") from None
+    if not (0 < lo <= hi):
+        raise ValidationError(f"q_range must satisfy 0 < lo <= hi < inf; found {q_range!r}")
+    return lo, hi
+
+
+def _kalman_starts(base: Plant, q_structure: str, lo: float, hi: float, starts: int, rng) -> list:
+    """Kalman filters for log-spaced multiples of ``Q0`` (random diagonal jitter): ``(origin, (P, theta, L),
+    structure)`` per start whose Riccati equation has a solution.
+
+    Raises
+    ------
+    ValidationError
+        No start has one.
+    """
+    m = base.m
+    Q0 = base.Q
     mults = np.geomspace(lo, hi, starts) if starts > 1 else np.array([math.sqrt(lo * hi)])
     start_list = []
     for k, q in enumerate(mults):
@@ -1412,92 +1654,52 @@ def well_conditioned_kalman(
             "no Riccati solution exists for any starting noise level in q_range; "
             "check detectability and that G Q G' excites the plant's modes"
         )
-    sc = NLPScaling.identity(n, p)
+    return start_list
 
-    def build(st):
-        return build_kalman_nlp(
-            base,
-            st,
-            objective=objective,
-            q_structure=q_structure,
-            region=region,
-            kappa2_max=kappa2_max,
-            eta_max=eta_max,
-            scaling=sc,
-        )
 
-    evaluate = partial(
-        _evaluate, base, target=None, region=region, mask=None, max_gain=None,
-        kappa2_max=kappa2_max, eta_max=eta_max,
-    )
-
-    from ..solvers.casadi_backend import solve_opti
-
-    records: list[StartRecord] = []
-    evaluated = []
-    cache: dict[Any, Any] = {}
-    qinfo: dict[int, tuple[NDArray, NDArray]] = {}
-    for idx, (origin, (P0, th0, L0), st) in enumerate(start_list):
-        if st not in cache:
-            cache[st] = build(st)
-        knlp = cache[st]
-        knlp.set_initial(P0, th0, L0)
-        hist = []
-        best = None
-        stages = KAPPA2_STAGES if objective == "kappa2" else (None,)
-        good = None
-        for J in stages:
-            if J is not None:
-                knlp.obs.set_stage(J)
-            if good is not None:
-                knlp.obs.warm_start(good[0])
-                knlp.opti.set_initial(knlp.Fp, good[1])
-                knlp.opti.set_initial(knlp.theta, good[2])
-            rep = solve_opti(knlp.opti, opts, configure=not knlp.obs.solver_ready)
-            knlp.obs.solver_ready = True
-            stage = "" if J is None else f"J={J}"
-            c, readable = _read_candidate(knlp.obs, rep, stage)
-            if readable:
-                try:
-                    Qv = knlp.noise(rep.value)
-                    Pv = np.asarray(rep.value(knlp.P), dtype=float).reshape(n, n)
-                except RuntimeError as exc:  # CasADi cannot evaluate the iterate
-                    c, readable = _solver_error_candidate(base, rep, exc, stage), False
-            hist.append(c)
-            if not readable:
-                Qv, Pv = np.full((m, m), np.nan), np.full((n, n), np.nan)
-                break
-            _, v = evaluate(c)
-            if v.passed:
-                good = (
-                    knlp.obs.snapshot(rep.value),
-                    np.asarray(rep.value(knlp.Fp), dtype=float),
-                    np.asarray(rep.value(knlp.theta), dtype=float),
-                )
-                best = c
-                qinfo[idx] = (Qv, Pv)
-        cand = best if best is not None else hist[-1]
-        if best is None:
-            qinfo[idx] = (Qv, Pv)
-        cand = dataclasses.replace(
-            cand, iterations=sum(h.iterations for h in hist), time=sum(h.time for h in hist)
-        )
-        mtr, v = evaluate(cand)
-        v = v + _kalman_checks(base, cand.L, *qinfo[idx])
-        obj = _metric_of(objective, mtr)
-        records.append(_start_record(idx, origin, cand, mtr, v, obj, cand.message))
-        evaluated.append((obj, idx, mtr, v, cand))
-    best_idx = _pick(evaluated)[1]
-    Qb, Pb = qinfo[best_idx]
-    res = _result_from(
-        records,
-        evaluated,
-        objective=objective,
-        target=None,
-        region=region,
-        kalman={"Q": Qb, "P": Pb, "R": np.asarray(R, dtype=float)},
-    )
-    return res
+def _kalman_start(knlp, init, objective: str, opts, evaluate, deadline: Deadline, force: bool):
+    """One start of the Kalman NLP through its continuation: ``(candidate, (Q, P))`` -- the best verified
+    stage (with the start's iteration and time totals), else the last one; None when the deadline
+    expired before its first stage (which runs anyway with ``force``)."""
+    n, m = knlp.plant.n, knlp.plant.m
+    knlp.set_initial(*init)
+    plan, set_stage, _ = _stage_plan(knlp.obs, objective, None)
+    hist: list[Candidate] = []
+    best = None
+    good = None
+    nan_q = (np.full((m, m), np.nan), np.full((n, n), np.nan))
+    qp, best_qp = nan_q, None
+    for J in plan:
+        if deadline.expired and (hist or not force):
+            break
+        if J is not None:
+            set_stage(J)
+        if good is not None:
+            knlp.obs.warm_start(good[0])
+            knlp.opti.set_initial(knlp.Fp, good[1])
+            knlp.opti.set_initial(knlp.theta, good[2])
+        rep = solve_nlp(knlp.obs, opts, deadline)
+        stage = "" if J is None else f"J={J}"
+        c, readable = _read_candidate(knlp.obs, rep, stage)
+        if readable:
+            try:
+                qp = (knlp.noise(rep.value), np.asarray(rep.value(knlp.P), dtype=float).reshape(n, n))
+            except RuntimeError as exc:  # CasADi cannot evaluate the iterate
+                c, readable = _solver_error_candidate(knlp.plant, rep, exc, stage), False
+        hist.append(c)
+        if not readable:
+            qp = nan_q
+            break
+        if evaluate(c)[1].passed:
+            good = (knlp.obs.snapshot(rep.value), np.asarray(rep.value(knlp.Fp), dtype=float),
+                    np.asarray(rep.value(knlp.theta), dtype=float))
+            best, best_qp = c, qp
+    if not hist:
+        return None
+    cand = best if best is not None else hist[-1]
+    cand = dataclasses.replace(cand, iterations=sum(h.iterations for h in hist),
+                               time=sum(h.time for h in hist))
+    return cand, (best_qp if best is not None else qp)
 
 
 def _kalman_checks(plant: Plant, L: NDArray, Q: NDArray, P: NDArray) -> Verification:

@@ -313,13 +313,16 @@ def _scale_of(L: NDArray, R: NDArray, extra: NDArray | None = None) -> float:
 
 
 def _noise_structure_and_objective(cp, Q, structure: str, G: NDArray | None, objective: str, nominal,
-                                   cons: list):
+                                   cons: list, T: NDArray | None = None):
     """The part the fixed-gain and spectral SDPs share: the structure of the noise (``Q`` free,
     ``Q = G Qw G'`` or ``Q = G diag(qw) G'``), its PSD constraint and the objective.
 
     ``nominal`` is the (scaled) ``Q_nominal`` of ``"nearest"`` -- an array or a cvxpy parameter
-    of the decision covariance's shape.  Appends to ``cons``; returns ``(Qw, t, objective)``
-    (``Qw`` None for ``"full"``, ``t`` the margin variable of ``"feasibility"`` or None).
+    of the decision covariance's shape.  ``T`` (optional): the data are in transformed state
+    coordinates and the physical noise is ``T Q T'``; the objective is that of the physical
+    noise (``trace(T'T Q)``, ``||T Q T' - Q_nominal||``, ``T Q T' >= t I``).  Appends to
+    ``cons``; returns ``(Qw, t, objective)`` (``Qw`` None for ``"full"``, ``t`` the margin
+    variable of ``"feasibility"`` or None).
     """
     Qw = t = None
     if structure == "full":
@@ -334,20 +337,34 @@ def _noise_structure_and_objective(cp, Q, structure: str, G: NDArray | None, obj
             dec = cp.diag(Qw)
         D = Q - G @ dec @ G.T
         cons += [cp.upper_tri(D) == 0, cp.diag(D) == 0]
+    metric = structure == "full" and T is not None
     if objective == "feasibility":
         t = cp.Variable(name="t")
-        cons.append(Qw >= t if structure == "diagonal" else dec - t * np.eye(dec.shape[0]) >> 0)
+        if structure == "diagonal":
+            cons.append(Qw >= t)
+        else:
+            k = dec.shape[0]
+            N = np.eye(k)
+            if metric:  # T Q T' >= t I  <=>  Q >= t T^-1 T^-T
+                Ti = np.linalg.inv(T)
+                N = 0.5 * (Ti @ Ti.T + (Ti @ Ti.T).T)
+            cons.append(dec - t * N >> 0)
         return Qw, t, cp.Maximize(t)
     cons.append(Qw >= 0 if structure == "diagonal" else dec >> 0)
     if objective == "min_trace":
-        return Qw, t, cp.Minimize(cp.trace(Q))
+        if T is None:
+            return Qw, t, cp.Minimize(cp.trace(Q))
+        M = T.T @ T
+        return Qw, t, cp.Minimize(cp.trace((0.5 * (M + M.T)) @ Q))
+    if metric:
+        return Qw, t, cp.Minimize(cp.norm(T @ dec @ T.T - nominal, "fro"))
     return Qw, t, cp.Minimize(cp.norm(dec - nominal, "fro"))
 
 
 def build_fixed_gain_sdp(
     A: NDArray, C: NDArray, L: NDArray, R: NDArray, *, dt: float | None = None,
     structure: str = "full", G: NDArray | None = None, objective: str = "min_trace",
-    Q_nominal: NDArray | None = None,
+    Q_nominal: NDArray | None = None, T: NDArray | None = None,
 ) -> FixedGainSDP:
     r"""SDP over the Q family of a fixed gain L (relations (C) / (D) of the module docstring).
 
@@ -371,7 +388,13 @@ def build_fixed_gain_sdp(
         Needed for ``"diagonal"`` and ``"input"``.
     objective : {"min_trace", "nearest", "feasibility"}
     Q_nominal : ndarray, optional
-        For ``"nearest"``: (n, n) for ``"full"``, (m, m) for ``"input"`` / ``"diagonal"``.
+        For ``"nearest"``: (n, n) for ``"full"``, (m, m) for ``"input"`` / ``"diagonal"``
+        (physical, also when ``T`` is given).
+    T : (n, n) ndarray, optional
+        The data (A, C, L, G) are given in transformed state coordinates ``x = T x~``; the
+        physical covariances are ``T P T'`` and ``T Q T'`` and the objective is evaluated on
+        them.  A well-chosen T (the design layer whitens the observer's error covariance) keeps
+        the SDP well scaled when the physical P spans many decades.
 
     Returns
     -------
@@ -412,7 +435,8 @@ def build_fixed_gain_sdp(
     if objective == "nearest":
         k = n if structure == "full" else G.shape[1]
         nominal = params["Q_nominal"] = cp.Parameter((k, k), symmetric=True, name="Q_nominal")
-    Qw, t, obj = _noise_structure_and_objective(cp, Q, structure, G, objective, nominal, cons)
+    Qw, t, obj = _noise_structure_and_objective(cp, Q, structure, G, objective, nominal, cons,
+                                                None if T is None else np.asarray(T, dtype=float))
     sdp = FixedGainSDP(problem=cp.Problem(obj, cons), P=P, Q=Q, Qw=Qw, t=t, scale=1.0,
                        structure=structure, objective=objective, params=params, A=A, C=C, R=R,
                        dt=dt)

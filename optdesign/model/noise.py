@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_positive_float
+from .._validate import as_array, as_int, as_positive_float, as_real
 from ..errors import DimensionError, NotFiniteError, ValidationError
 
 __all__ = ["NoiseModel", "Step", "Sinusoid", "Polynomial", "UNIT_CIRCLE_TOL"]
@@ -311,10 +311,17 @@ class NoiseModel:
         -------
         (T - r,) or (T - r, p) ndarray
             Zero (to rounding) exactly when the signal belongs to the model.
+
+        Raises
+        ------
+        ValidationError, NotFiniteError
+            ``signal`` not numeric (strings are refused) or not finite.
+        DimensionError
+            Not 1-D or 2-D, or not longer than ``r`` samples.
         """
-        x = np.asarray(signal, dtype=float)
+        x = as_array("signal", signal, (1, 2))
         r = self.order
-        if x.ndim not in (1, 2) or x.shape[0] <= r:
+        if x.shape[0] <= r:
             raise DimensionError(f"signal must be (T,) or (T, p) with T > {r}; found shape {x.shape}")
         T = x.shape[0]
         out = np.zeros((T - r,) + x.shape[1:])
@@ -336,19 +343,23 @@ class NoiseModel:
         -------
         (T,) or (T, p) ndarray
             ``delta(0..T-1)`` with ``P(q) delta = 0``.
+
+        Raises
+        ------
+        ValidationError
+            ``steps`` not an integer ``>= r``; ``initial`` not numeric.
+        DimensionError, NotFiniteError
+            ``initial`` of the wrong shape or not finite.
         """
         r = self.order
-        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < r:
-            raise ValidationError(f"steps must be an integer >= r = {r}; found {steps!r}")
-        d0 = np.asarray(initial, dtype=float)
-        if d0.ndim not in (1, 2) or d0.shape[0] != r:
+        steps = as_int("steps", steps, r)
+        d0 = as_array("initial", initial, (1, 2))
+        if d0.shape[0] != r:
             raise DimensionError(f"initial must have shape ({r},) or ({r}, p); found {d0.shape}")
-        if not np.all(np.isfinite(d0)):
-            raise NotFiniteError("initial must be finite")
-        out = np.zeros((int(steps),) + d0.shape[1:])
+        out = np.zeros((steps,) + d0.shape[1:])
         out[:r] = d0
         a = self.coefficients[1:]  # delta(k) = -(a_{r-1} delta(k-1) + ... + a_0 delta(k-r))
-        for k in range(r, int(steps)):
+        for k in range(r, steps):
             out[k] = -np.tensordot(a, out[k - r:k][::-1], axes=1)
         return out
 
@@ -412,7 +423,7 @@ class Step(NoiseModel):
 
     def signal(self, steps: int, level: float = 1.0) -> NDArray[np.float64]:
         """``delta(k) = level`` for ``k = 0..steps-1``, shape (steps,)."""
-        return self.simulate(steps, [float(level)])
+        return self.simulate(steps, [as_real("level", level)])
 
     def __repr__(self) -> str:
         return "Step()"
@@ -482,9 +493,9 @@ class Sinusoid(NoiseModel):
 
     def signal(self, steps: int, amplitude: float = 1.0, phase: float = 0.0) -> NDArray[np.float64]:
         """``amplitude sin(omega dt k + phase)`` for ``k = 0..steps-1``, shape (steps,)."""
-        if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 0:
-            raise ValidationError(f"steps must be a non-negative integer; found {steps!r}")
-        return float(amplitude) * np.sin(self.theta * np.arange(int(steps)) + float(phase))
+        steps = as_int("steps", steps, 0)
+        amplitude, phase = as_real("amplitude", amplitude), as_real("phase", phase)
+        return amplitude * np.sin(self.theta * np.arange(steps) + phase)
 
     def __repr__(self) -> str:
         return f"Sinusoid({self.frequency:g}, dt={self.dt:g})"

@@ -101,8 +101,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_positive_float, as_vector
-from ..errors import EmptyRegionError, NotFiniteError, ValidationError
+from .._validate import as_bool, as_positive_float, as_real, as_rng, as_vector
+from ..errors import EmptyRegionError, ValidationError
 
 __all__ = [
     "Region",
@@ -135,15 +135,7 @@ def _real_param(owner: str, name: str, value: Any) -> float:
                 f"for a real system); found {value!r}"
             )
         value = value.real
-    if isinstance(value, (bool, np.bool_)) or isinstance(value, str):
-        raise ValidationError(f"{owner} {name} must be a real number; found {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValidationError(f"{owner} {name} must be a real number; found {value!r}") from None
-    if not math.isfinite(v):
-        raise NotFiniteError(f"{owner} {name} must be finite; found {v!r}")
-    return v
+    return as_real(f"{owner} {name}", value)
 
 
 def _positive_param(owner: str, name: str, value: Any) -> float:
@@ -401,8 +393,14 @@ class Region(ABC):
         return self._project(_as_points(poles))
 
     def lmi_value(self, s: complex) -> NDArray[np.complex128]:
-        """The Hermitian matrix ``f(s) = L + M s + M^T conj(s)``; ``s`` is interior iff ``f(s) < 0``."""
-        s = complex(s)
+        """The Hermitian matrix ``f(s) = L + M s + M^T conj(s)``; ``s`` is interior iff ``f(s) < 0``.
+
+        Raises
+        ------
+        ValidationError, NotFiniteError
+            ``s`` is not one finite (complex) number.
+        """
+        s = complex(as_vector("s", s, 1, allow_complex=True)[0])
         L, M = self.lmi_matrices()
         return L + M * s + M.T * s.conjugate()
 
@@ -497,7 +495,8 @@ class Region(ABC):
         ------
         ValidationError
             ``n`` negative or not an integer, ``real_fraction`` outside [0, 1], ``n_real`` not
-            an integer in ``[0, n]`` of the parity of ``n``, ``window <= 0``.
+            an integer in ``[0, n]`` of the parity of ``n``, ``window <= 0``, ``rng`` not a seed or
+            a Generator.
         """
         if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 0:
             raise ValidationError(f"sample_poles n must be a nonnegative integer; found {n!r}")
@@ -521,7 +520,7 @@ class Region(ABC):
                     f"(complex poles come in pairs); found {n_real!r}"
                 )
             n_real = int(n_real)
-        gen = np.random.default_rng(rng)
+        gen = as_rng("sample_poles rng", rng)
         n_pairs = (n - n_real) // 2
 
         xa, xb, Y, _ = self._window(window)
@@ -561,11 +560,15 @@ class Region(ABC):
     # ------------------------------------------------------------ combination, (de)serialization
     def __and__(self, other: object) -> Region:
         if not isinstance(other, Region):
-            return NotImplemented
+            raise ValidationError(f"a region can only be intersected with a region (region & region); found "
+                                  f"{type(other).__name__} {other!r}")
         members = _flatten((self, other))
         if len(members) == 1:
             return members[0]
         return Intersection(*members)
+
+    def __rand__(self, other: object) -> Region:
+        return self.__and__(other)  # only reached for a non-region on the left: refused there
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-friendly description; :func:`region_from_dict` inverts it."""
@@ -993,10 +996,8 @@ class Intersection(Region):
         overlap (by more than ``1e-12`` times their magnitude, so members that only touch,
         like ``HalfPlane(1) & VerticalStrip(-1, 0)``, count as empty); the message names a
         pair of members that share no interior point.
-    TypeError
-        A member is not a :class:`Region`.
     ValidationError
-        No members.
+        No members, or a member that is not a :class:`Region`.
     """
 
     members: tuple[Region, ...]
@@ -1004,7 +1005,8 @@ class Intersection(Region):
     def __init__(self, *members: Region) -> None:
         for m in members:
             if not isinstance(m, Region):
-                raise TypeError(f"Intersection members must be Regions; found {type(m).__name__}: {m!r}")
+                raise ValidationError(
+                    f"Intersection members must be Regions; found {type(m).__name__}: {m!r}")
         flat = _flatten(members)
         if not flat:
             raise ValidationError("Intersection needs at least one region; found none")
@@ -1120,8 +1122,10 @@ def stability_region(discrete: bool, margin: float = 0.0) -> Region:
     Raises
     ------
     ValidationError
-        ``margin`` not finite, or ``margin >= 1`` in discrete time.
+        ``discrete`` not a bool; ``margin`` not a finite real number, or ``margin >= 1`` in discrete
+        time.
     """
+    discrete = as_bool("stability_region discrete", discrete)
     m = _real_param("stability_region", "margin", margin)
     if discrete:
         if not m < 1.0:

@@ -21,10 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from ..cli import CLIError, _plant_of, _print_json, register
+from ..cli import CLIError, plant_of, print_json, register
 from ..errors import ValidationError
 
-__all__ = ["cmd_design", "cmd_study", "cmd_reproduce", "DESIGN_METHODS", "region_from_args"]
+__all__ = ["cmd_design", "cmd_study", "cmd_reproduce", "DESIGN_METHODS", "region_from_args",
+           "with_stability_check"]
 
 #: ``--method`` choices of ``optdesign design``
 DESIGN_METHODS = ("kalman", "inverse", "well_conditioned", "wc_kalman", "place")
@@ -46,8 +47,9 @@ pole regions (--region): members joined by '&', each SHAPE:NUMBERS --
   stable                 Re s <= 0
 --alpha A, --zeta Z, --radius R add halfplane:A, sector:Z, disk:R to the region.
 
-poles (--poles): comma-separated, complex ones as -3+1j; write --poles="-1,-2,-3+1j,-3-1j" (with '=',
-  or with spaces inside the quotes: --poles "-1, -2"), since a bare -1,-2 looks like an option.
+poles (--poles): comma-separated, complex ones as -3+1j: --poles -1,-2,-3+1j,-3-1j (or --poles=...,
+  or --poles "-1, -2"); every pole must be stable for an observer (place reports unstable ones as
+  not successful).
 
 methods:
   kalman            steady-state Kalman filter (needs the problem's Q and R)
@@ -101,6 +103,36 @@ def region_from_args(args: argparse.Namespace, discrete: bool = False):
     return region
 
 
+def with_stability_check(plant, res):
+    """``res`` (a placement result) with a ``stability`` check of ``A - L C`` added to its verification.
+
+    A pole placement is not an observer unless its error dynamics are stable in the plant's time
+    domain (``Re < 0``, or ``|z| < 1``), by a margin above rounding: ``1e3 eps max(1, ||A||_2)``
+    (continuous) or ``1e3 eps`` (discrete), as for the Kalman filter.  Unstable requested poles are
+    placed (and shown), but the design is reported as not successful, with the reason.
+    """
+    import dataclasses
+
+    from ..results import Check, Verification
+
+    if res.L is None:
+        return res
+    poles = np.linalg.eigvals(plant.A - res.L @ plant.C)
+    eps = float(np.finfo(float).eps)
+    if plant.is_discrete:
+        value, tol, what = float(np.max(np.abs(poles))) - 1.0, -1e3 * eps, "max |eig(A - L C)| - 1"
+    else:
+        scale = max(1.0, float(np.linalg.norm(plant.A, 2)))
+        value, tol, what = float(np.max(poles.real)), -1e3 * eps * scale, "max Re eig(A - L C)"
+    check = Check.at_most("stability", value, tol, f"{what}: the error dynamics must be stable")
+    message = res.message
+    if not check.passed:
+        domain = "|z| < 1" if plant.is_discrete else "Re s < 0"
+        message += (f"; A - L C is not stable ({what} = {value:.4g}): the requested poles are not all in "
+                    f"{domain}, so this gain is no observer")
+    return dataclasses.replace(res, verification=res.verification + Verification.of([check]), message=message)
+
+
 def _fmt_poles(p) -> str:
     if p is None:
         return "-"
@@ -118,7 +150,7 @@ def _cfg_design(sp: argparse.ArgumentParser) -> None:
     sp.epilog = _REGION_HELP
     sp.add_argument("problem", help="problem name (see `optdesign list`)")
     sp.add_argument("--method", required=True, choices=DESIGN_METHODS, help="design verb (see below)")
-    sp.add_argument("--poles", help="target poles, e.g. --poles=\"-1,-2,-3+1j,-3-1j\" (default: the "
+    sp.add_argument("--poles", help="target poles, e.g. --poles -1,-2,-3+1j,-3-1j (default: the "
                                     "problem's)")
     sp.add_argument("--region", help="pole region, e.g. \"halfplane:1.5 & sector:0.7 & disk:20\" (see below)")
     sp.add_argument("--alpha", type=float, help="decay rate: poles with Re s <= -ALPHA")
@@ -192,7 +224,7 @@ def _target_poles(args: argparse.Namespace, prob) -> np.ndarray:
 def cmd_design(args: argparse.Namespace) -> int:
     """``optdesign design``: run one design verb on a problem and report the verified result."""
     _check_applicable(args)
-    prob = _plant_of(args.problem)
+    prob = plant_of(args.problem)
     plant = prob.plant
     method = args.method
     out: dict[str, Any] = {"problem": prob.name, "method": method}
@@ -217,7 +249,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     elif method == "place":
         from .designers import place_baseline
 
-        res = place_baseline(plant, _target_poles(args, prob))
+        res = with_stability_check(plant, place_baseline(plant, _target_poles(args, prob)))
         out.update(target=res.target)
     elif method == "well_conditioned":
         from ..design.well_conditioned import well_conditioned_observer
@@ -264,7 +296,7 @@ def cmd_design(args: argparse.Namespace) -> int:
                L=L, poles=getattr(res, "poles", None), kappa2=vals.get("kappa2"), eta=vals.get("eta"),
                gain_norm=vals.get("gain_norm"), verification=res.verification.as_dict())
     if args.json:
-        _print_json(out)
+        print_json(out)
     else:
         print(f"problem: {prob.name} -- {prob.title}")
         print(f"method: {method}    status: {out['status']}    success: {out['success']}")
@@ -322,7 +354,7 @@ def cmd_study(args: argparse.Namespace) -> int:
                    output=args.out)
     t = res.table
     if args.json:
-        _print_json({"spec": str(args.spec), "points": len(t), "successful": t.n_success,
+        print_json({"spec": str(args.spec), "points": len(t), "successful": t.n_success,
                      "failed": len(t) - t.n_success, "wall_time": t.wall_time, "csv": str(res.csv),
                      "json": str(res.json), "figures": [str(f) for f in res.figures], "meta": t.meta})
     else:

@@ -58,7 +58,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_bool, as_int, as_poles, as_positive_float
+from .._deadline import as_time_limit
+from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
@@ -256,6 +257,10 @@ class RegionSweepDesigner:
     initial_gain : (n, p) array_like, optional
         A known good gain (e.g. an unconstrained optimum): every point also starts from it
         (final continuation stage only, like the warm start).
+    time_limit : float, optional
+        Seconds of wall time per point (None: no limit).  IPOPT gets the time left; no start
+        after the point's first begins once it is spent; the point then has status
+        ``time_limit`` (``success`` False) with the best verified design found so far.
 
     Raises
     ------
@@ -287,6 +292,7 @@ class RegionSweepDesigner:
     pole_scale: float | None = None
     options: Mapping[str, Any] | None = None
     initial_gain: Any = field(default=None, compare=False)
+    time_limit: float | None = None
 
     #: point keys understood (sweepable parameters) -> NLP parameter names
     AXES: ClassVar[dict[str, str]] = {"alpha": "decay", "zeta": "damping", "radius": "radius",
@@ -311,12 +317,14 @@ class RegionSweepDesigner:
         if self.pole_scale is not None:
             as_positive_float("pole_scale", self.pole_scale)
         if self.options is not None:
-            if not isinstance(self.options, Mapping):
-                raise ValidationError(f"options must be a mapping of IPOPT options; found "
-                                      f"{type(self.options).__name__}")
-            for k, v in self.options.items():
-                if not isinstance(k, str) or isinstance(v, bool) or not isinstance(v, (str, int, float)):
+            from ..design.well_conditioned import check_ipopt_options
+
+            opts = as_options("options", self.options)
+            for k, v in opts.items():
+                if isinstance(v, bool) or not isinstance(v, (str, int, float)):
                     raise ValidationError(f"options: {k!r} must map to a string or a number; found {v!r}")
+            check_ipopt_options(opts)
+        as_time_limit(self.time_limit)
         plant = _plant_of(self.problem, self.plant, "RegionSweepDesigner")
         if self.initial_gain is not None:
             try:
@@ -393,7 +401,7 @@ class RegionSweepDesigner:
         return {**self.defaults(), **self._check_values(point, where=" in the point")}
 
     def _region_of(self, vals: Mapping[str, float]) -> Region:
-        from ..design.well_conditioned import _check_region_stable
+        from ..design.well_conditioned import check_region_stable
 
         plant = self._plant()
         members: list[Region] = []
@@ -413,7 +421,7 @@ class RegionSweepDesigner:
         reg = members[0]
         for m in members[1:]:
             reg = reg & m
-        _check_region_stable(reg, plant.is_discrete)
+        check_region_stable(reg, plant.is_discrete)
         return reg
 
     # ------------------------------------------------------------------ workspace
@@ -469,20 +477,22 @@ class _RegionSession:
         self.prev_cand: _Cand | None = None
 
     def __call__(self, **point: float):
+        from .._deadline import Deadline
         from ..design.well_conditioned import (
+            Candidate,
             ObserverDesign,
             StartRecord,
-            _Candidate,
-            _evaluate,
-            _pick,
-            _placement_start,
+            design_outcome,
+            evaluate_candidate,
             naive_poles,
+            placement_start,
+            solve_nlp,
             start_real_count,
         )
-        from ..formulate.well_conditioned import KAPPA2_STAGES, PoleStructure, random_gain_for_poles
-        from ..solvers.casadi_backend import solve_opti
+        from ..formulate.well_conditioned import PoleStructure, random_gain_for_poles
 
         d = self.d
+        deadline = Deadline(d.time_limit)  # the point's budget
         vals = d._point_values(point)  # validates the point
         region = d._region_of(vals)
         plant = d._plant()
@@ -493,32 +503,42 @@ class _RegionSession:
         nlp_values = {d.AXES[k]: v for k, v in vals.items()}
         bounds = {k: vals.get(k) for k in ("max_gain", "kappa2_max", "eta_max")}
         rng = np.random.default_rng(_point_seed(d.seed, point))
-        final = (KAPPA2_STAGES[-1],) if d.objective == "kappa2" else (None,)
-        full = KAPPA2_STAGES if d.objective == "kappa2" else (None,)
 
         def evaluate(c: _Cand):
             """The verb's independent checks (numpy/scipy) and metrics of a candidate."""
             Z, zp = c.basis if c.basis is not None else (None, None)
-            cand = _Candidate(c.L, Z, zp, c.status, c.native, c.message, c.iterations, c.time)
-            return _evaluate(plant, cand, target=None, region=region, mask=None, **bounds)
+            cand = Candidate(c.L, Z, zp, c.status, c.native, c.message, c.iterations, c.time)
+            return evaluate_candidate(plant, cand, target=None, region=region, mask=None, **bounds)
 
-        def verified(c: _Cand) -> bool:
-            return Status(c.status).is_solved and evaluate(c)[1].passed
+        def verified(c: _Cand | None) -> bool:
+            return c is not None and Status(c.status).is_solved and evaluate(c)[1].passed
 
-        def run(origin: str, structure, init, stages) -> _Cand:
+        cands: list[_Cand | None] = []
+
+        def may_start() -> bool:
+            """No new start once the point's time is spent -- except the point's first one."""
+            return not deadline.expired or all(c is None for c in cands)
+
+        def run(origin: str, structure, init, final_only: bool) -> _Cand | None:
+            """One start through the NLP's continuation (its last stage only with ``final_only``);
+            None when the point's time ran out before it could start."""
+            if not may_start():
+                return None
             nlp = ws.get(structure)
             nlp.set_parameters(**nlp_values)
             init(nlp)
+            stages, set_stage = nlp.continuation()
             best: _Cand | None = None
             hist: list[_Cand] = []
             good = None
-            for J in stages:
+            for J in stages[-1:] if final_only else stages:
+                if hist and deadline.expired:
+                    break
                 if J is not None:
-                    nlp.set_stage(J)
+                    set_stage(J)
                 if good is not None:
                     nlp.warm_start(good)
-                rep = solve_opti(nlp.opti, ws.options, configure=not nlp.solver_ready)
-                nlp.solver_ready = True
+                rep = solve_nlp(nlp, ws.options, deadline)
                 try:
                     basis = nlp.basis(rep.value)
                 except (ValueError, np.linalg.LinAlgError, FloatingPointError):
@@ -537,17 +557,19 @@ class _RegionSession:
                                        time=sum(h.time for h in hist))
 
         same_params = self.prev_params == params
-        cands: list[_Cand] = []
         warm_ok = False
+        planned = 0
         if d.warm_start and same_params:
             prev = self.prev_cand
+            planned += 1
             cands.append(run("warm start", prev.structure, lambda nlp, s=prev.snapshot: nlp.warm_start(s),
-                             final))
+                             True))
             warm_ok = verified(cands[-1])
         if d.initial_gain is not None:
             L0 = d.initial_gain
             st0 = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
-            cands.append(run("initial gain", st0, lambda nlp, L0=L0: nlp.set_initial_gain(L0), final))
+            planned += 1
+            cands.append(run("initial gain", st0, lambda nlp, L0=L0: nlp.set_initial_gain(L0), True))
             warm_ok = warm_ok or verified(cands[-1])
         tail: list[_Cand] = []
         if d.warm_start and same_params:
@@ -558,7 +580,11 @@ class _RegionSession:
                                        time=0.0)
             if evaluate(kept)[1].passed:
                 tail.append(kept)
-        for k in range(d.starts if (d.placement == "always" or not warm_ok) else 0):
+        n_place = d.starts if (d.placement == "always" or not warm_ok) else 0
+        planned += n_place
+        for k in range(n_place):
+            if not may_start():
+                break
             # start 0: YT at the open-loop poles moved into the region (the verb's baseline); then
             # poles sampled in the region, complex-pair patterns first (start_real_count)
             if k == 0:
@@ -567,7 +593,7 @@ class _RegionSession:
                 P0 = region.sample_poles(plant.n, rng, n_real=start_real_count(plant.n, k - 1))
                 origin = "region sample + YT"
             structure = PoleStructure.of(P0)
-            L0 = _placement_start(plant, P0, "YT")
+            L0 = placement_start(plant, P0, "YT")
             if L0 is None:
                 try:
                     L0 = random_gain_for_poles(plant, P0, rng)
@@ -575,36 +601,25 @@ class _RegionSession:
                 except (np.linalg.LinAlgError, ValueError):
                     L0 = np.zeros((plant.n, plant.p))
                     origin = "region sample, zero gain"
-            cands.append(run(origin, structure, lambda nlp, L0=L0: nlp.set_initial_gain(L0), full))
+            cands.append(run(origin, structure, lambda nlp, L0=L0: nlp.set_initial_gain(L0), False))
 
-        cands += tail
+        ran = [c for c in cands if c is not None] + tail
         evaluated = []
         records = []
-        for i, c in enumerate(cands):
+        for i, c in enumerate(ran):
             m, v = evaluate(c)
             obj = float(m[d.objective])
             records.append(StartRecord(i, c.origin, c.status, v.passed, m["kappa2"], m["eta"], m["gain_norm"],
                                        obj, c.iterations, c.time, c.message))
             evaluated.append((obj, i, m, v, c))
 
-        # the verb's ranking: solved and verified first, then verified, then by objective
-        obj, idx, m, v, c = _pick(evaluated)
-        status = Status(c.status)
-        if v.passed and c.snapshot is not None and status.is_solved:
+        # the verb's ranking and status: solved and verified first, then verified, then by objective;
+        # no verified design -> not_found (local evidence), the point's time spent -> time_limit
+        (obj, idx, m, v, c), status, msg = design_outcome(records, evaluated, d.objective, deadline=deadline,
+                                                          planned=planned + len(tail))
+        if v.passed and c.snapshot is not None and Status(c.status).is_solved:
             self.prev_params, self.prev_cand = params, c
         converged = sum(1 for r in records if r.verified and Status(r.status).is_solved)
-        certificate = None
-        if v.passed and status.is_solved:
-            msg = (f"best of {len(records)} starts (start {idx}, {c.origin}): {d.objective} = {obj:.6g}; "
-                   f"{converged} of {len(records)} converged to verified designs")
-        else:
-            if all(Status(r.status).is_infeasible for r in records):
-                status = Status.INFEASIBLE
-                certificate = {"reason": "IPOPT converged to a point of local infeasibility from every start "
-                                         "(not a proof: the NLP is non-convex)", "starts": len(records)}
-            failed = "; ".join(ch.name for ch in v.failed)
-            msg = (f"no start gave a solved and verified design; best start {idx} ({c.origin}): {c.message}"
-                   + (f"; failed checks: {failed}" if failed else ""))
         stats = SolverStats(backend="ipopt", native_status=c.native, time=float(sum(r.time for r in records)),
                             iterations=int(sum(r.iterations for r in records)),
                             extra={"starts": len(records), "converged": converged, "best_start": idx,
@@ -614,8 +629,7 @@ class _RegionSession:
                               kappa_fro=m["kappa_fro"],
                               gain_norm=m["gain_norm"], objective=d.objective, status=status, message=msg,
                               solver_stats=stats, verification=v, starts=tuple(records), V=m["V"],
-                              region=region, certificate=certificate,
-                              extra={"point": dict(point), "best_origin": c.origin})
+                              region=region, extra={"point": dict(point), "best_origin": c.origin})
 
 
 # --------------------------------------------------------------------------- generic point result
@@ -734,7 +748,7 @@ def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> Pla
     if method not in ("YT", "KNV0"):
         raise ValidationError(f"method must be 'YT' or 'KNV0'; found {method!r}")
     from ..classical.placement import place_observer
-    from ..design.well_conditioned import POLE_TOL, _Candidate, _evaluate
+    from ..design.well_conditioned import POLE_TOL, Candidate, evaluate_candidate
 
     target = as_poles("poles", poles, plant.n)
     plant.require_observable(what="pole placement")
@@ -752,9 +766,9 @@ def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> Pla
     stats = SolverStats(backend="scipy", native_status="placed", time=time.perf_counter() - t0)
     # the verb's checks of a fixed-pole design (pole error, numpy); no stability requirement: a
     # placement baseline may be asked for any pole set
-    cand = _Candidate(L, None, None, Status.SOLVED, "placed", "", 0, stats.time)
-    m, v = _evaluate(plant, cand, target=target, region=None, mask=None, max_gain=None, kappa2_max=None,
-                     eta_max=None, stable=False)
+    cand = Candidate(L, None, None, Status.SOLVED, "placed", "", 0, stats.time)
+    m, v = evaluate_candidate(plant, cand, target=target, region=None, mask=None, max_gain=None,
+                              kappa2_max=None, eta_max=None, stable=False)
     return PlacementResult(L, m["poles"], target, m["kappa2"], m["eta"], m["kappa_fro"], m["gain_norm"],
                            method,
                            Status.SOLVED, f"scipy.signal.place_poles ({method}) on the dual pair", stats, v)

@@ -1,0 +1,756 @@
+r"""The inverse Kalman problem without an NLP: null-vector Newton outside, the fixed-gain SDP inside.
+
+Given a plant ``(A, C, R[, G, dt])`` and stable target poles, find ``Q >= 0`` (in a structure),
+``P >= 0`` and the steady-state Kalman gain ``L`` with ``eig(A - L C) = targets``, the best
+``Q`` for an objective among all such.
+
+How
+---
+The poles fix L only for one output.  With p outputs the gains with the target poles are
+parametrized by one null vector ``g_b`` per target block (:mod:`optdesign.solvers.spectral_newton`:
+``L' W = G`` with ``w_b = -G1_b^T g_b``), and a gain is a Kalman gain of ``Q`` iff every
+``(R + G2_b Q G1_b^T) g_b = 0`` -- bilinear in ``(Q, g)``, linear in Q for fixed g (the fixed-gain
+SDP: :mod:`optdesign.solvers.clarabel_fixed_gain`).  :func:`solve_inverse_kalman`:
+
+1. *Feasibility* -- from a few decision covariances (a scaled identity whose Kalman poles are
+   closest to the targets, the nominal for ``"nearest"``, seeded random ones, a caller's warm
+   start), Gauss-Newton with a line search on the residuals over ``(V, g)`` with ``Qdec = V V'``
+   of full rank: a Kalman filter with exactly the target poles.
+2. *Rank* -- the fixed-gain SDP at that gain (global over Q for that L) gives the objective's best
+   Q for it and its rank r.
+3. *Optimization over L* -- Newton's method on the feasible manifold in ``(V, g)`` with V of r
+   columns (closed-form reduced Hessian, retraction by Gauss-Newton, vanishing columns
+   truncated), then the dual slack S of the joint problem: a negative eigenvalue adds a column
+   (a rank-increasing descent direction) and Newton continues.
+4. *Certificate* -- the fixed-gain SDP at the final L (Clarabel): the objective's global optimum
+   over the Q of that gain; a better SDP point restarts step 3 from it, else the Newton point
+   (exact to rounding) is the answer.  The status is ``optimal`` only when that SDP was solved.
+
+What optimum: a local optimum over L of the objective (several starts, the best kept), at which
+the returned Q is the global optimum of the convex family of Q of the returned L.
+
+One output: L is fixed by the poles (``g_b = 1``), step 4 alone answers, globally -- an
+infeasible SDP (or a negative maximal margin) is a certificate that no ``Q >= 0`` of the
+structure reaches the targets (status ``infeasible``).  Several outputs: when no start gives a
+Kalman filter with the targets the status is ``not_found`` (a local method: feasibility
+unknown), never ``infeasible``.
+
+The state that depends only on the plant and the fixed choices (structure, objective) is built
+once by :func:`prepare_inverse_kalman` -- in continuous time the SDP's constraint matrix -- and
+re-used for every target, as a caller-held problem object would.
+
+References
+----------
+Chang & Lee 1984 (seed 000); Anderson & Moore, *Optimal Filtering* (1979); Moore, IEEE TAC 21
+(1976) (parametric pole placement); Burer & Monteiro, Math. Program. 95 (2003).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sl
+from numpy.typing import ArrayLike, NDArray
+
+from .._deadline import Deadline
+from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
+from ..analysis.metrics import eigenvalue_rounding_floor
+from ..classical.placement import pole_error
+from ..classical.riccati import filter_are_error, filter_are_residual
+from ..errors import ValidationError
+from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
+from ..model.plant import Plant
+from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from .clarabel_fixed_gain import FamilyMap, FixedGainSolution, family_map, fixed_gain_family, solve_fixed_gain
+from .spectral_newton import (
+    FactorProblem,
+    SpectralBlocks,
+    escape_direction,
+    find_feasible,
+    initial_null_vectors,
+    newton,
+    project,
+    spectral_blocks,
+    sqp,
+)
+
+__all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inverse_kalman",
+           "engine_applies"]
+
+_EPS = float(np.finfo(float).eps)
+#: the pole tolerance is never raised above this, however ill-conditioned the poles (as the verb)
+POLE_FLOOR_CAP = 1e-6
+
+
+# ============================================================================ setup and result
+@dataclass(frozen=True, eq=False)
+class EngineSetup:
+    """What :func:`solve_inverse_kalman` needs of a plant, built once (:func:`prepare_inverse_kalman`).
+
+    Attributes
+    ----------
+    plant : Plant
+    structure : {"full", "input", "diagonal"}
+    objective : {"min_trace", "nearest", "feasibility"}
+    Gd : (n, k) ndarray
+        Noise input of the decision covariance (identity for ``"full"``, G otherwise).
+    family : FamilyMap
+        The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
+    """
+
+    plant: Plant
+    structure: str
+    objective: str
+    Gd: NDArray[np.float64]
+    family: FamilyMap
+
+    @property
+    def k(self) -> int:
+        """Size of the decision covariance."""
+        return int(self.Gd.shape[1])
+
+
+@dataclass(frozen=True, eq=False)
+class EngineResult(ResultMixin):
+    """Outcome of :func:`solve_inverse_kalman` (physical units).
+
+    Attributes
+    ----------
+    L : (n, p) ndarray or None
+    P, Q : (n, n) ndarray or None
+    Qw : ndarray or None
+        ``"input"``: (m, m); ``"diagonal"``: (m, m) diagonal.
+    status : Status
+    message : str
+    objective_value : float
+        ``trace(Q)`` (min_trace), ``||Qdec - Q_nominal||_F`` (nearest) or ``lambda_min(Qdec)``
+        (feasibility), with ``Qdec`` = Q (full) or Qw.
+    iterations : int
+        Newton and Gauss-Newton iterations over all starts.
+    rank : int or None
+        Rank of the decision covariance.
+    verification : Verification
+        Independent checks (numpy poles, the Riccati residual, PSD, a scipy Riccati re-solve
+        with the returned Q reproducing L and the poles).
+    solver_stats : SolverStats
+    target_poles : (n,) complex ndarray
+    details : dict
+        Per-start records (``"starts"``), the final SDP (``"sdp"``), the certificate data of
+        an infeasible single-output target (``"certificate"``), ``"applicable"``.
+    """
+
+    L: NDArray[np.float64] | None
+    P: NDArray[np.float64] | None
+    Q: NDArray[np.float64] | None
+    Qw: NDArray[np.float64] | None
+    status: Status
+    message: str
+    objective_value: float
+    iterations: int
+    rank: int | None
+    verification: Verification
+    solver_stats: SolverStats
+    target_poles: NDArray[np.complex128]
+    details: dict = field(default_factory=dict)
+
+
+def prepare_inverse_kalman(plant: Plant, *, structure: str = "full", objective: str = "min_trace") -> EngineSetup:
+    """Build the per-plant state of the engine.
+
+    Parameters
+    ----------
+    plant : Plant
+        With R (positive definite; validated by Plant); G for ``"input"`` / ``"diagonal"``;
+        ``(C, A)`` observable.
+    structure : {"full", "input", "diagonal"}
+    objective : {"min_trace", "nearest", "feasibility"}
+
+    Returns
+    -------
+    EngineSetup
+
+    Raises
+    ------
+    ValidationError
+        Not a Plant, no R, unknown structure / objective, a structured Q without G, C with
+        dependent rows.
+    NotObservableError
+        (C, A) is not observable (the modes are named).
+    """
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    if structure not in STRUCTURES:
+        raise ValidationError(f"structure must be one of {STRUCTURES}; found {structure!r}")
+    if objective not in OBJECTIVES:
+        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
+    if plant.R is None:
+        raise ValidationError("the inverse Kalman engine needs the measurement-noise covariance R: the plant "
+                              "has no R")
+    if structure != "full" and plant.G is None:
+        raise ValidationError(f"structure={structure!r} needs the plant's noise input matrix G; the plant has "
+                              f"none")
+    plant.require_observable(what="placing every filter pole")
+    Gd = np.eye(plant.n) if structure == "full" else np.asarray(plant.G, dtype=float)
+    return EngineSetup(plant=plant, structure=structure, objective=objective, Gd=Gd,
+                       family=family_map(plant.A, plant.C, plant.dt))
+
+
+def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
+    """Whether the spectral form applies: no target (relatively, 1e-8) at an eigenvalue of A or of
+    its mirror image (``-A`` / ``A^-1``) and no discrete target at 0 (the resolvents are singular
+    there; :func:`optdesign.formulate.inverse_kalman.spectral_terms`)."""
+    target = as_poles("poles", poles, setup.plant.n)
+    return spectral_terms(setup.plant.A, setup.plant.C, target, setup.plant.dt) is not None
+
+
+# ============================================================================ helpers
+def _stable(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
+    return np.abs(z) < 1.0 if discrete else np.real(z) < 0.0
+
+
+def _kalman(plant: Plant, Q: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
+    """(L, P, poles) of the Kalman filter of the state-space noise Q by scipy (no validation), or
+    None where there is no stabilizing solution."""
+    A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
+    try:
+        with np.errstate(all="ignore"):
+            if plant.is_discrete:
+                P = sl.solve_discrete_are(A.T, C.T, Q, R)
+                L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+            else:
+                P = sl.solve_continuous_are(A.T, C.T, Q, R)
+                L = np.linalg.solve(R, C @ P).T
+            poles = np.linalg.eigvals(A - L @ C)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if not (np.all(np.isfinite(poles)) and np.all(_stable(poles, plant.is_discrete))):
+        return None
+    return L, 0.5 * (P + P.T), poles
+
+
+def _scaled_start(setup: EngineSetup, target: NDArray, base: NDArray) -> tuple[float, float]:
+    """The scale ``a`` (log grid 1e-6 .. 1e6) whose ``a base`` has Kalman poles closest to the
+    targets: ``(a, pole error)`` (``(1, inf)`` when none has a Kalman filter)."""
+    best = (1.0, float("inf"))
+    for a in np.logspace(-6, 6, 25):
+        kal = _kalman(setup.plant, setup.Gd @ (a * base) @ setup.Gd.T)
+        if kal is not None:
+            e = pole_error(kal[2], target)
+            if e < best[1]:
+                best = (float(a), float(e))
+    return best
+
+
+def _starts(setup: EngineSetup, target: NDArray, Qn: NDArray | None, count: int, seed: int,
+            warm: NDArray | None) -> tuple[float, list[tuple[str, NDArray]]]:
+    """The scale of the covariances and the decision-covariance starts, in order."""
+    k = setup.k
+    a, _ = _scaled_start(setup, target, np.eye(k))
+    out: list[tuple[str, NDArray]] = []
+    if warm is not None:
+        out.append(("warm start", warm))
+    out.append(("scaled identity", a * np.eye(k)))
+    if Qn is not None:
+        w, U = np.linalg.eigh(0.5 * (Qn + Qn.T))
+        Wn = (U * np.maximum(w, 1e-3 * max(float(w[-1]), 1e-300))) @ U.T
+        an, _ = _scaled_start(setup, target, Wn)
+        out.append(("scaled nominal", an * Wn))
+    rng = np.random.default_rng(seed)
+    while len(out) < count:
+        F = rng.standard_normal((k, k))
+        out.append(("random", a * (F @ F.T / k + 0.1 * np.eye(k))))
+    return a, out[:max(1, count)]
+
+
+@dataclass
+class _Candidate:
+    """A feasible point: the factor problem, its x, the gain and bookkeeping."""
+
+    problem: FactorProblem
+    x: NDArray
+    kind: str
+    iterations: int = 0
+    history: list = field(default_factory=list)
+
+    @property
+    def f(self) -> float:
+        return self.problem.f(self.x)
+
+    def parts(self):
+        return self.problem.unpack(self.x)
+
+
+def _physical_objective(objective: str, Wdec: NDArray, Qn: NDArray | None, Q: NDArray) -> float:
+    if objective == "min_trace":
+        return float(np.trace(Q))
+    W = np.diag(Wdec) if np.ndim(Wdec) == 1 else Wdec
+    if objective == "nearest":
+        return float(np.linalg.norm(W - Qn))
+    return float(np.linalg.eigvalsh(0.5 * (W + W.T))[0])
+
+
+def _rank_of(W: NDArray) -> list[int]:
+    """Candidate ranks of an interior-point PSD matrix, likeliest first: the largest eigenvalue
+    gaps (ratio >= 100) above 1e-13 of the largest eigenvalue, then full rank."""
+    w = np.sort(np.linalg.eigvalsh(0.5 * (W + W.T)))[::-1]
+    if w[0] <= 0:
+        return [0]
+    w = np.maximum(w, 1e-300)
+    ratios = w[:-1] / w[1:]
+    cand = [int(i + 1) for i in np.argsort(-ratios) if ratios[i] >= 100.0 and w[i] > 1e-13 * w[0]]
+    return list(dict.fromkeys(cand[:3] + [int(np.sum(w > 1e-13 * w[0]))]))
+
+
+def _factor_of(W: NDArray, r: int, diagonal: bool) -> NDArray:
+    if diagonal:
+        return np.diag(np.sqrt(np.maximum(np.diag(W) if np.ndim(W) == 2 else W, 0.0)))
+    w, U = np.linalg.eigh(0.5 * (W + W.T))
+    return U[:, ::-1][:, :r] * np.sqrt(np.maximum(w[::-1][:r], 0.0))
+
+
+# ============================================================================ stages
+def _start_rank(setup: EngineSetup) -> int:
+    """Columns of V at a start: ``min(k, 2 p + 2)`` (the optima measured have rank p .. p + 2; a
+    negative eigenvalue of the dual slack adds columns where more are needed)."""
+    return setup.k if setup.structure == "diagonal" else min(setup.k, 2 * setup.plant.p + 2)
+
+
+def _from_start(setup: EngineSetup, blocks: SpectralBlocks, W: NDArray, scale: float, Qn: NDArray | None,
+                deadline: Deadline, rec: dict) -> _Candidate | None:
+    """Stages 1-2 from the decision covariance W: SQP to a nearly feasible point (the objective
+    reduced on the way), projected onto the feasible set; else Gauss-Newton to feasibility and
+    the fixed-gain SDP at that gain for the rank.  None when neither reaches feasibility."""
+    diagonal = setup.structure == "diagonal"
+    nominal = None if Qn is None else Qn / scale
+    Ws = 0.5 * (W + W.T) / scale
+    r0 = _start_rank(setup)
+    prob = FactorProblem(blocks, r0, setup.objective, nominal, diagonal)
+    V0 = _factor_of(Ws, r0, diagonal)
+    rep = sqp(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)), expired=lambda: deadline.expired)
+    rec.update(sqp_iterations=rep.iterations, sqp=rep.reason)
+    if rep.converged:
+        x, ok, _ = project(rep.problem, rep.x)
+        if ok:
+            return _Candidate(rep.problem, x, "", rep.iterations)
+    if deadline.expired:
+        return None
+    # fallback: the nearest feasible point (full rank), then the SDP at its gain for the rank
+    k = setup.k
+    prob = FactorProblem(blocks, k, setup.objective, nominal, diagonal)
+    V0 = _factor_of(Ws + 1e-12 * np.trace(Ws) * np.eye(k), k, diagonal)
+    x, ok, it = find_feasible(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)),
+                              expired=lambda: deadline.expired)
+    rec["gauss_newton_iterations"] = it
+    if not ok:
+        return None
+    cand = _Candidate(prob, x, "", rep.iterations + it)
+    _, _, g = prob.unpack(x)
+    sol = _sdp_at(setup, blocks, g, Qn, deadline)[1]
+    rec["sdp_at_start"] = _sdp_record(sol)
+    if sol.status.is_solved:
+        c2 = _from_sdp(setup, blocks, g, sol, scale, Qn, fixed=False)
+        if c2 is not None:
+            c2.iterations = cand.iterations
+            return c2
+    return cand
+
+
+def _sdp_at(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, Qn: NDArray | None,
+            deadline: Deadline) -> tuple[NDArray, FixedGainSolution]:
+    """The fixed-gain SDP at the gain of the null vectors g."""
+    L, _ = blocks.gain(g)
+    plant = setup.plant
+    fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float), Qn)
+    sol = solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, deadline=deadline)
+    return L, sol
+
+
+def _from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
+              Qn: NDArray | None, fixed: bool) -> _Candidate | None:
+    """A feasible factor point from an SDP solution at the gain of g (face read off the
+    eigenvalue gaps, projected onto the residuals' zero set), or None."""
+    diagonal = setup.structure == "diagonal"
+    W = sol.Wdec if setup.objective != "feasibility" else (
+        (sol.Wdec - sol.t) if diagonal else sol.Wdec - sol.t * np.eye(setup.k))
+    Wm = np.diag(W) if (diagonal and np.ndim(W) == 1) else W
+    t = 0.0 if sol.t is None else sol.t / scale
+    for r in _rank_of(Wm):
+        if r == 0:
+            continue
+        prob = FactorProblem(blocks, r, setup.objective, None if Qn is None else Qn / scale, diagonal,
+                             fixed_g=fixed, g_fixed=g if fixed else None)
+        x, ok, _ = project(prob, prob.pack(_factor_of(Wm / scale, r, diagonal), t, g))
+        if ok:
+            return _Candidate(prob, x, "sdp")
+    return None
+
+
+def _optimize(cand: _Candidate, blocks: SpectralBlocks, deadline: Deadline, max_rounds: int = 6) -> _Candidate:
+    """Stage 3: Newton over (V, g), with rank increases along negative eigenvectors of the dual
+    slack."""
+    prob, x = cand.problem, cand.x
+    for _ in range(max_rounds):
+        rep = newton(prob, x, expired=lambda: deadline.expired)
+        cand.iterations += rep.iterations
+        prob, x = rep.problem, rep.x
+        cand.history.append({"rank": prob.rank, "iterations": rep.iterations, "f": rep.f,
+                             "reduced_gradient": rep.reduced_gradient, "reason": rep.reason,
+                             "truncated": rep.truncated})
+        if deadline.expired or prob.diagonal:
+            break
+        S_tol = 1e-9 * max(1.0, float(np.linalg.norm(prob.dual_slack(x, rep.multipliers), 2)))
+        u = escape_direction(prob, x, rep.multipliers, S_tol)
+        if u is None or prob.rank >= blocks.k:
+            break
+        V, t, g = prob.unpack(x)
+        V = np.column_stack([V, 1e-3 * max(1e-12, float(np.linalg.norm(V))) * u])
+        new = FactorProblem(blocks, prob.rank + 1, prob.objective, prob.nominal, False)
+        xn, ok, _ = project(new, new.pack(V, t, g))
+        if not ok:
+            break
+        prob, x = new, xn
+    cand.problem, cand.x = prob, x
+    return cand
+
+
+def _design(setup: EngineSetup, blocks: SpectralBlocks, cand: _Candidate, scale: float):
+    """(L, P, Q, Qw, Wdec) in physical units from a feasible point: L from the null vectors, P
+    from the Lyapunov equation of ``A - L C`` with ``L R L' + Q``."""
+    plant = setup.plant
+    V, t, g = cand.parts()
+    Qdec = cand.problem.qdec(V, t) * scale
+    Qdec = 0.5 * (Qdec + Qdec.T)
+    L, _ = blocks.gain(g)
+    Q = setup.Gd @ Qdec @ setup.Gd.T
+    Q = 0.5 * (Q + Q.T)
+    R = np.asarray(plant.R, dtype=float)
+    F = plant.A - L @ plant.C
+    rhs = L @ R @ L.T + Q
+    P = (sl.solve_discrete_lyapunov(F, rhs) if plant.is_discrete
+         else sl.solve_continuous_lyapunov(F, -rhs))
+    P = 0.5 * (P + P.T)
+    if setup.structure == "full":
+        return L, P, Q, None, Qdec
+    Qw = np.diag(np.diag(Qdec)) if setup.structure == "diagonal" else Qdec
+    return L, P, Q, Qw, (np.diag(Qdec).copy() if setup.structure == "diagonal" else Qdec)
+
+
+def _verify(setup: EngineSetup, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
+            tol: float) -> Verification:
+    """Independent checks: numpy poles of ``A - L C``, the Riccati residual and forward error of P
+    with Q, PSD eigenvalues, and a scipy Riccati re-solve with Q that must give L and the poles.
+
+    Tolerances come from the data: the pole tolerance is ``max(tol, min(floor, 1e-6))`` with the
+    rounding floor of the eigenvalues of ``A - L C``; the gains may differ by what the forward
+    errors of the two Riccati solutions explain, plus the rounding of L itself (``4 (e1 + e2) ||P||
+    ||C' S^-1|| / max(1, ||L||) + 10 n eps (1 + kappa)``, kappa the condition number of the unit
+    eigenvectors of ``A - L C``, at most 1e-6); PSD eigenvalues down to ``-10 n eps`` (P: minus its
+    forward error).
+    """
+    plant = setup.plant
+    A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
+    n = plant.n
+    F = A - L @ C
+    floor = min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP)
+    ptol = max(tol, floor)
+    poles = np.linalg.eigvals(F)
+    rnd = 10.0 * n * _EPS
+    err = filter_are_error(plant.replace(G=None, Q=None), P, Qs=Q)
+    checks = [
+        Check.at_most("pole_error", pole_error(poles, target), ptol,
+                      "max relative distance of eig(A - L C) to the targets (tolerance: tol or the rounding "
+                      "floor of those poles)"),
+        Check.at_most("riccati_residual", filter_are_residual(plant.replace(G=None, Q=None), P, Qs=Q), 1e-8,
+                      "relative residual of the filter ARE for the returned P with the returned Q"),
+        Check.at_most("forward_error", err.relative, 1e-6, "a posteriori relative error of P"),
+        Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / max(1.0, float(np.linalg.norm(Q, 2))),
+                       -rnd, "smallest eigenvalue of Q / max(1, ||Q||)"),
+        Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / max(1.0, float(np.linalg.norm(P, 2))),
+                       -(err.relative + rnd), "smallest eigenvalue of P / max(1, ||P||)"),
+    ]
+    if Qw is not None:
+        G = plant.G
+        checks.append(Check.at_least("Qw_min_eig", float(np.linalg.eigvalsh(Qw)[0]) / max(
+            1.0, float(np.linalg.norm(Qw, 2))), -rnd, "smallest eigenvalue of Qw / max(1, ||Qw||)"))
+        mis = float(np.linalg.norm(G @ Qw @ G.T - Q)) / max(1.0, float(np.linalg.norm(Q)))
+        checks.append(Check.at_most("structure", mis, rnd, "||G Qw G' - Q|| / max(1, ||Q||)"))
+    kal = _kalman(plant, Q)
+    if kal is None:
+        checks.append(Check.at_most("are_resolve_gain", float("inf"), 0.0,
+                                    "scipy's Riccati solver gave no stabilizing solution with the returned Q"))
+        return Verification.of(checks)
+    La, Pa, pa = kal
+    err_a = filter_are_error(plant.replace(G=None, Q=None), Pa, Qs=Q)
+    S = C @ P @ C.T + R if plant.is_discrete else R
+    sens = float(np.linalg.norm(P)) * float(np.linalg.norm(np.linalg.solve(S, C).T, 2))
+    nl = max(1.0, float(np.linalg.norm(L)))
+    X = np.linalg.eig(F)[1]
+    kappa = float(np.linalg.cond(X / np.linalg.norm(X, axis=0)))
+    gtol = min(POLE_FLOOR_CAP, 4.0 * (err.relative + err_a.relative) * sens / nl + rnd * (1.0 + kappa))
+    checks.append(Check.at_most("are_resolve_gain", float(np.linalg.norm(La - L)) / nl, gtol,
+                                "||L_scipy - L|| / max(1, ||L||), L_scipy from scipy's Riccati solver with the "
+                                "returned Q (tolerance: what the forward errors of the two P explain, plus the "
+                                "rounding of L itself, 10 n eps kappa(eigenvectors of A - L C))"))
+    checks.append(Check.at_most("are_resolve_poles", pole_error(pa, target),
+                                max(tol, min(eigenvalue_rounding_floor(A - La @ C), POLE_FLOOR_CAP)),
+                                "poles of that re-solve vs the targets"))
+    return Verification.of(checks)
+
+
+def _result(setup, target, status, message, t0, cpu0, *, design=None, objective=float("nan"), iterations=0,
+            rank=None, tol=1e-8, details=None, native="") -> EngineResult:
+    L = P = Q = Qw = None
+    ver = Verification.of([])
+    if design is not None:
+        L, P, Q, Qw = design
+        ver = _verify(setup, target, L, P, Q, Qw, tol)
+        if not ver.passed:
+            message += "; failed checks: " + ", ".join(c.name for c in ver.failed)
+    stats = SolverStats(backend="spectral-newton+clarabel", native_status=native,
+                        time=time.perf_counter() - t0, iterations=iterations,
+                        extra={"cpu_time": time.process_time() - cpu0})
+    return EngineResult(L=L, P=P, Q=Q, Qw=Qw, status=status, message=message, objective_value=objective,
+                        iterations=iterations, rank=rank, verification=ver, solver_stats=stats,
+                        target_poles=target, details=details or {})
+
+
+def _nominal(setup: EngineSetup, Q_nominal) -> NDArray | None:
+    if setup.objective != "nearest":
+        return None
+    if Q_nominal is None:
+        raise ValidationError("objective='nearest' needs Q_nominal")
+    k = setup.k
+    what = "(n, n) (state-space Q)" if setup.structure == "full" else "(m, m) (noise-input Qw)"
+    Qn = as_square("Q_nominal", Q_nominal)
+    if Qn.shape[0] != k:
+        raise ValidationError(f"Q_nominal for structure={setup.structure!r} must be {what}, i.e. ({k}, {k}); "
+                              f"found {Qn.shape}")
+    return check_symmetric("Q_nominal", Qn)
+
+
+def _warm(setup: EngineSetup, warm_start) -> NDArray | None:
+    if warm_start is None:
+        return None
+    k = setup.k
+    W = as_square("warm_start", warm_start)
+    if W.shape[0] != k:
+        raise ValidationError(f"warm_start must be the ({k}, {k}) decision covariance; found {W.shape}")
+    W = check_symmetric("warm_start", W)
+    w, U = np.linalg.eigh(W)
+    if w[-1] <= 0:
+        raise ValidationError("warm_start must have a positive eigenvalue; found none")
+    return (U * np.maximum(w, 1e-6 * w[-1])) @ U.T  # positive definite (Gauss-Newton starts at full rank)
+
+
+def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: ArrayLike | None = None,
+                         starts: int = 3, seed: int = 0, time_limit: float | Deadline | None = None,
+                         tol: float = 1e-8, warm_start: ArrayLike | None = None) -> EngineResult:
+    """The Kalman filter with the target poles whose Q is best for the setup's objective.
+
+    Parameters
+    ----------
+    setup : EngineSetup
+        From :func:`prepare_inverse_kalman` (built once per plant, structure and objective).
+    poles : (n,) array_like of complex
+        Targets, closed under conjugation.
+    Q_nominal : array_like, optional
+        Objective ``"nearest"``: (n, n) for ``"full"``, (m, m) otherwise (required).
+    starts : int
+        Decision-covariance starts (several outputs): the scaled identity whose Kalman poles are
+        closest to the targets, the scaled nominal (``"nearest"``), then seeded random ones;
+        ``warm_start`` comes first when given.
+    seed : int
+        Seeds the random starts.
+    time_limit : float, Deadline or None
+        Seconds of wall time; on expiry the best design found so far is returned with status
+        ``time_limit``.
+    tol : float
+        Pole accuracy required by the verification (raised to the rounding floor of the poles).
+    warm_start : array_like, optional
+        A decision covariance to start from (e.g. the answer for a nearby target).
+
+    Returns
+    -------
+    EngineResult
+        ``optimal`` when the certificate SDP at the returned gain was solved and agrees;
+        ``infeasible`` only for one output (an infeasible fixed-gain SDP at the unique gain, a
+        global certificate) or an unstable target; ``not_found`` when no start gave a Kalman
+        filter with the targets; ``solver_error`` with ``details["applicable"] = False`` where
+        a target is an eigenvalue of A or of its mirror image (:func:`engine_applies`).
+
+    Raises
+    ------
+    ValidationError
+        Wrong number of poles (DimensionError), not conjugate-closed, bad ``tol`` / ``starts`` /
+        ``seed`` / ``time_limit``, a missing or malformed ``Q_nominal`` / ``warm_start``.
+    """
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    deadline = Deadline.of(time_limit)
+    plant = setup.plant
+    target = as_poles("poles", poles, plant.n)
+    tol = as_positive_float("tol", tol)
+    starts = as_int("starts", starts, 1)
+    seed = as_int("seed", seed, 0)
+    Qn = _nominal(setup, Q_nominal)
+    warm = _warm(setup, warm_start)
+    common = dict(tol=tol)
+    if not np.all(_stable(target, plant.is_discrete)):
+        where = "inside the unit circle" if plant.is_discrete else "in the open left half-plane"
+        return _result(setup, target, Status.INFEASIBLE,
+                       f"infeasible: a target pole is not {where}, and every steady-state Kalman filter is stable",
+                       t0, cpu0, details={"certificate": {"kind": "unstable_target"}}, **common)
+    terms = spectral_terms(plant.A, plant.C, target, plant.dt)
+    if terms is None:
+        return _result(setup, target, Status.SOLVER_ERROR,
+                       "not applicable: a target pole is an eigenvalue of A or of its mirror image (or a discrete "
+                       "target is 0), where the spectral conditions are singular", t0, cpu0,
+                       details={"applicable": False}, **common)
+    if plant.p == 1:
+        return _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol)
+    return _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol)
+
+
+#: relative agreement of the certificate SDP's optimum with the Newton point (1000x Clarabel's gap)
+_AGREE = 1e3 * 1e-10
+
+
+def _scaled_value(objective: str, sol: FixedGainSolution, scale: float, Qn: NDArray | None,
+                  structure: str) -> float:
+    """The factor problem's objective (scaled units) at an SDP solution."""
+    if objective == "min_trace":
+        return float(np.trace(sol.Q)) / scale
+    if objective == "feasibility":
+        return -float(sol.t) / scale
+    W = np.diag(sol.Wdec) if structure == "diagonal" else sol.Wdec
+    return float(np.sum((W - Qn) ** 2)) / scale ** 2
+
+
+def _certify(setup: EngineSetup, blocks: SpectralBlocks, best: _Candidate, scale: float, Qn: NDArray | None,
+             deadline: Deadline, rounds: int = 3) -> tuple[_Candidate, FixedGainSolution | None, bool]:
+    """Stage 4: the fixed-gain SDP at the candidate's gain; a better SDP point restarts Newton.
+    Returns ``(candidate, last SDP solution, agreed)``."""
+    sol = None
+    for _ in range(rounds):
+        _, _, g = best.parts()
+        _, sol = _sdp_at(setup, blocks, g, Qn, deadline)
+        if not sol.status.is_solved:
+            return best, sol, False
+        f_sdp = _scaled_value(setup.objective, sol, scale, Qn, setup.structure)
+        if f_sdp >= best.f - _AGREE * max(1.0, abs(best.f)):
+            return best, sol, bool(f_sdp <= best.f + _AGREE * max(1.0, abs(best.f)))
+        cand = _from_sdp(setup, blocks, g, sol, scale, Qn, fixed=False)
+        if cand is None or deadline.expired:
+            return best, sol, False
+        cand.kind, cand.iterations = best.kind + " (from the certificate SDP)", best.iterations
+        cand = _optimize(cand, blocks, deadline)
+        if not cand.f < best.f:
+            return best, sol, False
+        best = cand
+    return best, sol, False
+
+
+def _sdp_record(sol: FixedGainSolution | None) -> dict[str, Any]:
+    if sol is None:
+        return {}
+    return {"status": sol.status.value, "native": sol.native_status, "iterations": sol.iterations,
+            "solve_time": sol.solve_time}
+
+
+def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineResult:
+    """One output: the poles fix L (``g_b = 1``); the fixed-gain SDP at it answers globally."""
+    plant = setup.plant
+    R = np.asarray(plant.R, dtype=float)
+    g = np.ones((len(terms), 1), dtype=complex)
+    blocks = spectral_blocks(terms, R, setup.Gd)
+    L, sol = _sdp_at(setup, blocks, g, Qn, deadline)
+    details: dict[str, Any] = {"sdp": _sdp_record(sol), "L_unique": L}
+    common = dict(tol=tol, native=sol.native_status, details=details)
+    if sol.status.is_infeasible:
+        details["certificate"] = {"kind": "sdp_infeasible", "L": L}
+        return _result(setup, target, sol.status,
+                       f"infeasible: no Q >= 0 of structure {setup.structure!r} has a Kalman gain with these poles "
+                       f"(the fixed-gain SDP at the unique gain is infeasible: Clarabel {sol.native_status})",
+                       t0, cpu0, **common)
+    if not sol.status.is_solved:
+        status = Status.TIME_LIMIT if deadline.expired else sol.status
+        return _result(setup, target, status, f"the fixed-gain SDP failed: Clarabel {sol.native_status}", t0, cpu0,
+                       **common)
+    wscale = max(1.0, float(np.max(np.abs(sol.Wdec))))
+    if setup.objective == "feasibility" and sol.t < -1e-7 * wscale:
+        details["certificate"] = {"kind": "sdp_margin", "margin": sol.t, "L": L}
+        return _result(setup, target, Status.INFEASIBLE,
+                       f"infeasible: the largest smallest eigenvalue of the decision covariance over the Q family "
+                       f"of the unique gain is {sol.t:.4g} < 0", t0, cpu0, objective=sol.t, **common)
+    scale = max(1e-300, float(np.linalg.norm(sol.Wdec)))
+    blocks = spectral_blocks(terms, R, setup.Gd, scale)
+    cand = _from_sdp(setup, blocks, g, sol, scale, Qn, fixed=True)
+    if cand is None:
+        return _result(setup, target, Status.NUMERICAL_ERROR,
+                       "the fixed-gain SDP point fits no face of the PSD cone (not exact to rounding)", t0, cpu0,
+                       **common)
+    rep = newton(cand.problem, cand.x, expired=lambda: deadline.expired)
+    cand.problem, cand.x = rep.problem, rep.x
+    L, P, Q, Qw, Wdec = _design(setup, blocks, cand, scale)
+    status = sol.status if rep.converged else Status.OPTIMAL_INACCURATE
+    msg = (f"one output: the poles fix L; fixed-gain SDP (Clarabel {sol.native_status}) polished on its face "
+           f"(rank {cand.problem.rank}, Newton {rep.reason})")
+    return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
+                   objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=rep.iterations,
+                   rank=cand.problem.rank, **common)
+
+
+def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol) -> EngineResult:
+    """Stages 1-4 of the module docstring from each start; the best local optimum is certified."""
+    plant = setup.plant
+    R = np.asarray(plant.R, dtype=float)
+    scale, start_list = _starts(setup, target, Qn, starts, seed, warm)
+    blocks = spectral_blocks(terms, R, setup.Gd, scale)
+    records: list[dict[str, Any]] = []
+    best: _Candidate | None = None
+    iterations = 0
+    for kind, W in start_list:
+        if deadline.expired:
+            break
+        tic = time.process_time()
+        rec: dict[str, Any] = {"kind": kind}
+        records.append(rec)
+        cand = _from_start(setup, blocks, W, scale, Qn, deadline, rec)
+        rec["feasible"] = cand is not None
+        if cand is None:
+            rec["cpu_time"] = time.process_time() - tic
+            continue
+        cand.kind = kind
+        iterations += cand.iterations
+        cand = _optimize(cand, blocks, deadline)
+        iterations += sum(h["iterations"] for h in cand.history)
+        rec.update(f=cand.f, rank=cand.problem.rank, newton=cand.history, cpu_time=time.process_time() - tic)
+        if best is None or cand.f < best.f:
+            best = cand
+    details: dict[str, Any] = {"starts": records, "scale": scale}
+    if best is None:
+        status = Status.TIME_LIMIT if deadline.expired else Status.NOT_FOUND
+        return _result(setup, target, status,
+                       f"no Kalman filter with these poles found from {len(records)} start(s) (a local search: "
+                       f"feasibility unknown)", t0, cpu0, iterations=iterations, tol=tol, details=details)
+    best, sol, agreed = _certify(setup, blocks, best, scale, Qn, deadline)
+    details["sdp"] = _sdp_record(sol)
+    details["best_start"] = best.kind
+    L, P, Q, Qw, Wdec = _design(setup, blocks, best, scale)
+    if deadline.expired:
+        status, how = Status.TIME_LIMIT, "the time limit ran out; the best design so far"
+    elif sol is not None and sol.status == Status.OPTIMAL and agreed:
+        status, how = Status.OPTIMAL, "the fixed-gain SDP at that L (Clarabel Solved) agrees"
+    else:
+        status = Status.OPTIMAL_INACCURATE
+        how = ("no certificate: the fixed-gain SDP at that L " +
+               ("failed" if sol is None or not sol.status.is_solved else f"returned {sol.native_status}" +
+                ("" if agreed else " and does not agree")))
+    msg = (f"{plant.p} outputs: a local optimum over L from {len(records)} start(s) (best: {best.kind}; rank "
+           f"{best.problem.rank}); {how}")
+    return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
+                   objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=iterations,
+                   rank=best.problem.rank, tol=tol, details=details,
+                   native="" if sol is None else sol.native_status)
