@@ -17,10 +17,13 @@ from conftest import random_observable_plant
 
 from optdesign import problems
 from optdesign.classical.bpf import (
+    BPF_RESTART_NORM,
+    RiccatiMap,
     apply_map,
     backward_integration_matrix,
     bpf_coefficients,
     bpf_evaluate,
+    bpf_restart_blocks,
     bpf_riccati,
     bpf_transition,
     bpf_transition_direct,
@@ -179,6 +182,105 @@ def test_bpf_riccati_is_second_order_at_midpoints(oscillator):
     assert 1e-3 < mids[1] < 5e-3                                  # the paper's m = 50: ~2.4e-3
 
 
+def test_restarted_recursion_is_the_same_method(oscillator, rng):
+    """Restarting the recursion from its own Crank-Nicolson nodal value (T^r Z = (I - hM/2)^-1
+    phi_r^-1 Z) changes P_k and the asymmetry only by the rounding of the unrestarted recursion,
+    eps cond(phi_k): it is the same method, with any segment length."""
+    eps = np.finfo(float).eps
+    for M, P0, tf, m in ((oscillator[0], oscillator[1], oscillator[2], oscillator[3]),
+                         (_random_hamiltonian(rng, 3), np.eye(3), 2.0, 40)):
+        plain = bpf_riccati(M, P0, tf, m, symmetrize=False)
+        floor = 100 * eps * max(np.linalg.cond(phi) for phi in bpf_transition(M, tf, m))
+        auto = bpf_restart_blocks(M, tf / m)
+        assert 1 <= auto < m
+        for r in (1, 3, 7, auto, m + 5):
+            res = bpf_riccati(M, P0, tf, m, symmetrize=False, restart_every=r)
+            assert _traj_rel(res.P, plain.P) < floor, (r, _traj_rel(res.P, plain.P), floor)
+            assert np.max(np.abs(res.asymmetry - plain.asymmetry)) < floor * np.max(np.abs(plain.P))
+            assert res.restarts == (m - 1) // r and res.complete
+            assert res.restart_every == (r if r < m else None)
+
+
+def test_restarted_recursion_is_second_order(oscillator):
+    M, P0, tf, _ = oscillator
+    errs = []
+    for m in (25, 50, 100, 200, 400):
+        res = bpf_riccati(M, P0, tf, m, restart_every=1)
+        exact, _ = riccati_flow(M, P0, res.t)
+        errs.append(_traj_rel(res.P, exact))
+    order = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(np.abs(order - 2) < 0.02), order
+
+
+def test_restart_blocks_bound_the_condition_of_phi(rng):
+    """||M||_1 r h <= BPF_RESTART_NORM < ||M||_1 (r + 1) h, so cond(phi_k) <= e^{2 BPF_RESTART_NORM}
+    on every segment (measured here on the segment's coefficients)."""
+    M = _random_hamiltonian(rng, 4, stable=False)
+    nrm = np.linalg.norm(M, 1)
+    for h in (1e-3, 0.05, 0.3, 10.0):
+        r = bpf_restart_blocks(M, h)
+        assert r >= 1 and (r == 1 or nrm * r * h <= BPF_RESTART_NORM < nrm * (r + 1) * h)
+        if r > 1:
+            phis = bpf_transition(M, r * h, r)
+            assert max(np.linalg.cond(phi) for phi in phis) <= np.exp(2 * BPF_RESTART_NORM)
+    assert bpf_restart_blocks(np.zeros((4, 4)), 0.1) > 10**15
+    with pytest.raises(ValidationError, match="h must be finite and > 0"):
+        bpf_restart_blocks(M, 0.0)
+    with pytest.raises(DimensionError, match="M must be a 2n x 2n"):
+        bpf_restart_blocks(np.eye(3), 0.1)
+
+
+def test_restarted_bpf_error_names_the_cause(oscillator):
+    """Blocks far too wide: CAREX 1.2's Hamiltonian has the real eigenvalues +-sqrt 2, so with
+    h = sqrt 2 both I + hM/2 (phi_1^-1) and I - hM/2 (the restart) are singular; with restarts the
+    message no longer blames the horizon."""
+    pl = problems.load("carex_1.2").plant
+    M = filter_hamiltonian(pl.A, pl.C, pl.process_noise(), pl.R)
+    h = np.sqrt(2.0)
+    with pytest.raises(RiccatiError, match="phi_k is singular.*blocks far too wide for the fastest mode"):
+        bpf_riccati(M, np.eye(2), 4 * h, 4, restart_every=1)
+    with pytest.raises(RiccatiError, match="phi_k is singular.*restart it"):
+        bpf_riccati(M, np.eye(2), 4 * h, 4)
+    with pytest.raises(ValidationError, match="restart_every must be a positive integer"):
+        bpf_riccati(oscillator[0], oscillator[1], 1.0, 4, restart_every=0)
+
+
+@pytest.fixture
+def ticking(monkeypatch):
+    """Every look at a limited Deadline's clock advances it by one second."""
+    from optdesign._deadline import Deadline
+
+    looks: dict[int, int] = {}
+    start = Deadline.__init__
+
+    def init(self, time_limit=None):
+        start(self, time_limit)
+        looks[id(self)] = 0
+
+    def elapsed(self):
+        looks[id(self)] += 1
+        return float(looks[id(self)])
+
+    monkeypatch.setattr(Deadline, "__init__", init)
+    monkeypatch.setattr(Deadline, "elapsed", property(elapsed))
+
+
+def test_deadline_stops_recursion_and_flow(ticking, oscillator):
+    """A deadline stops before the next block / output interval; what was computed is returned."""
+    M, P0, tf, m = oscillator
+    full = bpf_riccati(M, P0, tf, m)
+    part = bpf_riccati(M, P0, tf, m, deadline=6.5)
+    k = part.P.shape[0]
+    assert not part.complete and 0 < k < m and part.t.shape == (k,) and part.asymmetry.shape == (k,)
+    assert np.array_equal(part.P, full.P[:k]) and np.array_equal(part.t, full.t[:k])
+    times = np.linspace(0, tf, 21)
+    P, _ = riccati_flow(M, P0, times)
+    Pp, info = riccati_flow(M, P0, times, deadline=4.5)
+    j = Pp.shape[0]
+    assert 1 < j < times.size and info["completed"] == j and np.array_equal(Pp, P[:j])
+    assert riccati_flow(M, P0, times, deadline=1e9)[1]["completed"] == times.size
+
+
 # ------------------------------------------------------------------ exact propagation
 def test_maps_form_a_semigroup(rng):
     M = _random_hamiltonian(rng, 3, stable=False)
@@ -253,6 +355,18 @@ def test_growth_guard_refuses_hopeless_horizon():
         riccati_flow(M, np.zeros((3, 3)), np.linspace(0, 10, 101))
     with pytest.raises(RiccatiError, match="max_substeps"):
         riccati_map(M, 10.0, max_substeps=10)
+
+
+def test_map_application_and_composition_refuse_non_psd():
+    """I + P O (application) and I + Pn1 O2 (composition) have eigenvalues >= 1 for PSD factors; a
+    non-PSD input that makes them singular is reported, not propagated."""
+    n = 3
+    rmap = RiccatiMap(Pn=np.eye(n), Phi=0.5 * np.eye(n), O=np.eye(n), dt=1.0)
+    with pytest.raises(RiccatiError, match=r"apply_map: I \+ P O is singular .*P or O is not PSD"):
+        apply_map(rmap, -np.eye(n))
+    bad = RiccatiMap(Pn=-np.eye(n), Phi=np.eye(n), O=np.eye(n), dt=1.0)
+    with pytest.raises(RiccatiError, match=r"compose_maps: I \+ Pn1 O2 is singular"):
+        compose_maps(bad, rmap)
 
 
 # ------------------------------------------------------------------ bad input

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from conftest import random_observable_plant
@@ -612,14 +614,19 @@ def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng, c
     """The closest achievable poles are really the closest: no worse than a brute-force search
     of the noise parameters (audit: 0.742 / 0.204 / 0.204 reported against 0.730 / 0.127 /
     0.048 before the pole-error search).  With two noise inputs the closest poles are real
-    although the target has a (nearly real) complex pair -- the pattern is not kept."""
+    although the target has a (nearly real) complex pair -- the pattern is not kept.
+
+    With two outputs this is a local search: evidence, not proof, so the status is ``not_found``
+    (issue 11: ``infeasible`` needs a global certificate) and the evidence is in
+    ``details["closest"]``."""
     plant = random_observable_plant(rng, 3, 2, noise=False).replace(R=np.eye(2))
     target = filter_are(plant.replace(Q=np.eye(3) + 0.5)).poles  # full-rank Q
     G = [[1.0], [0.0], [0.0]] if columns == 1 else [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]
     gplant = plant.replace(G=G)                                   # no noise on the third state
     res = kalman_for_poles(gplant, target, structure=structure)
-    assert res.status == Status.INFEASIBLE and res.certificate.kind == "structure"
-    cert = res.certificate
+    assert res.status == Status.NOT_FOUND and res.certificate is None and not res.success
+    assert "feasibility unknown" in res.message and "evidence, not proof" in res.message
+    cert = SimpleNamespace(**res.details["closest"])
     assert cert.closest_pole_error > 1e-3 and np.all(np.isfinite(cert.closest_poles))
     # the closest design is a real Kalman filter with noise through G only, and the reported
     # error is that of its poles
@@ -631,11 +638,11 @@ def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng, c
     ref = _brute_force_closest(gplant, target, structure, np.random.default_rng(1))
     assert cert.closest_pole_error <= ref * (1 + 1e-6) + 1e-9, (cert.closest_pole_error, ref)
     if columns == 1:
-        assert "1 parameters for 3 pole conditions" in cert.reason
+        assert "1 parameters for 3 pole conditions" in res.message
     elif structure == "input":  # 3 parameters for 3 conditions: a square system, no spare freedom
-        assert "no spare degree of freedom" in cert.reason
+        assert "reachable targets are isolated points" in res.message
     else:
-        assert "2 parameters for 3 pole conditions" in cert.reason
+        assert "2 parameters for 3 pole conditions" in res.message
         assert np.all(np.abs(cert.closest_poles.imag) < 1e-12) and np.any(np.abs(target.imag) > 0)
 
 
@@ -839,11 +846,35 @@ def test_missing_sdp_solver_names_the_package(monkeypatch, method):
         is_kalman_optimal(_ex1_plant(), [[8.0], [-6.0]])
 
 
-def test_sequential_method_not_applicable_is_a_failure_with_a_reason():
+def test_discrete_pole_at_zero_with_nonsingular_A_is_provably_infeasible():
+    """A discrete target pole at 0 needs infinite process noise in Solheim's construction; by
+    det(A - L C) = det(A) det(R) / det(C P C' + R) no Kalman filter of a plant with det A != 0 has
+    one.  Issue 11, item 4: this used to return ``unbounded`` without a certificate; every method
+    now answers infeasible with the determinant identity (before any solver runs)."""
     disc = Plant([[0.5, 0.2], [0.0, 0.3]], [[1.0, 0.0]], R=[[1.0]], dt=1.0)
-    res = kalman_for_poles(disc, [0.0, 0.1], method="sequential")
-    assert not res.success and res.status == Status.SOLVER_ERROR
-    assert "not applicable" in res.message and "infinite process noise" in res.message
+    for method in ("sequential", "sdp", "nlp"):
+        res = kalman_for_poles(disc, [0.0, 0.1], method=method)
+        assert res.status == Status.INFEASIBLE and res.certificate.kind == "determinant", method
+        assert "never vanishes" in res.certificate.reason
+    with pytest.raises(ValidationError, match="infinite process noise"):
+        solheim(disc, [0.0, 0.1])
+    # a singular A has a filter pole at 0 (the mode x2 -> 0 is read exactly): no certificate then
+    sing = Plant([[0.5, 0.0], [0.0, 0.0]], [[1.0, 1.0]], R=[[1.0]], dt=1.0)
+    assert kalman_for_poles(sing, [0.0, 0.2]).certificate is None or \
+        kalman_for_poles(sing, [0.0, 0.2]).certificate.kind != "determinant"
+
+
+def test_trace_and_determinant_identities_certify_continuous_targets():
+    """Continuous time: trace(A - L C) <= trace(A) and |det(A - L C)| >= |det A| for every Kalman
+    filter (the return-difference identity at s = 0); a target violating either is infeasible."""
+    plant = _ex1_plant()  # trace -5, det 6
+    res = kalman_for_poles(plant, [-1.0, -1.5])  # sum -2.5 > -5
+    assert res.status == Status.INFEASIBLE and res.certificate.kind == "trace"
+    res = kalman_for_poles(plant, [-0.5, -6.0])  # sum -6.5 <= -5 but product 3 < 6
+    assert res.status == Status.INFEASIBLE and res.certificate.kind == "determinant"
+    # an independent check: the (one-output) return difference fails at that gain too
+    L = place_observer(plant, [-0.5, -6.0])
+    assert not is_kalman_optimal(plant, L).optimal
 
 
 def test_default_nominal_for_nearest_is_the_plant_noise():
@@ -899,15 +930,14 @@ def test_single_output_spectral_conditions_are_linear_in_Q_and_solve_example1(rn
 
 def test_spectral_sdp_route_reproduces_example1():
     """The fallback of method='sdp' (used when the fixed-gain SDP is badly scaled): same L."""
-    import time
-
+    from optdesign._deadline import Deadline
     from optdesign.design.inverse_kalman import _run_spectral_sdp
 
     plant = _ex1_plant()
     target = np.array([-8.0 + 0j, -5.0 + 0j])
     common = dict(target=target, method="sdp", objective="min_trace", structure="full", plant=plant)
     res = _run_spectral_sdp(plant, target, common, None, None, 1e-8,
-                            spectral_terms(plant.A, plant.C, target, None), time.perf_counter())
+                            spectral_terms(plant.A, plant.C, target, None), Deadline(None))
     _assert_valid(res, plant, target, tol=1e-10)
     np.testing.assert_allclose(res.L.ravel(), [8, -6], atol=1e-9)
     assert res.objective_value == pytest.approx(76 + 10 * (350 - np.sqrt(350**2 - 3636)) - 36, rel=1e-8)

@@ -104,6 +104,7 @@ __all__ = [
     "frequency_grid",
     "innovation_covariance",
     "margins_from_radius",
+    "resolve_R",
     "adaptive_minimize",
     "circle_search",
     "search_stopped",
@@ -140,7 +141,17 @@ def _stable(eigs: NDArray, discrete: bool) -> bool:
     return bool(np.all(np.abs(eigs) < 1.0) if discrete else np.all(eigs.real < 0.0))
 
 
-def _resolve_R(plant: Plant, R: ArrayLike | None, what: str) -> NDArray[np.float64]:
+def resolve_R(plant: Plant, R: ArrayLike | None, what: str) -> NDArray[np.float64]:
+    """The measurement-noise covariance of an analysis: ``R`` if given (checked symmetric PD, (p, p)),
+    else ``plant.R``.
+
+    Raises
+    ------
+    ValidationError
+        Neither is available (the message names ``what`` needs it).
+    DimensionError, NotFiniteError, NotSymmetricError, NotPositiveDefiniteError
+        A malformed ``R``.
+    """
     if R is None:
         if plant.R is None:
             raise ValidationError(
@@ -149,6 +160,8 @@ def _resolve_R(plant: Plant, R: ArrayLike | None, what: str) -> NDArray[np.float
         return np.asarray(plant.R, dtype=float)
     return check_pd("R", as_matrix("R", R, (plant.p, plant.p)))
 
+
+_resolve_R = resolve_R  # the former private name (design/inverse_kalman.py imports it): use resolve_R
 
 # --------------------------------------------------------------------------- return difference
 def return_difference(
@@ -254,7 +267,7 @@ def innovation_covariance(
         raise ValidationError(
             "innovation_covariance is for discrete plants (dt given); in continuous time V = R")
     L = as_gain(plant, L)
-    R = _resolve_R(plant, R, "the discrete circle condition")
+    R = resolve_R(plant, R, "the discrete circle condition")
     A, C = plant.A, plant.C
     if np.linalg.cond(A) < 1e8:
         T0 = np.eye(plant.p) - C @ np.linalg.solve(A, L)
@@ -496,7 +509,7 @@ def circle_condition(
     """
     deadline = Deadline.of(time_limit)
     L = as_gain(plant, L)
-    R = _resolve_R(plant, R, "the circle condition")
+    R = resolve_R(plant, R, "the circle condition")
     refine = as_bool("refine", refine)
     p = plant.p
     message = ""
@@ -764,7 +777,7 @@ def filter_margins(
     """
     deadline = Deadline.of(time_limit)
     L = as_gain(plant, L)
-    R = _resolve_R(plant, R, "filter_margins")
+    R = resolve_R(plant, R, "filter_margins")
     seed = None if omega is None else as_frequencies("omega", omega)
     circ = circle_condition(plant, L, R=R, omega=seed, time_limit=deadline)
     p, disc = plant.p, plant.is_discrete

@@ -74,49 +74,17 @@ explicit-Euler step: an approximation of ``Phi(t, t0)`` at the **block midpoint*
   eigenvalue of M of largest real part), so rounding error grows with the horizon whatever m is,
   and ``phi_k`` becomes singular to working precision near ``Re(lambda) t ~ 16`` (CAREX 1.2 in
   filter form, ``lambda = sqrt 2``: t ~ 11.5).  The paper's example (``Re(lambda) = 0.525``,
-  t_f = 10) is far from that; :func:`bpf_riccati` raises :class:`RiccatiError` when it happens.
+  t_f = 10) is far from that; :func:`bpf_riccati` raises :class:`RiccatiError` when it happens,
+  unless the recursion is restarted (below).
 
-Exact propagation (the ``"transition"`` method of :func:`optdesign.riccati_de`)
--------------------------------------------------------------------------------
-``V U^-1`` with one matrix exponential over ``[0, t]`` fails as t grows: ``e^{Mt}`` has entries
-``~e^{Re(lambda) t}``, so U and V overflow (the paper's example: from t ~ 1350) and, on unstable
-or multi-scale plants well before that, the transient drowns in rounding error (CAREX 1.2 in
-filter form: error above 1e-8 from t ~ 20; the stiff CAREX 1.6: from t ~ 0.03).  The
-Davison-Maki remedy restarts ``[U; V] = [I; P]`` after every short step.  Here the exact step map
-
-.. math::
-
-    P \mapsto (E_{21} + E_{22} P)(E_{11} + E_{12} P)^{-1},\qquad E = e^{M\delta},
-
-is written in Lainiotis' partitioned form (using the symplectic identity
-``E22 - E21 E11^-1 E12 = E11^-T``)
-
-.. math::
-
-    P \mapsto P_n + \Phi\, P (I + O P)^{-1} \Phi', \qquad
-    P_n = E_{21}E_{11}^{-1},\ O = E_{11}^{-1}E_{12},\ \Phi = E_{11}^{-T},
-
-where ``P_n >= 0`` is the solution from ``P = 0``, ``O >= 0`` an observability Gramian and
-``Phi`` the transition matrix of the time-varying filter.  Every term is symmetric positive
-semidefinite, and ``P (I + O P)^-1`` is evaluated as ``L (I + L'OL)^-1 L'`` (``P = L L'``) through
-a QR factorization of ``[I; O^{1/2} L]``, so the propagated P is **symmetric and PSD by
-construction**.  Maps over adjacent intervals compose in closed form (:func:`compose_maps`), so
-the map over an output interval ``Delta`` is built from a short step ``delta = Delta / 2^s``
-(``||M delta||_1 <= 1/2``: E is well conditioned) by ``s`` doublings -- the doubling algorithm of
-Lainiotis and of Anderson & Moore -- and then applied once per output interval (a restart).
-Before all this the equation is rescaled exactly (powers of 2, :func:`hamiltonian_scaling`), as
-badly scaled plants otherwise lose digits in every exponential (CAREX 1.6: 1e-9 -> 1e-14).
-Cost: one ``2n x 2n`` exponential and ``s ~ log2(||M|| Delta)`` doublings per distinct interval
-length, then ``O(n^3)`` per output time, independent of the horizon and of the stiffness.
-Measured on every CAREX plant in filter form that is a valid plant (unstable and stiff ones
-included; 0..10 s, P0 = 0): the difference from Davison-Maki restarts is 1e-16..1e-11 (2.7 and
-the ill-conditioned 2.2: 3e-10, 2e-8), from a tight ODE solve 1e-16..3e-10 (the ODE's own error);
-the paper's example stays exact on [0, 1000].
-
-Limit: doubling composes maps whose filter transition ``Phi`` may grow transiently (an unstable
-plant with very weak measurements, e.g. CAREX 2.6 with eigenvalues 1e6..3e6).  The doubling stops
-while ``||Phi||_1 <= growth_limit`` and the rest of the interval is covered by restarts with the
-largest safe map; if that needs more than ``max_substeps`` restarts, :class:`RiccatiError` says so.
+Restarts, and the exact propagator
+----------------------------------
+:func:`bpf_riccati` restarts the recursion on request (``restart_every``; ``riccati_de`` always
+does, every :func:`bpf_restart_blocks` blocks): each segment starts from the recursion's own
+Crank-Nicolson nodal value, so ``P_k`` is unchanged in exact arithmetic while ``cond(phi_k)``
+stays bounded -- the block-pulse method then reaches any horizon.  The exact propagator (the
+``"transition"`` method) is in :mod:`optdesign.classical.transition`; its names are re-exported
+here.
 
 References
 ----------
@@ -129,6 +97,7 @@ IEEE TAC 21 (1976) 677-689.
 Anderson, B. D. O. & Moore, J. B., *Optimal Filtering*, Prentice-Hall 1979 (doubling algorithm).
 """
 
+
 from __future__ import annotations
 
 import warnings
@@ -138,11 +107,20 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg.lapack import dgesv as _gesv
 
 from .._deadline import Deadline
 from .._validate import as_matrix, as_positive_float, as_square, check_symmetric
-from ..errors import DimensionError, RiccatiError, ValidationError
+from ..errors import RiccatiError, ValidationError
+from .transition import (
+    RiccatiMap,
+    apply_map,
+    as_hamiltonian,
+    compose_maps,
+    davison_maki,
+    hamiltonian_scaling,
+    riccati_flow,
+    riccati_map,
+)
 
 __all__ = [
     "integration_matrix",
@@ -158,6 +136,7 @@ __all__ = [
     "bpf_restart_blocks",
     "BPF_RESTART_NORM",
     "BPFRiccati",
+    # re-exported from optdesign.classical.transition
     "RiccatiMap",
     "hamiltonian_scaling",
     "riccati_map",
@@ -175,17 +154,6 @@ def _as_count(name: str, value) -> int:
     if value < 1:
         raise ValidationError(f"{name} must be a positive integer; found {value}")
     return int(value)
-
-
-def _as_hamiltonian(M: ArrayLike) -> tuple[NDArray[np.float64], int]:
-    M = as_square("M", M)
-    if M.shape[0] % 2:
-        raise DimensionError(f"M must be a 2n x 2n Hamiltonian matrix; found shape {M.shape}")
-    return M, M.shape[0] // 2
-
-
-def _as_initial(P0: ArrayLike, n: int) -> NDArray[np.float64]:
-    return check_symmetric("P0", as_square("P0", P0, n))
 
 
 def _sym(X: NDArray) -> NDArray:
@@ -517,7 +485,7 @@ def bpf_restart_blocks(M: ArrayLike, h: float) -> int:
     ValidationError
         h not positive.
     """
-    M, _ = _as_hamiltonian(M)
+    M, _ = as_hamiltonian(M)
     h = as_positive_float("h", h)
     nrm = float(np.linalg.norm(M, 1)) * h
     if nrm == 0.0:
@@ -533,9 +501,9 @@ def _solve_checked(A: NDArray, B: NDArray, what: str, k: int, m: int, h: float,
         try:
             X = scipy.linalg.solve(A, B, check_finite=False)
         except (np.linalg.LinAlgError, scipy.linalg.LinAlgWarning, ValueError) as exc:
-            if what != "phi_k":
+            if what == "U_k":
                 hint = "finite escape of the Riccati solution, or blocks far too wide"
-            elif restarted:
+            elif what != "phi_k" or restarted:
                 hint = "blocks far too wide for the fastest mode of M (h ||M|| >> 1): use more blocks"
             else:
                 hint = ("phi_k approximates e^{-M t}, whose condition number grows like e^{2 Re(lambda) t} "
@@ -604,26 +572,26 @@ def bpf_riccati(M: ArrayLike, P0: ArrayLike, t_final: float, m: int,
     ----------
     Seed 004, eqs (4.11), (4.24)-(4.26); restarts as in Davison & Maki / Kenney & Leipnik 1985.
     """
-    M, n = _as_hamiltonian(M)
-    P0 = _as_initial(P0, n)
+    M, n = as_hamiltonian(M)
+    P0 = check_symmetric("P0", as_square("P0", P0, n))
     m = _as_count("m", m)
     seg = m if restart_every is None else _as_count("restart_every", restart_every)
     tf = as_positive_float("t_final", t_final)
     clock = Deadline.of(deadline)
     h = tf / m
     eye = np.eye(2 * n)
-    phi1 = np.linalg.inv(eye + 0.5 * h * M)                     # (4.24)
+    restarted = seg < m
+    phi1 = _solve_checked(eye + 0.5 * h * M, eye, "phi_k", 0, m, h, restarted)   # (4.24)
     step = (eye - 0.5 * h * M) @ phi1                            # (I - hM/2)(I + hM/2)^-1
-    back = scipy.linalg.lu_factor(eye - 0.5 * h * M, check_finite=False) if seg < m else None
+    back = eye - 0.5 * h * M                                     # restarts: T^r Z = back^-1 phi_r^-1 Z
     Z = np.vstack([np.eye(n), P0])
     P = np.empty((m, n, n))
     asym = np.empty(m)
     k = restarts = 0
-    restarted = seg < m
     Y = Z
     while k < m and not clock.expired:
         if k:                                                    # restart at t_k = k h
-            node = scipy.linalg.lu_solve(back, Y, check_finite=False)      # T^r [I; P(t_j)]
+            node = _solve_checked(back, Y, "I - hM/2", k - 1, m, h, restarted)   # T^r [I; P(t_j)]
             Pnode = _solve_checked(node[:n].T, node[n:].T, "U_k", k - 1, m, h, restarted).T
             Z = np.vstack([np.eye(n), _sym(Pnode)])
             restarts += 1
@@ -639,378 +607,3 @@ def bpf_riccati(M: ArrayLike, P0: ArrayLike, t_final: float, m: int,
             k += 1
     return BPFRiccati(t=(np.arange(k) + 0.5) * h, P=P[:k], asymmetry=asym[:k], h=h,
                       restart_every=None if seg >= m else seg, restarts=restarts, complete=k == m)
-
-
-# ------------------------------------------------------- exact transition matrix
-@dataclass(frozen=True, eq=False)
-class RiccatiMap:
-    r"""The exact Riccati flow over one interval, ``P -> Pn + Phi P (I + O P)^-1 Phi'``.
-
-    Attributes
-    ----------
-    Pn : (n, n) ndarray
-        The solution at the end of the interval started from ``P = 0`` (PSD).
-    Phi : (n, n) ndarray
-        Transition matrix of the filter ``A - Pn(t) S`` over the interval (``E11^-T``).
-    O : (n, n) ndarray
-        ``E11^-1 E12`` (PSD): an observability Gramian of the filter.
-    dt : float
-        Interval length.
-    doublings : int
-        Doublings used to build the map from the base step.
-    substeps : int
-        Applications (restarts) of the doubled map needed to cover ``dt`` (1 unless the growth
-        guard stopped the doubling).
-    """
-
-    Pn: NDArray[np.float64]
-    Phi: NDArray[np.float64]
-    O: NDArray[np.float64]  # noqa: E741
-    dt: float
-    doublings: int = 0
-    substeps: int = 1
-
-
-def hamiltonian_scaling(M: ArrayLike) -> tuple[NDArray[np.float64], float]:
-    r"""Exact (powers of 2) rescaling of the Riccati DE that balances its Hamiltonian.
-
-    The substitution ``P = rho T Pt T`` with ``T = diag(d)`` maps the blocks of
-    ``M = [[-A', S], [W, A]]`` to ``At = T^-1 A T``, ``St = rho T S T``, ``Wt = T^-1 W T^-1 / rho``
-    -- a symplectic similarity plus a scalar that equilibrates ``||St||`` and ``||Wt||`` -- and
-    leaves the equation's form unchanged.  ``d`` balances ``|M|`` (zero diagonal) under the
-    constraint ``diag(T, T^-1)``, as scipy's Riccati solvers do (Benner 2001).  Badly scaled
-    plants (CAREX 1.6: ``||M||_1 = 2.8e6`` but spectral radius 577) otherwise lose accuracy in
-    every ``2n x 2n`` exponential.
-
-    Parameters
-    ----------
-    M : (2n, 2n) array_like
-
-    Returns
-    -------
-    d : (n,) ndarray
-        State scaling (powers of 2).
-    rho : float
-        Covariance scaling (a power of 2).
-    """
-    M, n = _as_hamiltonian(M)
-    Ab = np.abs(M)
-    np.fill_diagonal(Ab, 0.0)
-    if not np.any(Ab):
-        return np.ones(n), 1.0
-    _, (sca, _) = scipy.linalg.matrix_balance(Ab, separate=True, permute=False)
-    lsca = np.log2(sca)
-    d = 2.0 ** np.round((lsca[n:] - lsca[:n]) / 2)
-    S = M[:n, n:] * d[:, None] * d[None, :]
-    W = M[n:, :n] / d[:, None] / d[None, :]
-    ns, nw = float(np.linalg.norm(S)), float(np.linalg.norm(W))
-    rho = 1.0 if ns == 0.0 or nw == 0.0 else float(2.0 ** np.round(0.5 * np.log2(nw / ns)))
-    return d, rho
-
-
-def _scaled(M: NDArray, n: int, d: NDArray, rho: float) -> NDArray:
-    A = M[n:, n:] / d[:, None] * d[None, :]
-    S = M[:n, n:] * d[:, None] * d[None, :] * rho
-    W = M[n:, :n] / d[:, None] / d[None, :] / rho
-    return np.block([[-A.T, S], [W, A]])
-
-
-def _base_map(M: NDArray, n: int, delta: float) -> RiccatiMap:
-    E = scipy.linalg.expm(M * delta)
-    E11, E12, E21 = E[:n, :n], E[:n, n:], E[n:, :n]
-    lu = scipy.linalg.lu_factor(E11)
-    Pn = _sym(scipy.linalg.lu_solve(lu, E21.T, trans=1).T)      # E21 E11^-1
-    O = _sym(scipy.linalg.lu_solve(lu, E12))  # noqa: E741  (E11^-1 E12)
-    Phi = scipy.linalg.lu_solve(lu, np.eye(n)).T                 # E11^-T
-    return RiccatiMap(Pn=Pn, Phi=Phi, O=O, dt=delta)
-
-
-def compose_maps(first: RiccatiMap, second: RiccatiMap) -> RiccatiMap:
-    r"""The map over two adjacent intervals: ``second o first``.
-
-    With ``G = I + Pn1 O2`` (eigenvalues >= 1: a product of PSD matrices plus I) and
-    ``Z = G^-1 Phi1``, by the push-through identities ``Pn1 (I + O2 Pn1)^-1 = G^-1 Pn1`` and
-    ``O2 (I + Pn1 O2)^-1 Phi1 = O2 Z``::
-
-        Pn  = Pn2 + Phi2 G^-1 Pn1 Phi2'
-        Phi = Phi2 Z
-        O   = O1 + Phi1' O2 Z
-
-    -- one LU factorization of G and ``16.7 n^3`` flops.  The sandwiched products are symmetric
-    PSD in exact arithmetic; Pn and O are symmetrized, and the PSD-ness of the trajectory is
-    checked by the caller (:func:`optdesign.riccati_de`).
-
-    Parameters
-    ----------
-    first, second : RiccatiMap
-
-    Returns
-    -------
-    RiccatiMap
-        ``dt`` is the sum; ``doublings`` the larger count plus one.
-    """
-    n = first.Pn.shape[0]
-    G = first.Pn @ second.O
-    G[np.diag_indices(n)] += 1.0
-    _, _, XZ, info = _gesv(G, np.hstack([first.Pn, first.Phi]))   # G^-1 [Pn1, Phi1]
-    if info != 0:
-        raise RiccatiError(f"compose_maps: I + Pn1 O2 is singular to working precision (LAPACK gesv "
-                           f"info = {info}): the maps overflowed")
-    Z = XZ[:, n:]
-    Pn = _sym(second.Pn + second.Phi @ _sym(XZ[:, :n]) @ second.Phi.T)
-    Phi = second.Phi @ Z
-    O = _sym(first.O + first.Phi.T @ (second.O @ Z))  # noqa: E741
-    return RiccatiMap(Pn=Pn, Phi=Phi, O=O, dt=first.dt + second.dt,
-                      doublings=max(first.doublings, second.doublings) + 1)
-
-
-def apply_map(rmap: RiccatiMap, P: ArrayLike) -> NDArray[np.float64]:
-    r"""``Pn + Phi (I + P O)^-1 P Phi'`` applied ``rmap.substeps`` times (symmetric result).
-
-    One product ``P [O, Phi']``, one LU solve with ``I + P O`` (eigenvalues >= 1: P and O are
-    PSD) and one product with ``Phi`` per application: ``8.7 n^3`` flops, against ``6.7 n^3``
-    for the Moebius form ``(E21 + E22 P)(E11 + E12 P)^-1`` of the same step -- which, unlike
-    this form, loses ``log10 cond(E11)`` digits on long or fast intervals.
-
-    Parameters
-    ----------
-    rmap : RiccatiMap
-    P : (n, n) array_like
-        Symmetric PSD.
-
-    Returns
-    -------
-    (n, n) ndarray
-
-    Raises
-    ------
-    RiccatiError
-        ``I + P O`` singular to working precision (P or O not PSD, or overflow).
-    """
-    return _Applier(rmap)(np.asarray(P, dtype=float))
-
-
-class _Applier:
-    """:func:`apply_map` with the map's constant blocks prepared once (one per output interval)."""
-
-    __slots__ = ("rmap", "right", "diag", "n")
-
-    def __init__(self, rmap: RiccatiMap) -> None:
-        self.rmap = rmap
-        self.n = rmap.Pn.shape[0]
-        self.right = np.hstack([rmap.O, rmap.Phi.T])
-        self.diag = np.diag_indices(self.n)
-
-    def __call__(self, P: NDArray) -> NDArray:
-        n, rmap = self.n, self.rmap
-        for _ in range(rmap.substeps):
-            B = P @ self.right                                   # [P O, P Phi']
-            G = B[:, :n]
-            G[self.diag] += 1.0
-            _, _, Y, info = _gesv(G, B[:, n:])                   # (I + P O)^-1 P Phi'
-            if info != 0:
-                raise RiccatiError(f"apply_map: I + P O is singular to working precision (LAPACK "
-                                   f"gesv info = {info}): P or O is not PSD, or the map overflowed")
-            P = rmap.Pn + rmap.Phi @ Y
-            P = 0.5 * (P + P.T)
-        return P
-
-
-def riccati_map(M: ArrayLike, dt: float, *, max_norm: float = 0.5, growth_limit: float = 1e8,
-                max_substeps: int = 100_000) -> RiccatiMap:
-    r"""The exact flow of the Riccati DE over an interval ``dt`` (module notes: base step by one
-    matrix exponential with ``||M delta||_1 <= max_norm``, then doubling).
-
-    Parameters
-    ----------
-    M : (2n, 2n) array_like
-        Hamiltonian (:func:`filter_hamiltonian`).
-    dt : float
-        Interval length (> 0).
-    max_norm : float
-        Bound on ``||M delta||_1`` of the base step.
-    growth_limit : float
-        Doubling stops when ``||Phi||_1`` would exceed this; the rest of the interval is then
-        covered by ``substeps`` restarts.
-    max_substeps : int
-        Largest number of restarts accepted.
-
-    Returns
-    -------
-    RiccatiMap
-
-    Raises
-    ------
-    RiccatiError
-        The growth guard would need more than ``max_substeps`` restarts, or the base-step
-        ``E11`` is singular.
-    """
-    M, n = _as_hamiltonian(M)
-    dt = as_positive_float("dt", dt)
-    max_norm = as_positive_float("max_norm", max_norm)
-    nrm = float(np.linalg.norm(M, 1)) * dt
-    s = max(0, int(np.ceil(np.log2(nrm / max_norm)))) if nrm > max_norm else 0
-    try:
-        rmap = _base_map(M, n, dt / 2.0**s)
-    except (np.linalg.LinAlgError, ValueError) as exc:  # pragma: no cover - E11 ~ I by the step bound
-        raise RiccatiError(f"riccati_map: base step singular: {exc}") from exc
-    done = 0
-    while done < s:
-        cand = compose_maps(rmap, rmap)
-        if not (np.all(np.isfinite(cand.Phi)) and np.all(np.isfinite(cand.Pn))
-                and np.all(np.isfinite(cand.O)) and np.linalg.norm(cand.Phi, 1) <= growth_limit):
-            break
-        rmap, done = cand, done + 1
-    sub = 2 ** (s - done)
-    if sub > max_substeps:
-        raise RiccatiError(
-            f"riccati_map: the filter's transition matrix grows beyond {growth_limit:.0e} within one "
-            f"output interval of {dt:.3g} (a stiff, badly scaled or strongly unstable plant): covering "
-            f"it needs {sub} restarts > max_substeps = {max_substeps}; use shorter output intervals "
-            f"or method='ode'")
-    return RiccatiMap(Pn=rmap.Pn, Phi=rmap.Phi, O=rmap.O, dt=dt, doublings=done, substeps=sub)
-
-
-def riccati_flow(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *, max_norm: float = 0.5,
-                 growth_limit: float = 1e8, max_substeps: int = 100_000, balance: bool = True,
-                 deadline: Deadline | float | None = None) -> tuple[NDArray[np.float64], dict]:
-    r"""Exact solution of the Riccati DE at ``times`` by restarted exact step maps.
-
-    For each output interval the map of :func:`riccati_map` (cached by interval length) is
-    applied to the previous P.
-
-    Parameters
-    ----------
-    M : (2n, 2n) array_like
-        Hamiltonian (:func:`filter_hamiltonian`).
-    P0 : (n, n) array_like
-        Symmetric PSD initial value at t = 0.
-    times : (k,) array_like
-        Non-decreasing times >= 0.
-    max_norm, growth_limit
-        See :func:`riccati_map`.
-    max_substeps : int
-        Largest total number of extra restarts the growth guard may add over all intervals.
-    balance : bool
-        Rescale the equation first (:func:`hamiltonian_scaling`; exact, powers of 2).
-    deadline : Deadline or float, optional
-        Time budget (seconds or a shared :class:`~optdesign._deadline.Deadline`): once it has
-        expired no new output interval is started, and P is returned at the times reached.
-
-    Returns
-    -------
-    P : (j, n, n) ndarray
-        P at ``times[:j]``; ``j = len(times)`` unless the deadline stopped the propagation.
-    info : dict
-        ``maps`` (distinct intervals), ``doublings`` (max), ``substeps`` (total restarts),
-        ``completed`` (j).
-
-    Raises
-    ------
-    ValidationError
-        times negative or decreasing.
-    RiccatiError
-        The growth guard needs more than ``max_substeps`` extra restarts.
-    """
-    M, n = _as_hamiltonian(M)
-    P = _as_initial(P0, n)
-    times = np.atleast_1d(np.asarray(times, dtype=float))
-    if times.size and (times[0] < 0 or np.any(np.diff(times) < 0)):
-        raise ValidationError("times must be non-negative and non-decreasing")
-    scale = float(times[-1]) if times.size and times[-1] > 0 else 1.0
-    d, rho = hamiltonian_scaling(M) if balance else (np.ones(n), 1.0)
-    M = _scaled(M, n, d, rho)
-    P = P / d[:, None] / d[None, :] / rho
-    out = np.empty((times.size, n, n))
-    dts = np.diff(np.r_[0.0, times])
-    live = dts > 1e-14 * scale
-    keys = np.zeros(times.size, dtype=np.int64)
-    keys[live] = np.round(dts[live] / scale * 2.0**40).astype(np.int64)
-    uses = dict(zip(*np.unique(keys[live], return_counts=True), strict=True))
-    clock = Deadline.of(deadline)
-    cache: dict[int, _Applier] = {}
-    info = {"maps": 0, "doublings": 0, "substeps": 0, "completed": 0}
-    extra = 0
-    for j in range(times.size):
-        if live[j]:
-            if clock.expired:
-                break
-            key = int(keys[j])
-            step = cache.get(key)
-            if step is None:
-                rmap = riccati_map(M, float(dts[j]), max_norm=max_norm, growth_limit=growth_limit,
-                                   max_substeps=max_substeps)
-                step = cache[key] = _Applier(rmap)
-                info["maps"] += 1
-                info["doublings"] = max(info["doublings"], rmap.doublings)
-                extra += (rmap.substeps - 1) * int(uses[key])
-                if extra > max_substeps:
-                    raise RiccatiError(
-                        f"riccati_flow: the filter's transition matrix grows beyond {growth_limit:.0e} "
-                        f"within an output interval of {float(dts[j]):.3g} (a stiff, badly scaled or "
-                        f"strongly unstable plant): covering the horizon needs {extra} extra restarts > "
-                        f"max_substeps = {max_substeps}; use shorter output intervals or a shorter "
-                        f"horizon, or method='ode'")
-            P = step(P)
-            info["substeps"] += step.rmap.substeps
-        out[j] = P
-        info["completed"] = j + 1
-    out = out[:info["completed"]]
-    out *= rho * d[:, None] * d[None, :]
-    return out, info
-
-
-def davison_maki(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *,
-                 max_step: float = 1.0) -> NDArray[np.float64]:
-    r"""Davison-Maki with restarts (Kenney & Leipnik 1985): ``[U; V] = e^{M delta} [I; P]``,
-    ``P = V U^-1``, restarted every step ``delta`` with ``rho(M) delta <= max_step``.
-
-    A plain, independent cross-check of :func:`riccati_flow` (cost grows with
-    ``rho(M) t_final``: not for stiff problems over long horizons).
-
-    Parameters
-    ----------
-    M : (2n, 2n) array_like
-    P0 : (n, n) array_like
-    times : (k,) array_like
-        Non-decreasing times >= 0.
-    max_step : float
-        Bound on ``rho(M) delta``.
-
-    Returns
-    -------
-    (k, n, n) ndarray
-
-    Raises
-    ------
-    ValidationError
-        times negative or decreasing; more than 10^7 steps needed.
-    """
-    M, n = _as_hamiltonian(M)
-    P = _as_initial(P0, n)
-    times = np.atleast_1d(np.asarray(times, dtype=float))
-    if times.size and (times[0] < 0 or np.any(np.diff(times) < 0)):
-        raise ValidationError("times must be non-negative and non-decreasing")
-    rho = float(np.max(np.abs(np.linalg.eigvals(M))))
-    total = rho * (float(times[-1]) if times.size else 0.0) / max_step
-    if total > 1e7:
-        raise ValidationError(f"davison_maki would need {total:.2g} steps (> 1e7)")
-    out = np.empty((times.size, n, n))
-    cache: dict[int, NDArray] = {}
-    t_prev = 0.0
-    for j, t in enumerate(times):
-        dt = float(t) - t_prev
-        if dt > 0:
-            ns = max(1, int(np.ceil(rho * dt / max_step)))
-            d = dt / ns
-            key = int(round(d * 2.0**40))
-            E = cache.get(key)
-            if E is None:
-                E = cache[key] = scipy.linalg.expm(M * d)
-            for _ in range(ns):
-                U = E[:n, :n] + E[:n, n:] @ P
-                V = E[n:, :n] + E[n:, n:] @ P
-                P = _sym(np.linalg.solve(U.T, V.T).T)
-        out[j] = P
-        t_prev = float(t)
-    return out

@@ -854,6 +854,7 @@ def kalman_for_poles(
     solver: str | None = None,
     seed: int = 0,
     tol: float = 1e-8,
+    time_limit: float | None = None,
 ) -> InverseKalmanResult:
     r"""Process noise ``Q >= 0`` whose steady-state Kalman filter has the prescribed poles.
 
@@ -888,13 +889,22 @@ def kalman_for_poles(
     seed : int
         Seeds the NLP multi-start and the closest-poles search (an integer >= 0).
     tol : float
-        Pole accuracy required by the verification (relative, :func:`pole_error`).
+        Pole accuracy required by the verification (relative, :func:`pole_error`; raised to the
+        rounding floor of the poles where that is larger).
+    time_limit : float, optional
+        Seconds of wall time.  Every stage gets what is left (IPOPT ``max_wall_time``, the SDP
+        solvers' time limits) and no new start or search begins after it; when it runs out the
+        result has status ``time_limit`` and the best verified design found so far, if any.
 
     Returns
     -------
     InverseKalmanResult
-        An unreachable target gives ``status`` ``INFEASIBLE`` with ``certificate``; a solver
-        failure gives its status and the reason in ``message``.
+        ``INFEASIBLE`` only with a global certificate (``certificate``): an unstable target, a
+        determinant or trace identity every Kalman filter satisfies, the frequency where the
+        return-difference inequality fails at the gain the poles fix (one output), or an accurate
+        convex SDP.  When a local search finds nothing the status is ``NOT_FOUND`` (feasibility
+        unknown; the closest poles found are in ``details["closest"]``), never ``INFEASIBLE``.
+        A solver failure gives its status and the reason in ``message``.
 
     Raises
     ------
@@ -919,7 +929,7 @@ def kalman_for_poles(
     >>> res.success, res.L.ravel().round(9).tolist()
     (True, [8.0, -6.0])
     """
-    t_start = time.perf_counter()
+    dl = Deadline(time_limit)
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
     _check_choice("method", method, METHODS)
@@ -948,16 +958,95 @@ def kalman_for_poles(
             reason=f"target pole(s) {', '.join(_fmt(z) for z in bad)} not {where}: every steady-state "
                    f"Kalman filter is stable")
         return _empty(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
-                      _stats("none", t=time.perf_counter() - t_start))
+                      _stats("none", t=dl.elapsed))
+    cert = _identity_certificate(plant, target)
+    if cert is not None:
+        return _empty(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+                      _stats("analytic", t=dl.elapsed))
+    if objective == "min_trace" and _open_loop_target(plant, target, tol):
+        return _zero_noise_design(plant, target, common, tol, dl)
 
     with _quiet():
         if method == "sequential":
-            return _run_sequential(plant, target, common, tol, t_start)
+            return _run_sequential(plant, target, common, tol, dl)
         if method == "sdp":
             if p > 1:
-                return _run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, t_start)
-            return _run_sdp(plant, target, common, Qn, solver, tol, seed, t_start)
-        return _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start)
+                return _run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl)
+            return _run_sdp(plant, target, common, Qn, solver, tol, seed, dl)
+        return _run_nlp(plant, target, common, Qn, solver, tol, seed, dl)
+
+
+def _identity_certificate(plant: Plant, target: NDArray) -> InfeasibilityCertificate | None:
+    """Identities every steady-state Kalman filter satisfies, as proofs of infeasibility.
+
+    * discrete: ``det(A - L C) = det(A) det(R) / det(C P C' + R)`` (``A - L C = A (I - Kf C)``), so
+      ``0 < |det(A - L C)| <= |det A|`` when A is nonsingular: no pole at 0, and the product of
+      the poles is at most ``|det A|`` in modulus;
+    * continuous: ``trace(A - L C) = trace(A) - trace(C P C' R^-1) <= trace(A)`` (the sum of the
+      poles cannot exceed the trace), and at ``s = 0`` the return-difference identity gives
+      ``det(A - L C)^2 det R = det(A)^2 det(R + C A^-1 Q A^-T C') >= det(A)^2 det R``: the product
+      of the poles is at least ``|det A|`` in modulus.
+
+    Each comparison allows the rounding level of what is compared (``10 n eps`` times the sizes,
+    and ``cond(A)`` for the determinant), so only a clear violation is reported.  None when every
+    identity holds."""
+    A, n = plant.A, plant.n
+    eps10 = 10.0 * n * _EPS
+    sign, logdet = np.linalg.slogdet(A)
+    cond = float(np.linalg.cond(A)) if sign != 0 else float("inf")
+    det_ok = sign != 0 and np.isfinite(logdet) and cond * eps10 < 1e-2
+    with np.errstate(divide="ignore"):
+        logprod = float(np.sum(np.log(np.abs(target))))
+    slack = eps10 * cond + eps10
+    if plant.is_discrete:
+        if det_ok and np.min(np.abs(target)) <= eps10 * max(1.0, float(np.linalg.norm(A, 2))):
+            return InfeasibilityCertificate(
+                kind="determinant",
+                reason=(f"a target pole at 0 while det(A) != 0 (|det A| = {np.exp(logdet):.3g}, cond(A) = "
+                        f"{cond:.2g}): det(A - L C) = det(A) det(R) / det(C P C' + R) never vanishes"))
+        if det_ok and logprod > logdet + slack:
+            return InfeasibilityCertificate(
+                kind="determinant",
+                reason=(f"|product of the target poles| = {np.exp(logprod):.4g} exceeds |det A| = "
+                        f"{np.exp(logdet):.4g}: every Kalman filter has |det(A - L C)| = |det A| det R / "
+                        f"det(C P C' + R) <= |det A|"))
+        return None
+    tr = float(np.trace(A))
+    total = float(np.sum(target.real))
+    if total > tr + eps10 * (float(np.sum(np.abs(np.diag(A)))) + float(np.sum(np.abs(target)))):
+        return InfeasibilityCertificate(
+            kind="trace",
+            reason=(f"the target poles sum to {total:.6g} > trace(A) = {tr:.6g}: every Kalman filter has "
+                    f"trace(A - L C) = trace(A) - trace(C P C' R^-1) <= trace(A)"))
+    if det_ok and logprod < logdet - slack:
+        return InfeasibilityCertificate(
+            kind="determinant",
+            reason=(f"|product of the target poles| = {np.exp(logprod):.4g} is below |det A| = "
+                    f"{np.exp(logdet):.4g}: every Kalman filter has det(A - L C)^2 det R = det(A)^2 "
+                    f"det(R + C A^-1 Q A^-T C') >= det(A)^2 det R"))
+    return None
+
+
+def _open_loop_target(plant: Plant, target: NDArray, tol: float) -> bool:
+    """The targets are the (stable) open-loop poles, to their rounding level."""
+    return pole_error(np.linalg.eigvals(plant.A), target) <= pole_tolerance(plant.A, tol)
+
+
+def _zero_noise_design(plant, target, common, tol, dl):
+    """Targets = the open-loop poles of a stable plant: ``Q = 0`` gives ``P = 0`` and ``L = 0``
+    exactly, and has the smallest trace there is (issue 11, item 3: the SDP's near-zero P broke the
+    scale of the residual check)."""
+    n, p = plant.n, plant.p
+    Z = np.zeros((n, n))
+    Qw = None if common["structure"] == "full" else np.zeros((plant.m, plant.m))
+    L = np.zeros((n, p))
+    ver, poles = _verify(plant, target, L, Z, Z, Qw, common["structure"], tol)
+    return InverseKalmanResult(
+        L=L, Q=Z, Qw=Qw, P=Z.copy(), poles=poles, status=Status.OPTIMAL,
+        message="the targets are the open-loop poles of a stable plant: Q = 0 (P = 0, L = 0) is exact and "
+                "has the smallest trace",
+        solver_stats=_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
+        objective_value=0.0, details={}, **common)
 
 
 def _empty(common, status, message, certificate, stats, verification=None, details=None):
@@ -967,21 +1056,21 @@ def _empty(common, status, message, certificate, stats, verification=None, detai
         objective_value=float("nan"), details=details or {}, **common)
 
 
-def _run_sequential(plant, target, common, tol, t_start):
+def _run_sequential(plant, target, common, tol, dl):
     from ..classical.solheim import solheim
 
     try:
         sol = solheim(plant, target)
     except (ValidationError, RiccatiError) as exc:
         return _empty(common, Status.SOLVER_ERROR, f"sequential method not applicable: {exc}", None,
-                      _stats("solheim", "error", time.perf_counter() - t_start))
+                      _stats("solheim", "error", dl.elapsed))
     ver, poles = _verify(plant, target, sol.L, sol.P, sol.Q, None, "full", tol)
     msg = f"Solheim's sequential method: {sol.message}"
     if not ver.passed:
         msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
     return InverseKalmanResult(
         L=sol.L, Q=sol.Q, Qw=None, P=sol.P, poles=poles, status=Status.SOLVED, message=msg,
-        solver_stats=_stats("solheim", "solved", time.perf_counter() - t_start, len(sol.steps)),
+        solver_stats=_stats("solheim", "solved", dl.elapsed, len(sol.steps)),
         verification=ver, certificate=None, objective_value=float(np.trace(sol.Q)),
         details={"solheim": sol}, **common)
 
@@ -1003,33 +1092,34 @@ def _polished(plant, L, R, structure, P0, W0, *, whiten: bool = False):
     return _sym(T @ P @ T.T), (_sym(T @ W @ T.T) if structure == "full" else W), res
 
 
-def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L=None):
-    """The fixed-gain SDP at ``L`` (default: the gain the poles fix for one output)."""
+def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, dl, L=None, *, whiten=False):
+    """The fixed-gain SDP at ``L`` (default: the gain the poles fix for one output); ``whiten``:
+    in the whitened coordinates of :func:`_whitening` (a retry for badly scaled families)."""
     R = np.asarray(plant.R, dtype=float)
-    details: dict[str, Any] = {}
+    details: dict[str, Any] = {"whitened": whiten}
     if L is None:
         L = details["L_placed"] = _placed_gain(plant, target)
     structure, objective = common["structure"], common["objective"]
-    P0, W0, rep, _ = _sdp_fixed_gain(plant, L, R, structure, objective, Qn, solver)
+    P0, W0, rep, _ = _sdp_fixed_gain(plant, L, R, structure, objective, Qn, solver, dl, whiten=whiten)
     details["sdp_report"] = rep
     stage_note = ""
-    pol = None if P0 is None else _polished(plant, L, R, structure, P0, W0)
-    if pol is None:
+    pol = None if P0 is None else _polished(plant, L, R, structure, P0, W0, whiten=whiten)
+    if pol is None and not whiten:
         # the objective SDP failed or its point fits no face: the feasibility (margin) SDP decides
-        t_star, Pm, Wm, rep_m = _margin(plant, L, R, structure, solver)
+        t_star, Pm, Wm, rep_m = _margin(plant, L, R, structure, solver, dl)
         details["margin_report"] = rep_m
         if Pm is None and rep_m.status.is_infeasible:
-            return _infeasible_fixed_gain(plant, target, common, L, R, float("nan"), rep_m, Qn, seed, t_start,
+            return _infeasible_fixed_gain(plant, target, common, L, R, float("nan"), rep_m, Qn, seed, dl,
                                           details)
         if Pm is None and P0 is None:
             return _empty(common, rep_m.status if not rep_m.status.is_solved else Status.NUMERICAL_ERROR,
                           f"the SDP failed: {rep.message}; the feasibility SDP failed too: {rep_m.message}",
                           None, _stats(rep_m.stats.backend, rep_m.stats.native_status,
-                                       time.perf_counter() - t_start), details=details)
+                                       dl.elapsed), details=details)
         if Pm is not None:
             wscale = max(1.0, float(np.max(np.abs(Wm))))
             if t_star < -1e-7 * wscale:
-                return _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, t_start,
+                return _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, dl,
                                               details)
             pol = _polished(plant, L, R, structure, Pm, Wm)
             if pol is not None or P0 is None:
@@ -1038,6 +1128,10 @@ def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L
                 stage_note = (f"the {objective} SDP {what}; the feasibility SDP's point "
                               f"(margin {t_star:.3g}) is returned instead; ")
                 P0, W0, rep = Pm, Wm, rep_m
+    if P0 is None:  # the whitened retry failed
+        return _empty(common, rep.status if not rep.status.is_solved else Status.NUMERICAL_ERROR,
+                      f"the SDP in whitened coordinates failed: {rep.message}", None,
+                      _stats(rep.stats.backend, rep.stats.native_status, dl.elapsed), details=details)
     Qr, _ = _noise_of(structure, plant.G, W0)
     details["sdp_objective_unpolished"] = _objective_value(
         objective, Qr, W0 if structure != "diagonal" else np.diag(W0), Qn)
@@ -1050,25 +1144,44 @@ def _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L
     Q, Qw = _noise_of(structure, plant.G, Wdec)
     ver, poles = _verify(plant, target, L, P, Q, Qw, structure, tol)
     status = rep.status if (rep.status.is_solved and not stage_note) else Status.OPTIMAL_INACCURATE
-    msg = f"SDP ({rep.stats.backend}: {rep.stats.native_status}), {stage_note}{polish}"
+    where = " in whitened coordinates" if whiten else ""
+    msg = f"SDP{where} ({rep.stats.backend}: {rep.stats.native_status}), {stage_note}{polish}"
     if not ver.passed:
         msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
     st = rep.stats
     wd = Wdec if structure != "diagonal" else np.diag(Wdec)
     return InverseKalmanResult(
         L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=status, message=msg,
-        solver_stats=_stats(st.backend, st.native_status, time.perf_counter() - t_start, st.iterations,
+        solver_stats=_stats(st.backend, st.native_status, dl.elapsed, st.iterations,
                             solve_time=st.time, objective=st.extra.get("objective")),
         verification=ver, certificate=None, objective_value=_objective_value(objective, Q, wd, Qn),
         details=details, **common)
 
 
-def _run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, t_start):
+def _fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl, L=None):
+    """:func:`_run_fixed_gain_sdp`, retried in whitened coordinates when its design does not
+    verify and the family is badly scaled; the whitened design is taken only when it verifies."""
+    res = _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, dl, L=L)
+    if res.success or res.status == Status.INFEASIBLE or dl.expired:
+        return res
+    Lw = res.L if L is None else L
+    if Lw is None:
+        Lw = res.details.get("L_placed")
+    if Lw is None or _whitening(plant, Lw, np.asarray(plant.R, dtype=float)) is None:
+        return res
+    alt = _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, dl, L=Lw, whiten=True)
+    if alt.success:
+        alt.details["physical_attempt"] = res.message
+        return alt
+    return res
+
+
+def _run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl):
     """Several outputs: the poles do not fix L.  L from the NLP (else, for a full Q, from the
     sequential method), then the fixed-gain SDP at that L gives the objective's optimum over
     that gain's (convex) family of Q -- a genuine SDP certificate that L is a Kalman gain with
     the target poles; verified as every design is."""
-    nlp = _run_nlp(plant, target, {**common, "method": "nlp"}, Qn, solver, tol, seed, t_start)
+    nlp = _run_nlp(plant, target, {**common, "method": "nlp"}, Qn, solver, tol, seed, dl)
     L, source = (nlp.L, "the NLP") if nlp.success else (None, None)
     seq_msg = ""
     if L is None and common["structure"] == "full":
@@ -1086,7 +1199,7 @@ def _run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, t_start):
         msg = (f"method='sdp' with {plant.p} outputs needs a Kalman gain with these poles, and none was "
                f"found: {nlp.message}{seq_msg}")
         return dataclasses.replace(nlp, message=msg)
-    res = _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start, L=L)
+    res = _fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl, L=L)
     res.details["L_source"] = source
     res.details["nlp_message"] = nlp.message
     if res.success:
@@ -1104,13 +1217,13 @@ def _run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, t_start):
 _POLISH_DRIFT = 1e-7
 
 
-def _run_sdp(plant, target, common, Qn, solver, tol, seed, t_start):
+def _run_sdp(plant, target, common, Qn, solver, tol, seed, dl):
     """One output: the fixed-gain SDP in (P, Q); if it gives no verified design, the spectral SDP
     in Q alone (better scaled for large gains) -- an infeasibility verdict of an inaccurate
     fixed-gain SDP is not trusted until the spectral SDP agrees.  A verified design whose
     objective SDP was inaccurate (the feasibility SDP's point returned instead: the objective
     not optimized) is compared with the spectral SDP's, and the better verified one kept."""
-    res = _run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, t_start)
+    res = _fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl)
     raw = res.details.get("sdp_objective_unpolished")
     drift = (abs(res.objective_value - raw) / max(1e-300, abs(raw)) if raw is not None and
              np.isfinite(res.objective_value) and abs(raw) > 0 else 0.0)
@@ -1120,9 +1233,9 @@ def _run_sdp(plant, target, common, Qn, solver, tol, seed, t_start):
     if res.success and res.status == Status.OPTIMAL and drift <= _POLISH_DRIFT:
         return res
     terms = spectral_terms(plant.A, plant.C, target, plant.dt)
-    if terms is None:
-        return res
-    alt = _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start)
+    if terms is None or dl.expired:
+        return _one_output_verdict(plant, target, common, res, dl)
+    alt = _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, dl)
     alt.details["fixed_gain_attempt"] = res.message
     if res.success:
         if not alt.success:
@@ -1137,18 +1250,32 @@ def _run_sdp(plant, target, common, Qn, solver, tol, seed, t_start):
         if res.L is None and res.status.is_infeasible:
             alt.details["fixed_gain_certificate"] = res.certificate
         return alt  # a design close to the target whose checks fail: better than no design
-    if res.status.is_infeasible:
-        rep = res.details.get("margin_report")
-        trusted = rep is not None and rep.status == Status.OPTIMAL
-        circ = res.certificate.circle if res.certificate is not None else None
-        if not trusted and circ is not None and circ.passed and not alt.status.is_infeasible:
-            # the KYP-equivalent frequency test passes and neither SDP is accurate: no verdict
-            return _empty(common, Status.NUMERICAL_ERROR,
-                          f"inconclusive: the fixed-gain SDP reported {res.message} from an inaccurate "
-                          f"solve, but the return-difference inequality holds (min eigenvalue "
-                          f"{circ.min_eigenvalue:.3g}); the spectral SDP: {alt.message}",
-                          None, res.solver_stats, details=res.details)
-    return res
+    return _one_output_verdict(plant, target, common, res, dl)
+
+
+def _one_output_verdict(plant, target, common, res, dl):
+    """One output and no verified design: the poles fix L, so the return-difference inequality at
+    that gain decides (KYP) -- a frequency where it fails is a proof of infeasibility (item 4 of the
+    issue on honest answers: an inaccurate SDP used to return no certificate at all)."""
+    if res.success or res.certificate is not None or common["structure"] != "full":
+        return res
+    L = res.details.get("L_placed", res.L)
+    try:
+        L = _placed_gain(plant, target) if L is None else L
+        circ = circle_condition(plant, L, R=np.asarray(plant.R, dtype=float))
+    except (ValidationError, np.linalg.LinAlgError):
+        return res
+    if circ.passed:
+        res.details["circle"] = circ
+        return res
+    ineq = "T V T* >= R" if plant.is_discrete else "T R T* >= R"
+    cert = InfeasibilityCertificate(
+        kind="return_difference",
+        reason=(f"the return-difference inequality {ineq} fails at the gain fixed by the poles: lambda_min = "
+                f"{circ.min_eigenvalue:.4g} at omega = {circ.omega_worst:.6g} rad/s"),
+        omega=circ.omega_worst, min_eigenvalue=circ.min_eigenvalue, circle=circ)
+    details = {**res.details, "sdp_message": res.message}
+    return _empty(common, Status.INFEASIBLE, f"infeasible: {cert}", cert, res.solver_stats, details=details)
 
 
 def _spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None, W0: NDArray):
@@ -1205,7 +1332,7 @@ def _spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None
     return best
 
 
-def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
+def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, dl):
     from ..solvers.cvxpy_backend import solve_cvxpy
 
     structure, objective = common["structure"], common["objective"]
@@ -1217,7 +1344,7 @@ def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
         rep = solve_cvxpy(sdp.problem, name, opts)
         if rep.status.is_solved or rep.status.is_infeasible:
             break
-    stats = _stats(rep.stats.backend, rep.stats.native_status, time.perf_counter() - t_start,
+    stats = _stats(rep.stats.backend, rep.stats.native_status, dl.elapsed,
                    rep.stats.iterations, form="spectral")
     if not rep.status.is_solved or sdp.Q.value is None:
         return _empty(common, rep.status if not rep.status.is_solved else Status.NUMERICAL_ERROR,
@@ -1246,7 +1373,7 @@ def _run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, t_start):
         details={"spectral_sdp_report": rep}, **common)
 
 
-def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, t_start, details):
+def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, dl, details):
     """Single-output target out of reach: circle-condition certificate + closest poles."""
 
     structure = common["structure"]
@@ -1255,7 +1382,7 @@ def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed,
         circ = circle_condition(plant, L, R=R)
     except (ValidationError, np.linalg.LinAlgError) as exc:  # pragma: no cover - defensive
         details["circle_error"] = str(exc)
-    closest = {k: v for k, v in _closest_poles(plant, target, structure, Qn, seed).items() if k != "rep"}
+    closest = {k: v for k, v in _closest_poles(plant, target, structure, Qn, seed, dl).items() if k != "rep"}
     details["closest"] = closest
     if circ is not None and not circ.passed and structure == "full":
         kind = "return_difference"
@@ -1281,9 +1408,17 @@ def _infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed,
         kind=kind, reason=reason, margin=t_star if np.isfinite(t_star) else None,
         omega=circ.omega_worst if show else None, min_eigenvalue=circ.min_eigenvalue if show else None,
         circle=circ, **closest)
-    return _empty(common, Status.INFEASIBLE, f"infeasible: {cert}", cert,
-                  _stats(rep_m.stats.backend, rep_m.stats.native_status, time.perf_counter() - t_start,
-                         rep_m.stats.iterations), details=details)
+    stats = _stats(rep_m.stats.backend, rep_m.stats.native_status, dl.elapsed, rep_m.stats.iterations)
+    # a verdict needs a global certificate: a frequency where the return-difference inequality
+    # fails (evaluated there exactly), or an accurate convex SDP (its dual is the certificate);
+    # an inaccurate SDP is evidence only
+    if kind == "return_difference" or rep_m.status in (Status.OPTIMAL, Status.INFEASIBLE):
+        return _empty(common, Status.INFEASIBLE, f"infeasible: {cert}", cert, stats, details=details)
+    details["evidence"] = cert
+    return _empty(common, Status.NOT_FOUND,
+                  f"no verified design, feasibility unknown: the fixed-gain SDP at the gain the poles fix "
+                  f"reported {rep_m.stats.native_status} (inaccurate: no certificate); {cert}", None, stats,
+                  details=details)
 
 
 # ============================================================================ NLP stage
@@ -1503,212 +1638,238 @@ def _decision_size(plant: Plant, structure: str) -> int:
     return {"full": plant.n * (plant.n + 1) // 2, "input": m * (m + 1) // 2, "diagonal": m}[structure]
 
 
-def _run_nlp(plant, target, common, Qn, solver, tol, seed, t_start):
-    structure, objective = common["structure"], common["objective"]
-    details: dict[str, Any] = {"starts": []}
-    nstarts = 2 if plant.p == 1 else 3
-    terms = spectral_terms(plant.A, plant.C, target, plant.dt)
-    formulation = "spectral" if terms is not None else "state-space"
-    details["formulation"] = formulation
-    dof = _decision_size(plant, structure) - plant.n
-    details["degrees_of_freedom"] = dof
-    starts = _start_covariances(plant, target, structure, Qn, seed, nstarts, solver) if dof >= 0 else []
-    state = {"best": None, "fallback": None, "last_rep": None, "best_iterations": 0}
+#: IPOPT settings of the rescue starts (several outputs: no start converged to a verified design)
+_RESCUE_OPTIONS = {"ipopt.max_iter": 1500, "ipopt.mu_strategy": "adaptive"}
+#: at most this many rescue starts
+_RESCUE_STARTS = 4
 
-    def run_start(k, start, opts):
-        if terms is not None:
-            rep, Q, Qw = _spectral_solve(plant, target, structure, objective, Qn, start["W"], terms,
-                                         options=opts)
+
+def _run_nlp(plant, target, common, Qn, solver, tol, seed, dl):
+    """``method="nlp"`` (and the L of ``method="sdp"`` with several outputs): :class:`_NLPRoute`."""
+    return _NLPRoute(plant, target, common, Qn, solver, tol, seed, dl).run()
+
+
+class _NLPRoute:
+    """The NLP route of :func:`kalman_for_poles`: IPOPT from a few starts, then -- when no start
+    gives an optimized verified design -- the answers that do not depend on IPOPT converging:
+
+    * one output: the poles fix L, and the fixed-gain SDP at that gain is the global answer (with
+      its certificates); IPOPT stalls at the degenerate, rank-deficient optima of ``Q = F F'``
+      (a rank-one discrete target of the 200-target cross-validation: every start ended at the
+      iteration limit on one CPU and converged on another, so the two methods disagreed by 34 %);
+    * several outputs: rescue starts (adaptive barrier), the least-squares form of the spectral
+      conditions and the closest-poles search; a verified gain found by them is finished by the
+      fixed-gain SDP at that gain (the optimum over its family of Q); nothing verified is
+      ``NOT_FOUND`` (a local search is evidence, not proof), never ``INFEASIBLE``.
+    """
+
+    def __init__(self, plant, target, common, Qn, solver, tol, seed, dl):
+        self.plant, self.target, self.common, self.Qn = plant, target, common, Qn
+        self.solver, self.tol, self.seed, self.dl = solver, tol, seed, dl
+        self.structure, self.objective = common["structure"], common["objective"]
+        self.terms = spectral_terms(plant.A, plant.C, target, plant.dt)
+        self.formulation = "spectral" if self.terms is not None else "state-space"
+        self.dof = _decision_size(plant, self.structure) - plant.n
+        self.details: dict[str, Any] = {"starts": [], "formulation": self.formulation,
+                                        "degrees_of_freedom": self.dof}
+        self.best = self.fallback = self.last_rep = None
+        self.best_iterations = 0
+
+    # ---------------------------------------------------------------- one start
+    def _ipopt(self, opts):
+        return {**(opts or {}), **self.dl.ipopt_options()}
+
+    def run_start(self, start, opts) -> None:
+        plant, structure, objective, Qn, target = self.plant, self.structure, self.objective, self.Qn, self.target
+        if self.terms is not None:
+            rep, Q, Qw = _spectral_solve(plant, target, structure, objective, Qn, start["W"], self.terms,
+                                         options=self._ipopt(opts))
         else:
             scale = max(1.0, float(np.linalg.norm(start["L"] @ plant.R @ start["L"].T)))
             rep, Q, Qw = _eig_nlp_solve(plant, target, structure, objective, Qn, start, scale=scale,
-                                        options=opts)
-        state["last_rep"] = rep
-        entry = {"start": k, "kind": start["kind"], "status": rep.status.value,
+                                        options=self._ipopt(opts))
+        self.last_rep = rep
+        entry = {"start": len(self.details["starts"]), "kind": start["kind"], "status": rep.status.value,
                  "native": rep.stats.native_status, "iterations": rep.stats.iterations,
                  "time": rep.stats.time, "derivatives": rep.stats.extra.get("derivatives", "symbolic")}
-        details["starts"].append(entry)
+        self.details["starts"].append(entry)
         if not rep.status.is_solved:
             return
         try:
-            L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, Q, Qw, tol)
+            L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, Q, Qw, self.tol)
         except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
             entry["error"] = str(exc)
             return
         entry["verified"] = ver.passed
-        Wdec = Q if structure == "full" else Qw
-        val = _objective_value(objective, Q, Wdec, Qn)
+        val = _objective_value(objective, Q, Q if structure == "full" else Qw, Qn)
         entry["objective"] = val
         cand = (val, rep, L, P, Q, Qw, ver, poles)
-        best, fallback = state["best"], state["fallback"]
         if ver.passed:
-            if best is None:
-                state["best_iterations"] = int(rep.stats.iterations or 0)
-            if best is None or (val > best[0] if objective == "feasibility" else val < best[0]):
-                state["best"] = cand
-        elif fallback is None or ver["pole_error"].value < fallback[6]["pole_error"].value:
-            state["fallback"] = cand
+            if self.best is None:
+                self.best_iterations = int(rep.stats.iterations or 0)
+            if self.best is None or (val > self.best[0] if objective == "feasibility" else val < self.best[0]):
+                self.best = cand
+        elif self.fallback is None or ver["pole_error"].value < self.fallback[6]["pole_error"].value:
+            self.fallback = cand
 
-    for k, start in enumerate(starts):
-        # once a verified design exists, the other starts only look for a better local optimum:
-        # at most twice the iterations the first success took (50 .. 200) -- an iteration budget,
-        # not a wall-time one, so that the answer does not depend on the machine's load
-        opts = None if state["best"] is None else {
-            "ipopt.max_iter": min(200, max(50, 2 * state["best_iterations"]))}
-        run_start(k, start, opts)
-    if state["best"] is None and starts:
-        # no start converged to a verified design (typical of rank-deficient targets, whose
-        # min-trace optimum is a degenerate point of Q = F F' where IPOPT's monotone barrier
-        # update crawls): the same starts with the adaptive barrier update and a larger
-        # iteration budget, the sequential method's Q (a feasible point when it applies), then
-        # seeded random starts -- full-rank and nearly rank-one
-        for start in _rescue_starts(plant, target, structure, starts, seed):
-            run_start(len(details["starts"]), start,
-                      {"ipopt.max_iter": 3000, "ipopt.mu_strategy": "adaptive"})
-            if state["best"] is not None:
+    # ---------------------------------------------------------------- the route
+    def run(self) -> InverseKalmanResult:
+        plant, dl = self.plant, self.dl
+        nstarts = 2 if plant.p == 1 else 3
+        starts = (_start_covariances(plant, self.target, self.structure, self.Qn, self.seed, nstarts,
+                                     self.solver) if self.dof >= 0 else [])
+        for start in starts:
+            if dl.expired:
                 break
-        details["rescue"] = True
-    best, fallback, last_rep = state["best"], state["fallback"], state["last_rep"]
-    starts_used = len(details["starts"])
+            # once a verified design exists, the other starts only look for a better local optimum:
+            # at most twice the iterations the first success took (50 .. 200) -- an iteration budget,
+            # not a wall-time one, so that the answer does not depend on the machine's load
+            opts = None if self.best is None else {
+                "ipopt.max_iter": min(200, max(50, 2 * self.best_iterations))}
+            self.run_start(start, opts)
+        if self.best is not None:
+            return self.result(self.best, f"{self.formulation} formulation")
+        if self.fallback is not None and self.fallback[6]["pole_error"].value <= 1e-3:
+            # IPOPT converged near the target but the design failed a check: a precision problem
+            # (ill-conditioned poles), not a reachability one
+            return self.result(self.fallback, f"{self.formulation} formulation")
+        if plant.p == 1:
+            return self.finish_one_output()
+        if starts and not dl.expired:
+            self.rescue(starts)
+            if self.best is not None:
+                return self.finish_with_sdp(self.best, "the rescue starts (adaptive barrier)")
+        return self.endgame()
 
-    def result(cand, note, optimized=True):
+    def rescue(self, starts) -> None:
+        """Several outputs, no start converged (typical of rank-deficient targets, whose min-trace
+        optimum is a degenerate point of Q = F F' where IPOPT's monotone barrier update crawls):
+        the same starts with the adaptive barrier update, the sequential method's Q, seeded random
+        starts -- at most :data:`_RESCUE_STARTS`, within the time limit."""
+        for k, start in enumerate(_rescue_starts(self.plant, self.target, self.structure, starts, self.seed)):
+            if k >= _RESCUE_STARTS or self.dl.expired or self.best is not None:
+                break
+            self.run_start(start, _RESCUE_OPTIONS)
+        self.details["rescue"] = True
+
+    def finish_one_output(self) -> InverseKalmanResult:
+        """One output, IPOPT found no verified optimum: the poles fix L, so the fixed-gain SDP at
+        that gain answers exactly (the global optimum, or a certificate)."""
+        natives = ", ".join(e["native"] for e in self.details["starts"]) or "not run"
+        res = _run_sdp(self.plant, self.target, self.common, self.Qn, self.solver, self.tol, self.seed, self.dl)
+        res.details["nlp"] = self.details
+        msg = (f"NLP ({self.formulation} formulation): IPOPT reached no verified optimum ({natives}); one "
+               f"output fixes L, so the fixed-gain SDP at that gain gives the answer: {res.message}")
+        return dataclasses.replace(res, message=msg)
+
+    def finish_with_sdp(self, cand, source: str) -> InverseKalmanResult:
+        """A verified gain whose Q was not optimized: Q from the fixed-gain SDP at that gain."""
+        L = cand[2]
+        res = _fixed_gain_design(self.plant, self.target, self.common, self.Qn, self.solver, self.tol,
+                                 self.seed, self.dl, L=L)
+        if res.success:
+            res.details["nlp"] = self.details
+            return dataclasses.replace(res, message=f"L from {source}; Q the optimum of that gain's family by "
+                                                    f"the fixed-gain SDP: {res.message}")
+        return self.result(cand, source, optimized=False)
+
+    def endgame(self) -> InverseKalmanResult:
+        """Several outputs and nothing verified yet: the least-squares form, the closest poles."""
+        plant, structure, dl = self.plant, self.structure, self.dl
+        if self.terms is not None and not dl.expired:
+            cand = self.least_squares()
+            if cand is not None:
+                return self.finish_with_sdp(cand, "the least-squares spectral formulation")
+        closest = {} if dl.expired else _closest_poles(plant, self.target, structure, self.Qn, self.seed, dl)
+        self.details["closest"] = {k: v for k, v in closest.items() if k != "rep"}
+        reached = closest.get("closest_pole_error")
+        if reached is not None and reached <= self.tol and closest.get("rep") is not None:
+            try:
+                L, P, Q, Qw, ver, poles = _design_from_Q(plant, self.target, structure, closest["closest_Q"],
+                                                         closest["closest_Qw"], self.tol)
+                if ver.passed:
+                    val = _objective_value(self.objective, Q, Q if structure == "full" else Qw, self.Qn)
+                    return self.finish_with_sdp((val, closest["rep"], L, P, Q, Qw, ver, poles),
+                                                "the closest-poles formulation")
+            except (RiccatiError, OptDesignError, np.linalg.LinAlgError):
+                pass
+        return self.not_found(reached)
+
+    def least_squares(self):
+        """A zero of the least-squares form of the spectral conditions from a few starts (also
+        where the structure has too few parameters); a verified candidate or None."""
+        plant, structure = self.plant, self.structure
+        soft_starts = _start_covariances(plant, self.target, structure, self.Qn, self.seed, 2, self.solver)
+        rng = np.random.default_rng(self.seed + 1)
+        k = plant.n if structure == "full" else plant.m
+        sc = max(1.0, float(np.linalg.norm(soft_starts[0]["W"]))) if soft_starts else 1.0
+        for _ in range(3):  # a few random positive starts as well
+            F = rng.standard_normal((k, k))
+            Wr = F @ F.T / k if structure != "diagonal" else rng.uniform(0.1, 1.0, k)
+            soft_starts.append({"kind": "random", "W": Wr * sc})
+        for start in soft_starts:
+            if self.dl.expired:
+                return None
+            rep, Q, Qw = _spectral_solve(plant, self.target, structure, self.objective, self.Qn, start["W"],
+                                         self.terms, soft=True, options=self.dl.ipopt_options())
+            self.details["starts"].append({"kind": "least squares from " + start["kind"],
+                                           "status": rep.status.value, "native": rep.stats.native_status,
+                                           "iterations": rep.stats.iterations})
+            if not rep.status.is_solved:
+                continue
+            try:
+                L, P, Q, Qw, ver, poles = _design_from_Q(plant, self.target, structure, Q, Qw, self.tol)
+            except (RiccatiError, OptDesignError, np.linalg.LinAlgError):
+                continue
+            if ver.passed:
+                val = _objective_value(self.objective, Q, Q if structure == "full" else Qw, self.Qn)
+                return (val, rep, L, P, Q, Qw, ver, poles)
+        return None
+
+    # ---------------------------------------------------------------- results
+    def result(self, cand, note, optimized=True) -> InverseKalmanResult:
         val, rep, L, P, Q, Qw, ver, poles = cand
         st = rep.stats
-        msg = f"NLP ({note}; ipopt: {st.native_status}), {starts_used} start(s); L and P from a Riccati solve"
+        starts_used = len(self.details["starts"])
+        msg = (f"NLP ({note}; ipopt: {st.native_status}), {starts_used} start(s); L and P from a Riccati solve"
+               + ("" if optimized else f" (the {self.objective} objective was not optimized)"))
         if not ver.passed:
             msg += "; the verification failed: " + ", ".join(c.name for c in ver.failed)
         status = rep.status if optimized else Status.OPTIMAL_INACCURATE
         return InverseKalmanResult(
             L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=status, message=msg,
-            solver_stats=_stats("ipopt", st.native_status, time.perf_counter() - t_start, st.iterations,
+            solver_stats=_stats("ipopt", st.native_status, self.dl.elapsed, st.iterations,
                                 objective=st.extra.get("objective"), starts=starts_used,
-                                formulation=formulation),
-            verification=ver, certificate=None, objective_value=val, details=details, **common)
+                                formulation=self.formulation),
+            verification=ver, certificate=None, objective_value=val, details=self.details, **self.common)
 
-    if best is not None:
-        return result(best, f"{formulation} formulation")
-    if fallback is not None and fallback[6]["pole_error"].value <= 1e-3:
-        # IPOPT converged near the target but the design failed a check: a precision problem
-        # (ill-conditioned poles), not a reachability one -- the fallbacks could not do better
-        return result(fallback, f"{formulation} formulation")
-    if terms is not None:
-        # least-squares spectral form (also where the structure has too few parameters)
-        soft_starts = _start_covariances(plant, target, structure, Qn, seed, 2, solver)
-        rng = np.random.default_rng(seed + 1)
-        for _ in range(3):  # a few random positive starts as well
-            k = plant.n if structure == "full" else plant.m
-            F = rng.standard_normal((k, k))
-            Wr = F @ F.T / k if structure != "diagonal" else rng.uniform(0.1, 1.0, k)
-            sc = max(1.0, float(np.linalg.norm(soft_starts[0]["W"]))) if soft_starts else 1.0
-            soft_starts.append({"kind": "random", "W": Wr * sc})
-        for start in soft_starts:
-            rep, Q, Qw = _spectral_solve(plant, target, structure, objective, Qn, start["W"], terms,
-                                         soft=True)
-            details["starts"].append({"kind": "least squares from " + start["kind"],
-                                      "status": rep.status.value, "native": rep.stats.native_status,
-                                      "iterations": rep.stats.iterations})
-            if not rep.status.is_solved:
-                continue
-            try:
-                L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, Q, Qw, tol)
-            except (RiccatiError, OptDesignError, np.linalg.LinAlgError):
-                continue
-            if ver.passed:
-                Wdec = Q if structure == "full" else Qw
-                note = (f"least-squares spectral formulation (the {objective} objective was not optimized"
-                        f"{'; ' + str(dof) + ' degrees of freedom' if dof < 0 else ''})")
-                return result((_objective_value(objective, Q, Wdec, Qn), rep, L, P, Q, Qw, ver, poles), note,
-                              optimized=False)
-    # nothing verified: the closest achievable poles decide -- reachable (then that point is the
-    # answer, without the objective), a near miss of a converged design, or out of reach
-    closest = _closest_poles(plant, target, structure, Qn, seed)
-    details["closest"] = closest
-    reached = closest.get("closest_pole_error")
-    if reached is not None and reached <= tol and closest.get("rep") is not None:
-        try:
-            L, P, Q, Qw, ver, poles = _design_from_Q(plant, target, structure, closest["closest_Q"],
-                                                     closest["closest_Qw"], tol)
-            if ver.passed:
-                Wdec = Q if structure == "full" else Qw
-                note = (f"closest-poles formulation (the {objective} objective was not optimized"
-                        f"{'; ' + str(dof) + ' degrees of freedom' if dof < 0 else ''})")
-                val = _objective_value(objective, Q, Wdec, Qn)
-                return result((val, closest["rep"], L, P, Q, Qw, ver, poles), note, optimized=False)
-        except (RiccatiError, OptDesignError, np.linalg.LinAlgError):
-            pass
-    exact = [e["native"] for e in details["starts"] if not e["kind"].startswith("least squares")]
-    soft = [e["native"] for e in details["starts"] if e["kind"].startswith("least squares")]
-    natives = ", ".join(e["native"] for e in details["starts"]) or "not run"
-    native = last_rep.stats.native_status if last_rep else ""
-    closest_public = {k: v for k, v in closest.items() if k != "rep"}
-    if reached is not None and reached > 100 * tol:
-        kind = "structure" if structure != "full" else "nlp_local"
+    def not_found(self, reached) -> InverseKalmanResult:
+        """Nothing verified with several outputs: feasibility unknown (local evidence only)."""
+        plant, structure = self.plant, self.structure
+        exact = [e["native"] for e in self.details["starts"] if not e["kind"].startswith("least squares")]
+        soft = [e["native"] for e in self.details["starts"] if e["kind"].startswith("least squares")]
+        native = self.last_rep.stats.native_status if self.last_rep else ""
+        stats = _stats("ipopt", native, self.dl.elapsed)
+        if self.dl.expired:
+            return _empty(self.common, Status.TIME_LIMIT,
+                          f"time limit reached ({self.dl}) before a verified design was found, after "
+                          f"{len(self.details['starts'])} NLP start(s)", None, stats, details=self.details)
         tried = (f"IPOPT found no Kalman filter with these poles from {len(exact)} start(s) "
                  f"({', '.join(exact) or 'none run'})"
                  + (f" nor a zero of the least-squares form from {len(soft)} start(s)" if soft else ""))
-        if dof < 0:
+        if self.dof < 0:
             why = (f"the {structure} structure has {_decision_size(plant, structure)} parameters for "
-                   f"{plant.n} pole conditions")
-        elif dof == 0:
+                   f"{plant.n} pole conditions (generic targets are out of reach); {tried}")
+        elif self.dof == 0:
             why = (f"the {structure} structure has exactly {plant.n} parameters for {plant.n} pole "
-                   f"conditions (no spare degree of freedom: reachable targets are isolated points); {tried}")
+                   f"conditions (reachable targets are isolated points); {tried}")
         else:
             why = tried
-        reason = (f"{why}; the closest achievable poles found are {reached:.3g} away "
-                  f"(a local search: evidence, not proof)")
-    elif reached is None and (dof < 0 or (details["starts"] and all(
-            e["status"] in ("infeasible", "infeasible_inaccurate") for e in details["starts"]))):
-        kind = "structure" if structure != "full" else "nlp_local"
-        reason = (f"IPOPT found no Kalman filter with these poles ({natives}), and no scaled nominal noise "
-                  f"of this structure gives a stabilizing Riccati solution to measure the closest poles")
-    else:
-        reason = ""
-    cert_extra: dict[str, Any] = {}
-    if plant.p == 1:
-        # one output: the poles fix L, so the frequency certificate of the SDP path applies here
-        # too -- evaluated at that unique gain (with the fixed-gain SDP's margin when it ran)
-        circ, margin = _unique_gain_circle(plant, target, starts, details)
-        if circ is not None and not circ.passed:
-            cert_extra = {"omega": circ.omega_worst, "min_eigenvalue": circ.min_eigenvalue, "circle": circ,
-                          "margin": margin}
-            ineq = "T V T* >= R" if plant.is_discrete else "T R T* >= R"
-            rd = (f"the return-difference inequality {ineq} fails at the gain fixed by the poles: "
-                  f"lambda_min = {circ.min_eigenvalue:.4g} at omega = {circ.omega_worst:.6g} rad/s")
-            if structure == "full":
-                kind, reason = "return_difference", rd + (f"; {reason}" if reason else "")
-            else:
-                kind = "structure"
-                reason = (reason + "; " if reason else "") + rd
-        elif circ is not None:
-            cert_extra = {"circle": circ, "margin": margin}
-    if reason:
-        cert = InfeasibilityCertificate(kind=kind, reason=reason, **closest_public, **cert_extra)
-        return _empty(common, Status.INFEASIBLE, f"infeasible: {cert}", cert,
-                      _stats("ipopt", native, time.perf_counter() - t_start), details=details)
-    status = last_rep.status if last_rep is not None else Status.SOLVER_ERROR
-    if status.is_solved:
-        status = Status.NUMERICAL_ERROR
-    msg = (f"NLP did not converge to a verified design from {starts_used} start(s) ({natives})"
-           + ("" if reached is None else f"; the closest-poles NLP reached pole error {reached:.3g}"))
-    return _empty(common, status, msg, None, _stats("ipopt", native, time.perf_counter() - t_start),
-                  details=details)
-
-
-def _unique_gain_circle(plant: Plant, target: NDArray, starts: list, details: dict):
-    """One output: ``(circle condition at the gain fixed by the poles, fixed-gain SDP margin)``
-    (either None when unavailable)."""
-
-    L0 = next((st["L"] for st in starts if st.get("kind") == "fixed-gain SDP"), None)
-    margin = next((st["margin"] for st in starts if st.get("kind") == "fixed-gain SDP"), None)
-    try:
-        if L0 is None:
-            L0 = _placed_gain(plant, target)
-        circ = circle_condition(plant, L0, R=np.asarray(plant.R, dtype=float))
-    except (ValidationError, np.linalg.LinAlgError) as exc:  # pragma: no cover - defensive
-        details["circle_error"] = str(exc)
-        return None, margin
-    margin = None if margin is None or not np.isfinite(margin) else float(margin)
-    return circ, margin
+        near = ("" if reached is None else
+                f"; the closest poles found are {reached:.3g} away (details['closest'])")
+        return _empty(self.common, Status.NOT_FOUND,
+                      f"no verified design, feasibility unknown: {why}{near} -- a local search is evidence, "
+                      f"not proof", None, stats, details=self.details)
 
 
 def _kalman_start(plant: Plant, target: NDArray, structure: str, Qn: NDArray | None):
@@ -1741,7 +1902,8 @@ def _kalman_start(plant: Plant, target: NDArray, structure: str, Qn: NDArray | N
     return None
 
 
-def _closest_poles(plant: Plant, target: NDArray, structure: str, Qn: NDArray | None, seed: int) -> dict:
+def _closest_poles(plant: Plant, target: NDArray, structure: str, Qn: NDArray | None, seed: int,
+                   dl: Deadline | None = None) -> dict:
     """Closest achievable poles (smallest :func:`pole_error` to the target found).
 
     Candidates, the best kept: (1) the best scaled-nominal Kalman filter (a log grid of
@@ -1764,6 +1926,7 @@ def _closest_poles(plant: Plant, target: NDArray, structure: str, Qn: NDArray | 
     cands = [(err0, Wd0)]
     try:
         rep, Qc, Qw = _eig_nlp_solve(plant, target, structure, "min_trace", None, start, closest=True,
+                                     options=Deadline.of(dl).ipopt_options(),
                                      scale=scale)
     except (RuntimeError, OptDesignError):  # pragma: no cover - defensive
         rep = None
@@ -1777,7 +1940,7 @@ def _closest_poles(plant: Plant, target: NDArray, structure: str, Qn: NDArray | 
         e = _fast_pole_error(plant, target, structure, Wn)
         if np.isfinite(e):
             cands.append((e, Wn))
-    cands.extend(_closest_dfo(plant, target, structure, cands, seed))
+    cands.extend(_closest_dfo(plant, target, structure, cands, seed, Deadline.of(dl)))
     best_err, best_W = cands[0]
     for e, Wc in cands[1:]:  # strictly better only: ties keep the earlier (smoother) candidate
         if e < best_err - 1e-12 * max(1.0, best_err):
@@ -1827,7 +1990,8 @@ def _fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArra
     return pole_error(poles, target)
 
 
-def _closest_dfo(plant: Plant, target: NDArray, structure: str, cands: list, seed: int) -> list:
+def _closest_dfo(plant: Plant, target: NDArray, structure: str, cands: list, seed: int,
+                 dl: Deadline | None = None) -> list:
     """Multi-start Nelder-Mead on ``pole_error`` over the noise parametrization (see
     :func:`_closest_poles`); returns ``[(error, Wdec), ...]`` (empty when too many parameters)."""
     from scipy.optimize import minimize
@@ -1870,7 +2034,10 @@ def _closest_dfo(plant: Plant, target: NDArray, structure: str, cands: list, see
     pool.sort(key=lambda c: c[0])
     starts = [x for _, x in pool[:4]]
     out = []
+    dl = Deadline.of(dl)
     for x0 in starts:
+        if dl.expired:
+            break
         res = minimize(f, x0, method="Nelder-Mead",
                        options={"maxfev": 300 * nx + 200, "xatol": 1e-9, "fatol": 1e-12,
                                 "adaptive": nx > 3})

@@ -20,8 +20,8 @@ Methods
 ``"transition"`` (default)
     Exact: the Hamiltonian transition matrix over each output interval in Lainiotis' partitioned
     form, built by doubling from one short exact step and restarted at every output time
-    (:func:`optdesign.classical.bpf.riccati_flow`).  Symmetric by construction, PSD to rounding
-    (checked), stable on long horizons and on stiff or unstable plants.  Error estimate: the
+    (:func:`optdesign.classical.transition.riccati_flow`).  Symmetric by construction, PSD to
+    rounding (checked), stable on long horizons and on stiff or unstable plants.  Error estimate: the
     difference from a recomputation with a 4x shorter base step (rounding only).  For a discrete
     plant: the Riccati recursion in Joseph form (a sum of PSD terms); error estimate: the
     difference from the standard form.
@@ -75,13 +75,8 @@ from scipy.linalg.lapack import dpotrf as _potrf
 
 from .._deadline import Deadline
 from .._validate import as_bool, as_positive_float, as_square, as_vector, check_psd
-from ..classical.bpf import (
-    bpf_evaluate,
-    bpf_restart_blocks,
-    bpf_riccati,
-    filter_hamiltonian,
-    riccati_flow,
-)
+from ..classical.bpf import bpf_evaluate, bpf_restart_blocks, bpf_riccati, filter_hamiltonian
+from ..classical.transition import riccati_flow
 from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
@@ -410,8 +405,9 @@ def _continuous(plant: Plant, P0: NDArray, t_final: float, method: str, steps: i
 
 def _time_limit_message(clock: Deadline, t: NDArray, requested: int, t_final: float) -> str:
     where = f"on [0, {t[-1]:g}]" if len(t) else "at no time"
-    return (f"time limit of {clock.limit:g} s reached: P computed {where}, {len(t)} of {requested} "
-            f"output times (horizon {t_final:g}); the rest was not computed")
+    limit = float(clock.limit or 0.0)
+    return (f"time limit of {limit:g} s reached: P computed {where}, {len(t)} of {requested} output "
+            f"times (horizon {t_final:g}); the rest was not computed")
 
 
 def _error_estimate(M: NDArray, P0: NDArray, t: NDArray, P: NDArray, method: str, wanted: bool,

@@ -723,7 +723,8 @@ class _Judge:
         L = np.asarray(L, dtype=float)
         if self.mask is not None:
             L = np.where(self.mask, L, 0.0)
-        mm = evaluate_models(self.ms, L, self.regions, norms=self.ms.has_noise_model)
+        need = self.objective == "h2" or any(self.bounds[k] is not None for k in ("h2_max", "hinf_max"))
+        mm = evaluate_models(self.ms, L, self.regions, norms=need)
         v = gain_checks(self.ms, L, mm, self.regions, mask=self.mask, kappa2_max=self.kappa2_max, **self.bounds)
         value = _value_of(self.objective, self.aggregate, mm, L, self.ms.weights)
         rank = self.nlp.exact_objective(L)
@@ -826,6 +827,7 @@ def _nlp_result(ms, regions, objective, aggregate, best, records, lmi_res, per_m
         return _nan_design(ms, regions, "nlp", objective, aggregate, status, why, cert, stats, starts=tuple(records),
                            lmi=lmi_res, extra=extra)
     L = best.L
+    mm = evaluate_models(ms, L, regions)  # every metric (the ranking computed only what it needed)
     want_h2, want_hinf = bounds["h2_max"] is not None, bounds["hinf_max"] is not None
     cert, how = (None, "not checked")
     if certify_gain:
@@ -847,7 +849,7 @@ def _nlp_result(ms, regions, objective, aggregate, best, records, lmi_res, per_m
         msg += f"; common Lyapunov certificate: {how}"
     return RobustObserverDesign(
         L=L, method="nlp", objective=objective, aggregate=aggregate, value=best.value, models=ms, regions=regions,
-        status=status, message=msg, solver_stats=stats, verification=best.verification, metrics=best.mm,
+        status=status, message=msg, solver_stats=stats, verification=best.verification, metrics=mm,
         lmi_certificate=cert, certified=certified, dense=dense, starts=tuple(records), lmi=lmi_res,
         improvement=improvement, extra=extra,
         certificate=None if cert is None else {"kind": "lmi", "reason": how, "data": cert.as_dict()})

@@ -162,11 +162,13 @@ def log_kappa_bound(sp: Spectrum, order: int | None) -> tuple[float, NDArray[np.
 
 
 def _region_values(region: Region, re: NDArray, im: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-    """``g_k(re, im)`` (K, n) and their partial derivatives by the complex step."""
-    g = np.array([np.real(v) * np.ones_like(re) for v in region.constraints(re + 0j, im + 0j)])
-    gr = np.array([np.imag(v) * np.ones_like(re) for v in region.constraints(re + 1j * _H, im + 0j)]) / _H
-    gi = np.array([np.imag(v) * np.ones_like(re) for v in region.constraints(re + 0j, im + 1j * _H)]) / _H
-    return g, gr, gi
+    """``g_k(re, im)`` (K, n) and their partial derivatives by the complex step (one evaluation of the
+    region's expressions on the stacked points ``[z, z + i h d/dre, z + i h d/dim]``)."""
+    n = re.size
+    R = np.concatenate([re + 0j, re + 1j * _H, re + 0j])
+    I = np.concatenate([im + 0j, im + 0j, im + 1j * _H])
+    G = np.array([np.broadcast_to(v, R.shape) for v in region.constraints(R, I)])
+    return G[:, :n].real, G[:, n:2 * n].imag / _H, G[:, 2 * n:].imag / _H
 
 
 def region_terms(sp: Spectrum, region: Region, mask_free: NDArray[np.intp]) -> tuple[NDArray, NDArray]:
@@ -194,13 +196,11 @@ def region_terms(sp: Spectrum, region: Region, mask_free: NDArray[np.intp]) -> t
     dlam = -(sp.W[:, :, None] * sp.CV.T[:, None, :])  # (k, a, c)
     dlam = dlam.transpose(0, 2, 1).reshape(lam.size, -1)[:, mask_free]  # column-major (a + n c)
     dre, dim = dlam.real, dlam.imag * sgn[:, None]
-    K = g.shape[0]
-    vals = np.empty(K * lam.size)
-    jac = np.empty((K * lam.size, mask_free.size))
-    for k in range(K):
-        order = np.argsort(-g[k], kind="stable")
-        vals[k * lam.size:(k + 1) * lam.size] = g[k][order]
-        jac[k * lam.size:(k + 1) * lam.size] = (gr[k][:, None] * dre + gi[k][:, None] * dim)[order]
+    order = np.argsort(-g, axis=1, kind="stable")  # per constraint, the poles in descending order
+    rows = np.arange(g.shape[0])[:, None]
+    vals = g[rows, order].ravel()
+    J = gr[:, :, None] * dre[None] + gi[:, :, None] * dim[None]  # (K, n, f)
+    jac = J[rows, order].reshape(vals.size, mask_free.size)
     return vals, jac
 
 
@@ -412,6 +412,12 @@ class RobustNLP:
                 out["kv"], out["kj"] = kv, kj
         return out
 
+    def _finite(self, terms: dict[str, Any]) -> bool:
+        """Every term the objective and the constraints use is finite (else: outside the domain)."""
+        used = [terms["c"]] if self.objective != "gain" else []
+        used += [terms[k] for k in ("h", "hi", "kv") if k in terms]
+        return all(bool(np.all(np.isfinite(u))) for u in used)
+
     def _noise(self) -> tuple[NDArray, NDArray]:
         if "noise" not in self._cache:
             d = self.models.vertex_data()
@@ -428,7 +434,7 @@ class RobustNLP:
         terms = self._model_terms(L)
         f_ = self.free.size
         nx = self.n_x
-        if terms["bad"] or not np.all(np.isfinite(terms.get("c", np.zeros(1)))):
+        if terms["bad"] or not self._finite(terms):
             val = {"f": math.inf, "df": np.zeros(nx), "g": np.full(self.n_g, math.inf),
                    "dg": np.zeros((self.n_g, nx)), "L": L, "terms": terms}
             self._cache.update(key=key, val=val)
@@ -519,7 +525,7 @@ class RobustNLP:
             terms = self._model_terms(np.asarray(L, dtype=float))
         finally:
             self.order = order
-        if terms["bad"] or not np.all(np.isfinite(terms["c"])):
+        if terms["bad"] or not self._finite(terms):
             return math.inf
         w = self.models.weights
         if self.objective == "gain":

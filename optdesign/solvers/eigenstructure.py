@@ -86,7 +86,7 @@ OBJECTIVES = ("kappa2", "kappa_fro", "eta")
 #: (``None``): measured on the pole-placement problems, starting at the exact function lets
 #: BFGS stall for hundreds of iterations at a tie of singular values (scipy's car example: 551
 #: evaluations to reach 1e-3 of the optimum, 285 in all with this continuation)
-KAPPA2_CONTINUATION: tuple[int | None, ...] = (4, 32, 256, None)
+KAPPA2_CONTINUATION: tuple[int | None, ...] = (4, 64, 1024, 16384, None)
 
 Objective = Literal["kappa2", "kappa_fro", "eta"]
 
@@ -723,7 +723,9 @@ def _peer_start(A: NDArray, C: NDArray, poles: NDArray, method: str) -> NDArray[
 #: per stage: (order k of the kappa2 bound or None for the exact function, relative decrease
 #: tolerance of the stage); loose early stages, measured: tight ones spend evaluations on a
 #: surrogate whose minimizer is discarded anyway
-_STAGE_FTOL = {4: 1e-5, 32: 1e-6, 256: 1e-7, None: 1e-10}
+_STAGE_FTOL = {4: 1e-5, 64: 1e-6, 1024: 1e-8, 16384: 1e-9, None: 1e-9}
+#: gradient tolerance of the smooth stages (log kappa2 per unit change of unit-norm coordinates)
+_GTOL = 1e-6
 
 
 def _run_starts(
@@ -751,7 +753,8 @@ def _run_starts(
             return model.evaluate_batch(Z, objective, _k)
 
         res, H = bfgs_minimize_batch(
-            fun, X, max_iter=max_iter, ftol=_STAGE_FTOL.get(k, 1e-8), deadline=deadline, H0=H
+            fun, X, max_iter=max_iter, ftol=_STAGE_FTOL.get(k, 1e-8), gtol=0.0 if k is None else _GTOL,
+            deadline=deadline, H0=H,
         )
         for i, r in enumerate(res):
             X[i] = r.x
@@ -767,7 +770,7 @@ def place_fixed(
     poles: ArrayLike,
     *,
     objective: Objective = "kappa2",
-    starts: int = 3,
+    starts: int = 4,
     seed: int = 0,
     deadline: Deadline | float | None = None,
     warm_start: ArrayLike | None = None,
@@ -784,7 +787,7 @@ def place_fixed(
     poles : (n,) array_like of complex
         Conjugate-closed; a pole may repeat up to ``rank C`` times (more: see ``separation``).
     objective : {"kappa2", "kappa_fro", "eta"}
-    starts : int, default 3
+    starts : int, default 4
         Starting points: scipy YT, scipy KNV0 (real poles only) and random eigenvector
         coordinates, in that order, ``starts`` in all (plus the warm start, if given).
     seed : int, default 0

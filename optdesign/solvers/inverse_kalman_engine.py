@@ -319,25 +319,36 @@ def _start_rank(setup: EngineSetup) -> int:
 
 
 def _from_start(setup: EngineSetup, blocks: SpectralBlocks, W: NDArray, scale: float, Qn: NDArray | None,
-                deadline: Deadline, rec: dict) -> _Candidate | None:
-    """Stages 1-2 from the decision covariance W: SQP to a nearly feasible point (the objective
-    reduced on the way), projected onto the feasible set; else Gauss-Newton to feasibility and
-    the fixed-gain SDP at that gain for the rank.  None when neither reaches feasibility."""
+                deadline: Deadline, rec: dict, path: str) -> _Candidate | None:
+    """Stage 1 from the decision covariance W, by one of two paths:
+
+    * ``"projection"``: Gauss-Newton with a line search to the nearest feasible point (full-rank
+      factor), then the fixed-gain SDP at that gain -- the objective's best Q for it, whose rank
+      sets the columns of V;
+    * ``"sqp"``: SQP from W (a factor of :func:`_start_rank` columns) until nearly feasible, the
+      objective reduced on the way, projected onto the feasible set; where it stops short,
+      Gauss-Newton from its last point (a restoration phase).
+
+    None when no feasible point is reached."""
     diagonal = setup.structure == "diagonal"
     nominal = None if Qn is None else Qn / scale
     Ws = 0.5 * (W + W.T) / scale
-    r0 = _start_rank(setup)
-    prob = FactorProblem(blocks, r0, setup.objective, nominal, diagonal)
-    V0 = _factor_of(Ws, r0, diagonal)
-    rep = sqp(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)), expired=lambda: deadline.expired)
-    rec.update(sqp_iterations=rep.iterations, sqp=rep.reason)
-    if rep.converged:
-        x, ok, _ = project(rep.problem, rep.x)
-        if ok:
-            return _Candidate(rep.problem, x, "", rep.iterations)
-    if deadline.expired:
-        return None
-    # fallback: the nearest feasible point (full rank), then the SDP at its gain for the rank
+    if path == "sqp":
+        prob = FactorProblem(blocks, _start_rank(setup), setup.objective, nominal, diagonal)
+        V0 = _factor_of(Ws, prob.rank, diagonal)
+        rep = sqp(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)),
+                  expired=lambda: deadline.expired)
+        rec.update(sqp_iterations=rep.iterations, sqp=rep.reason)
+        prob, x = rep.problem, rep.x
+        if rep.converged:
+            x, ok, _ = project(prob, x)
+            if ok:
+                return _Candidate(prob, x, "", rep.iterations)
+        if deadline.expired:
+            return None
+        x, ok, it = find_feasible(prob, x, expired=lambda: deadline.expired)
+        rec["restoration_iterations"] = it
+        return _Candidate(prob, x, "", rep.iterations + it) if ok else None
     k = setup.k
     prob = FactorProblem(blocks, k, setup.objective, nominal, diagonal)
     V0 = _factor_of(Ws + 1e-12 * np.trace(Ws) * np.eye(k), k, diagonal)
@@ -346,14 +357,14 @@ def _from_start(setup: EngineSetup, blocks: SpectralBlocks, W: NDArray, scale: f
     rec["gauss_newton_iterations"] = it
     if not ok:
         return None
-    cand = _Candidate(prob, x, "", rep.iterations + it)
+    cand = _Candidate(prob, x, "", it)
     _, _, g = prob.unpack(x)
     sol = _sdp_at(setup, blocks, g, Qn, deadline)[1]
     rec["sdp_at_start"] = _sdp_record(sol)
     if sol.status.is_solved:
         c2 = _from_sdp(setup, blocks, g, sol, scale, Qn, fixed=False)
         if c2 is not None:
-            c2.iterations = cand.iterations
+            c2.iterations = it
             return c2
     return cand
 
@@ -613,6 +624,8 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
     return _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol)
 
 
+_PATH = ["projection"]
+
 #: relative agreement of the certificate SDP's optimum with the Newton point (1000x Clarabel's gap)
 _AGREE = 1e3 * 1e-10
 
@@ -717,7 +730,7 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
         tic = time.process_time()
         rec: dict[str, Any] = {"kind": kind}
         records.append(rec)
-        cand = _from_start(setup, blocks, W, scale, Qn, deadline, rec)
+        cand = _from_start(setup, blocks, W, scale, Qn, deadline, rec, _PATH[0])
         rec["feasible"] = cand is not None
         if cand is None:
             rec["cpu_time"] = time.process_time() - tic

@@ -1,4 +1,4 @@
-r"""A dense BFGS method with a weak Wolfe line search, for smooth *and* nonsmooth objectives.
+r"""Dense BFGS with a weak Wolfe line search, for smooth *and* nonsmooth objectives, on a batch of starts.
 
 The eigenstructure engine (:mod:`optdesign.solvers.eigenstructure`) minimizes ``log kappa2`` of
 an eigenvector matrix, a function that is smooth almost everywhere but not where the largest
@@ -8,16 +8,19 @@ derivative only, found by bracketing and bisection) is the method Lewis & Overto
 found effective on such functions: it does not need the gradient to vanish, and it converges
 (typically linearly) to nonsmooth local minimizers.  On smooth objectives it is ordinary BFGS.
 
-No Hessian is ever formed: one evaluation is one function value and one gradient, both from
-the same factorizations (measured in issue 13: an exact Lagrangian Hessian of the CasADi
-formulation cost 50-390x a gradient).
+Several starts run in lockstep (:func:`bfgs_minimize_batch`): every round evaluates the trial
+points of all running starts in one call, so the objective can stack their matrices and call
+LAPACK once -- on the small matrices of pole placement numpy's per-call overhead dominates.
+Each start keeps its own inverse-Hessian approximation and line search and stops on its own.
+No Hessian is ever formed: one evaluation is one value and one gradient (measured in issue 13:
+an exact Lagrangian Hessian of the CasADi formulation cost 50-390x a gradient).
 
-Stopping rules (first met wins), each reported in :attr:`QNResult.reason`:
+Stopping rules (first met wins), reported per start in :attr:`QNResult.reason`:
 
 * ``"converged"``: the relative decrease of ``f`` over the last ``window`` iterations is below
   ``ftol`` (nonsmooth functions: the gradient need not vanish), or ``||g||_inf <= gtol``;
-* ``"line search"``: no step satisfying the Wolfe conditions was found (at a nonsmooth
-  minimizer this is the normal end, Lewis & Overton section 6.2);
+* ``"line search"``: no step satisfying the Wolfe conditions was found before the bracket shrank
+  below ``xtol`` (at a nonsmooth minimizer this is the normal end, Lewis & Overton section 6.2);
 * ``"max_iter"`` / ``"max_eval"``: budget exhausted; ``"time_limit"``: the deadline expired.
 
 References
@@ -38,17 +41,22 @@ from numpy.typing import NDArray
 
 from .._deadline import Deadline
 
-__all__ = ["QNResult", "bfgs_minimize", "bfgs_minimize_batch", "weak_wolfe"]
+__all__ = ["QNResult", "bfgs_minimize", "bfgs_minimize_batch"]
 
-#: an objective: ``x -> (f, g)``; ``f = inf`` (any g) marks a point outside the domain
-Objective = Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64] | None]]
 #: a batched objective: ``X (k, m) -> (f (k,), G (k, m))``; ``f[i] = inf`` outside the domain
 BatchObjective = Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
+#: an objective of one point: ``x -> (f, g)``
+Objective = Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64] | None]]
+
+#: doublings of the step allowed while the curvature condition fails (beyond: take the step)
+_MAX_EXPAND = 12
+#: evaluations allowed in one line search
+_MAX_LINE = 40
 
 
 @dataclass(frozen=True)
 class QNResult:
-    """The end point of :func:`bfgs_minimize`.
+    """The end point of one start.
 
     Attributes
     ----------
@@ -74,180 +82,24 @@ class QNResult:
     reason: str
 
 
-def weak_wolfe(
-    fun: Objective,
-    x: NDArray[np.float64],
-    f: float,
-    g: NDArray[np.float64],
-    d: NDArray[np.float64],
-    *,
-    c1: float = 1e-4,
-    c2: float = 0.9,
-    max_eval: int = 40,
-    xtol: float = 1e-10,
-) -> tuple[float, NDArray[np.float64], float, NDArray[np.float64] | None, int, bool]:
-    """Weak Wolfe line search by bracketing (doubling) and bisection (Lewis & Overton, Alg. 2.1).
-
-    Parameters
-    ----------
-    fun : callable
-        ``x -> (f, g)``.
-    x, g : (m,) ndarray
-        Current point and gradient; ``f`` its value.
-    d : (m,) ndarray
-        A descent direction (``g @ d < 0``).
-    c1, c2 : float
-        Armijo and curvature constants, ``0 < c1 < c2 < 1``.
-    max_eval : int
-        Evaluations allowed.
-    xtol : float
-        Give up when the bracket ``t ||d||`` is below ``xtol (1 + ||x||)`` (no meaningful step left).
-
-    Returns
-    -------
-    t : float
-        The last step tried.
-    x_t : (m,) ndarray
-        ``x + t d``.
-    f_t, g_t : float, ndarray
-        Value and gradient there.
-    evaluations : int
-    ok : bool
-        Both conditions hold at ``t``.
-    """
-    lo, hi, t = 0.0, math.inf, 1.0
-    gd = float(g @ d)
-    dn, xn = float(np.linalg.norm(d)), 1.0 + float(np.linalg.norm(x))
-    xt, ft, gt = x, f, g
-    for k in range(1, max_eval + 1):
-        xt = x + t * d
-        ft, gt = fun(xt)
-        if not math.isfinite(ft) or ft > f + c1 * t * gd:
-            hi = t
-        elif gt is not None and float(gt @ d) < c2 * gd:
-            lo = t
-        else:
-            return t, xt, ft, gt, k, True
-        t = 2.0 * lo if math.isinf(hi) else 0.5 * (lo + hi)
-        if lo == 0.0 and hi * dn <= xtol * xn:
-            return t, xt, ft, gt, k, False
-    return t, xt, ft, gt, max_eval, False
-
-
-def bfgs_minimize(
-    fun: Objective,
-    x0: NDArray[np.float64],
-    *,
-    max_iter: int = 500,
-    max_eval: int = 5000,
-    ftol: float = 1e-10,
-    gtol: float = 0.0,
-    window: int = 8,
-    deadline: Deadline | None = None,
-    H0: NDArray[np.float64] | None = None,
-) -> tuple[QNResult, NDArray[np.float64]]:
-    """Minimize ``fun`` by dense BFGS with a weak Wolfe line search.
-
-    Parameters
-    ----------
-    fun : callable
-        ``x -> (f, g)`` (a float and an (m,) gradient); ``f = inf`` outside the domain.
-    x0 : (m,) ndarray
-        Start (must have a finite value).
-    max_iter, max_eval : int
-        Budgets of steps and evaluations.
-    ftol : float
-        Relative decrease of ``f`` over ``window`` iterations below which it stops.
-    gtol : float
-        Stop when ``||g||_inf <= gtol`` (0: never; the nonsmooth default).
-    window : int
-        Iterations over which the decrease is measured.
-    deadline : Deadline, optional
-        Checked once per iteration.
-    H0 : (m, m) ndarray, optional
-        Initial inverse-Hessian approximation (default: scaled identity after the first step).
-
-    Returns
-    -------
-    QNResult
-        The best point (never worse than ``x0``).
-    H : (m, m) ndarray
-        The final inverse-Hessian approximation (to continue a related minimization).
-
-    Raises
-    ------
-    ValueError
-        ``fun(x0)`` is not finite (a caller bug: starts are checked before).
-    """
-    x = np.array(x0, dtype=float)
-    f, g = fun(x)
-    if not math.isfinite(f) or g is None:
-        raise ValueError(f"bfgs_minimize: the objective is not finite at the start ({f!r})")
-    m = x.size
-    H = np.eye(m) if H0 is None else np.array(H0, dtype=float)
-    scaled = H0 is not None
-    nev, it, reason = 1, 0, "max_iter"
-    hist = [f]
-    while it < max_iter:
-        if deadline is not None and deadline.expired:
-            reason = "time_limit"
-            break
-        if gtol > 0 and float(np.max(np.abs(g))) <= gtol:
-            reason = "converged"
-            break
-        d = -(H @ g)
-        if not float(g @ d) < 0.0:  # lost positive definiteness (rounding): restart
-            H = np.eye(m)
-            scaled = False
-            d = -g
-            if not float(g @ d) < 0.0:
-                reason = "converged"  # zero gradient
-                break
-        t, xn, fn, gn, k, ok = weak_wolfe(fun, x, f, g, d, max_eval=min(40, max_eval - nev))
-        nev += k
-        if not ok:
-            if math.isfinite(fn) and fn < f and gn is not None:
-                x, f, g = xn, fn, gn
-                it += 1
-            reason = "line search"
-            break
-        s = xn - x
-        y = gn - g
-        sy = float(s @ y)
-        if sy > 0.0:
-            if not scaled:
-                H = (sy / float(y @ y)) * np.eye(m)
-                scaled = True
-            rho = 1.0 / sy
-            Hy = H @ y
-            H += (rho * rho * float(y @ Hy) + rho) * np.outer(s, s) - rho * (np.outer(s, Hy) + np.outer(Hy, s))
-        x, f, g = xn, fn, gn
-        it += 1
-        hist.append(f)
-        if len(hist) > window and hist[-1 - window] - f <= ftol * max(1.0, abs(f)):
-            reason = "converged"
-            break
-        if nev >= max_eval:
-            reason = "max_eval"
-            break
-    return QNResult(x, float(f), g, it, nev, reason), H
-
-
 class _Member:
-    """The state of one member of :func:`bfgs_minimize_batch` (a BFGS run and its line search)."""
+    """The state of one start: its BFGS iterate and its current weak Wolfe line search."""
 
-    __slots__ = ("x", "f", "g", "H", "scaled", "d", "gd", "dn", "t", "lo", "hi", "ls", "it", "nev", "hist", "reason")
+    __slots__ = ("x", "f", "g", "H", "scaled", "d", "gd", "dn", "t", "lo", "hi", "ls", "up",
+                 "at_lo", "it", "nev", "hist", "reason")
 
     def __init__(self, x: NDArray, f: float, g: NDArray, H0: NDArray | None) -> None:
         self.x, self.f, self.g = x, f, g
         self.H = np.eye(x.size) if H0 is None else np.array(H0, dtype=float)
         self.scaled = H0 is not None
         self.it, self.nev, self.hist, self.reason = 0, 1, [f], ""
-        self.d = self.g
-        self.gd, self.dn, self.t, self.lo, self.hi, self.ls = 0.0, 0.0, 1.0, 0.0, math.inf, 0
+        self.d = g
+        self.gd = self.dn = 0.0
+        self.t, self.lo, self.hi, self.ls, self.up = 1.0, 0.0, math.inf, 0, 0
+        self.at_lo: tuple[NDArray, float, NDArray] | None = None
 
     def new_direction(self) -> bool:
-        """Start a line search along ``-H g``; False when the gradient is zero."""
+        """Start a line search along ``-H g`` (``-g`` if that is not a descent direction)."""
         d = -(self.H @ self.g)
         gd = float(self.g @ d)
         if not gd < 0.0:
@@ -258,22 +110,47 @@ class _Member:
             if not gd < 0.0:
                 return False
         self.d, self.gd = d, gd
-        self.dn = float(np.linalg.norm(d)) / (1.0 + float(np.linalg.norm(self.x)))
-        self.t, self.lo, self.hi, self.ls = 1.0, 0.0, math.inf, 0
+        self.dn = math.sqrt(float(d @ d)) / (1.0 + math.sqrt(float(self.x @ self.x)))
+        self.t, self.lo, self.hi, self.ls, self.up, self.at_lo = 1.0, 0.0, math.inf, 0, 0, None
         return True
 
-    def accept(self, xn: NDArray, fn: float, gn: NDArray) -> None:
+    def trial(self) -> NDArray:
+        return self.x + self.t * self.d
+
+    def step(self, xt: NDArray, ft: float, gt: NDArray, c1: float, c2: float, xtol: float) -> str:
+        """Advance the line search with the value at the trial point: ``"accept"``, ``"continue"``
+        or ``"fail"``."""
+        self.nev += 1
+        self.ls += 1
+        if not math.isfinite(ft) or ft > self.f + c1 * self.t * self.gd:
+            self.hi = self.t
+        elif float(gt @ self.d) < c2 * self.gd:
+            self.lo, self.at_lo = self.t, (xt, ft, gt)
+            if math.isinf(self.hi):
+                self.up += 1
+                if self.up > _MAX_EXPAND:  # f keeps decreasing linearly (a flat direction): take it
+                    return "accept"
+        else:
+            self.at_lo = (xt, ft, gt)
+            return "accept"
+        self.t = 2.0 * self.lo if math.isinf(self.hi) else 0.5 * (self.lo + self.hi)
+        if self.ls >= _MAX_LINE or (self.lo == 0.0 and self.hi * self.dn <= xtol):
+            return "fail"
+        return "continue"
+
+    def accept(self) -> None:
+        """Take the accepted trial point and update the inverse-Hessian approximation."""
+        assert self.at_lo is not None
+        xn, fn, gn = self.at_lo
         s, y = xn - self.x, gn - self.g
         sy = float(s @ y)
         if sy > 0.0:
             if not self.scaled:
                 self.H = (sy / float(y @ y)) * np.eye(self.x.size)
                 self.scaled = True
-            rho = 1.0 / sy
-            Hy = self.H @ y
-            self.H += (rho * rho * float(y @ Hy) + rho) * np.outer(s, s) - rho * (
-                np.outer(s, Hy) + np.outer(Hy, s)
-            )
+            hy = (self.H @ y) / sy
+            c = (sy + float(y @ hy) * sy) / (sy * sy)  # (1 + y'Hy / sy) / sy
+            self.H += s[:, None] * (c * s - hy)[None, :] - hy[:, None] * s[None, :]
         self.x, self.f, self.g = xn, fn, gn
         self.it += 1
         self.hist.append(fn)
@@ -286,6 +163,7 @@ def bfgs_minimize_batch(
     max_iter: int = 500,
     max_eval: int = 5000,
     ftol: float = 1e-10,
+    gtol: float = 0.0,
     window: int = 8,
     deadline: Deadline | None = None,
     H0: list[NDArray[np.float64] | None] | None = None,
@@ -293,39 +171,42 @@ def bfgs_minimize_batch(
     c2: float = 0.9,
     xtol: float = 1e-10,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
-    """:func:`bfgs_minimize` on several starts in lockstep, one batched evaluation per round.
-
-    Every round evaluates the trial points of all members still running in *one* call of
-    ``fun`` (which can stack the members' matrices and call LAPACK once per factorization:
-    on the small matrices of pole placement the per-call overhead of numpy dominates, so ``k``
-    starts cost much less than ``k`` times one).  Each member runs its own BFGS and weak Wolfe
-    line search (the same rules as :func:`bfgs_minimize` and :func:`weak_wolfe`) and stops on
-    its own.
+    """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.
 
     Parameters
     ----------
     fun : callable
-        ``X (k, m) -> (f (k,), G (k, m))``.
+        ``X (k, m) -> (f (k,), G (k, m))``; ``f[i] = inf`` marks a point outside the domain.
     X0 : (s, m) ndarray
         Starts (all with finite values).
-    max_iter, max_eval, ftol, window, deadline
-        As :func:`bfgs_minimize`, per member (the deadline for all).
+    max_iter, max_eval : int
+        Budgets of steps and evaluations, per start.
+    ftol : float
+        Relative decrease of ``f`` over ``window`` iterations below which a start stops.
+    gtol : float
+        Stop when ``||g||_inf <= gtol`` (0: never; the default for nonsmooth functions).
+    window : int
+        Iterations over which the decrease is measured.
+    deadline : Deadline, optional
+        Checked once per round; on expiry every running start stops (``"time_limit"``).
     H0 : list of (m, m) ndarray or None, optional
-        Initial inverse-Hessian approximations per member.
+        Initial inverse-Hessian approximations (default: scaled identity after the first step).
     c1, c2 : float
-        Wolfe constants.
+        Wolfe constants, ``0 < c1 < c2 < 1``.
     xtol : float
-        Relative step below which a line search gives up (:func:`weak_wolfe`).
+        A line search gives up when its bracket ``t ||d|| / (1 + ||x||)`` is below ``xtol``.
 
     Returns
     -------
     results : list of QNResult
+        One per start, never worse than the start.
     H : list of (m, m) ndarray
+        The final inverse-Hessian approximations (to continue a related minimization).
 
     Raises
     ------
     ValueError
-        A start without a finite value.
+        A start without a finite value (a caller bug: starts are checked before).
     """
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
     f0, G0 = fun(X0)
@@ -335,7 +216,9 @@ def bfgs_minimize_batch(
     mem = [_Member(X0[i].copy(), float(f0[i]), G0[i].copy(), H0[i]) for i in range(X0.shape[0])]
     running = []
     for m in mem:
-        if m.new_direction():
+        if gtol > 0 and float(np.max(np.abs(m.g))) <= gtol:
+            m.reason = "converged"
+        elif m.new_direction():
             running.append(m)
         else:
             m.reason = "converged"
@@ -344,29 +227,23 @@ def bfgs_minimize_batch(
             for m in running:
                 m.reason = "time_limit"
             break
-        T = np.stack([m.x + m.t * m.d for m in running])
+        T = np.stack([m.trial() for m in running])
         fT, GT = fun(T)
         still = []
         for i, m in enumerate(running):
-            ft, gt = float(fT[i]), GT[i]
-            m.nev += 1
-            m.ls += 1
-            ok = False
-            if not math.isfinite(ft) or ft > m.f + c1 * m.t * m.gd:
-                m.hi = m.t
-            elif float(gt @ m.d) < c2 * m.gd:
-                m.lo = m.t
-            else:
-                ok = True
-            if not ok:
-                m.t = 2.0 * m.lo if math.isinf(m.hi) else 0.5 * (m.lo + m.hi)
-                if m.ls >= 40 or (m.lo == 0.0 and m.hi * m.dn <= xtol) or m.nev >= max_eval:
-                    m.reason = "max_eval" if m.nev >= max_eval else "line search"
-                    continue
+            what = m.step(T[i].copy(), float(fT[i]), GT[i].copy(), c1, c2, xtol)
+            if what == "continue" and m.nev < max_eval:
                 still.append(m)
                 continue
-            m.accept(T[i].copy(), ft, gt.copy())
+            if what != "accept":
+                m.reason = "max_eval" if m.nev >= max_eval else "line search"
+                if m.at_lo is not None:  # an Armijo step was found on the way: keep it
+                    m.accept()
+                continue
+            m.accept()
             if len(m.hist) > window and m.hist[-1 - window] - m.f <= ftol * max(1.0, abs(m.f)):
+                m.reason = "converged"
+            elif gtol > 0 and float(np.max(np.abs(m.g))) <= gtol:
                 m.reason = "converged"
             elif m.it >= max_iter:
                 m.reason = "max_iter"
@@ -378,3 +255,37 @@ def bfgs_minimize_batch(
                 still.append(m)
         running = still
     return [QNResult(m.x, m.f, m.g, m.it, m.nev, m.reason) for m in mem], [m.H for m in mem]
+
+
+def bfgs_minimize(
+    fun: Objective,
+    x0: NDArray[np.float64],
+    **options,
+) -> tuple[QNResult, NDArray[np.float64]]:
+    """:func:`bfgs_minimize_batch` for one start and an objective of one point ``x -> (f, g)``.
+
+    Parameters
+    ----------
+    fun : callable
+        ``x -> (f, g)``; ``f = inf`` outside the domain.
+    x0 : (m,) ndarray
+    **options
+        Those of :func:`bfgs_minimize_batch` (``H0`` a single matrix or None).
+
+    Returns
+    -------
+    QNResult, (m, m) ndarray
+
+    Raises
+    ------
+    ValueError
+        ``fun(x0)`` is not finite.
+    """
+
+    def batch(X):
+        f, g = fun(X[0])
+        return np.array([f]), np.zeros((1, X.shape[1])) if g is None else g[None, :]
+
+    H0 = options.pop("H0", None)
+    res, H = bfgs_minimize_batch(batch, np.asarray(x0, dtype=float)[None, :], H0=[H0], **options)
+    return res[0], H[0]

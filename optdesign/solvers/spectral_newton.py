@@ -645,6 +645,42 @@ class _Factored:
         return self.Q1 @ y
 
 
+def _tr_step(w: NDArray, E: NDArray, g: NDArray, radius: float) -> NDArray:
+    """Minimizer of ``g'd + d' H d / 2`` over ``||d|| <= radius`` for ``H = E diag(w) E'``
+    (the trust-region subproblem in the eigenbasis: ``d = -(H + lam I)^-1 g`` with the smallest
+    ``lam >= max(0, -min w)`` that keeps d in the region; the hard case adds the eigenvector of
+    the smallest eigenvalue).  More & Sorensen (1983), by bisection on lam."""
+    b = E.T @ g
+    wmin = float(w[0])
+    if wmin > 0:
+        d = -b / w
+        if np.linalg.norm(d) <= radius:
+            return E @ d
+    lo = max(0.0, -wmin)
+    shift = 1e-12 * max(1.0, float(np.max(np.abs(w))))
+
+    def size(lam):
+        return float(np.linalg.norm(b / (w + lam)))
+
+    if size(lo + shift) <= radius:      # hard case: the gradient misses the lowest eigenvector
+        d = -b / (w + lo + shift)
+        d[0] = 0.0
+        tau = np.sqrt(max(radius ** 2 - float(d @ d), 0.0))
+        d[0] = -tau if b[0] >= 0 else tau
+        return E @ d
+    hi = lo + float(np.linalg.norm(b)) / radius + shift
+    lo = lo + shift
+    for _ in range(100):                 # size(lam) decreases from > radius (lo) to <= radius (hi)
+        mid = np.sqrt(lo * hi) if lo > 0 else 0.5 * hi
+        if size(mid) > radius:
+            lo = mid
+        else:
+            hi = mid
+        if hi - lo <= 1e-12 * hi:
+            break
+    return E @ (-b / (w + hi))
+
+
 def _chord_project(problem: FactorProblem, x: NDArray, fac: _Factored, n_rows: int,
                    max_iter: int = 6) -> tuple[NDArray, bool]:
     """The retraction by the chord method: Gauss-Newton corrections with the factored Jacobian
@@ -699,9 +735,10 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
     """Newton's method for ``min f`` on the feasible manifold ``c = 0`` from a feasible x.
 
     Each iteration: the null space Z of the residual Jacobian and the tangent rows, least-squares
-    multipliers, the reduced Hessian ``Z' H Z`` with its eigenvalues made positive (absolute
-    values, at least ``1e-8`` of the largest), the step ``-(Z'HZ)^-1 Z' grad f``, then the
-    retraction :func:`project` and an Armijo line search on f.  Columns of V with singular value
+    multipliers, the reduced Hessian ``Z' H Z``, the trust-region step of ``Z' grad f`` and
+    ``Z'HZ`` (:func:`_tr_step`; the Newton step where Z'HZ is positive definite and the step fits),
+    then the retraction (chord method, else :func:`project`) and an Armijo line search on the
+    Lagrangian; the radius grows after full steps and shrinks to the accepted length otherwise.  Columns of V with singular value
     below ``truncate`` (relative) are removed first.  Stops when ``||Z' grad f|| <= gtol *
     max(1, |f|)``, after ``max_iter`` iterations, when no step decreases f, or when ``expired()``.
     ``log`` (a list) receives one ``(f, ||Z' grad f||, step length, rank)`` per iteration.
@@ -711,6 +748,7 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
     mu = np.zeros(problem.blocks.ng)
     gz_norm = float("inf")
     reason = "iteration limit"
+    radius = max(1.0, float(np.linalg.norm(x)))
     it = 0
     for it in range(max_iter):
         if expired is not None and expired():
@@ -734,9 +772,8 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
             return NewtonReport(x, True, it, f, gz_norm, mu, "converged", truncated, problem)
         Hz = Z.T @ problem.hess(x, mu) @ Z
         w, E = np.linalg.eigh(0.5 * (Hz + Hz.T))
-        wmax = max(float(np.max(np.abs(w))), 1e-300)
-        w = np.maximum(np.abs(w), 1e-8 * wmax)
-        dx = Z @ (-(E @ ((E.T @ gz) / w)))
+        dx = Z @ _tr_step(w, E, gz, radius)
+        ndx = float(np.linalg.norm(dx))
         slope = float(grad @ dx)
         if -slope <= 16.0 * _EPS * max(1.0, abs(f)):  # the predicted decrease is rounding
             x, f = _polish(problem, x)
@@ -760,6 +797,7 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
         if not accepted:
             reason = "no decrease along the Newton direction"
             break
+        radius = max(radius, 2.0 * ndx) if alpha == 1.0 else max(alpha * ndx, 1e-8 * radius)
         x, f = xn, fn
     return NewtonReport(x, False, it + 1, f, gz_norm, mu, reason, truncated, problem)
 
@@ -776,8 +814,8 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
     residuals' terms), the objective reduced on the way.
 
     Each step is the minimum-norm normal step ``dn`` (``J dn = -c``, the tangent rows kept) plus the
-    tangential Newton step ``-(Z'HZ)^-1 Z'(grad f + H dn)`` (eigenvalues made positive as in
-    :func:`newton`), with a filter line search on ``(theta, f)``, ``theta = ||c||`` (Waechter &
+    tangential step of the trust-region subproblem of ``Z'(grad f + H dn)`` and ``Z'HZ``
+    (:func:`_tr_step`: negative curvature is followed, not flipped), with a filter line search on ``(theta, f)``, ``theta = ||c||`` (Waechter &
     Biegler's rules, simplified: a trial point is accepted when the filter does not dominate it
     and it reduces theta or f by a margin of theta, or -- where the step is a descent direction
     that dominates the infeasibility -- when it satisfies Armijo's condition on f).  Moving towards
@@ -801,12 +839,14 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
     theta_max = 1e4 * max(1.0, theta0)
     filt: list[tuple[float, float]] = [(theta_max, -np.inf)]
     g_th, g_f = 1e-5, 1e-5
+    radius = max(1.0, float(np.linalg.norm(x)))
     for it in range(max_iter):
         if expired is not None and expired():
             return NewtonReport(x, False, it, f, gz_norm, mu, "time limit", truncated, problem)
         pr2, x2, dropped = _truncate(problem, x, truncate)
-        if dropped:
+        if dropped:  # a new point (the dropped columns change theta and f): a new filter
             problem, x, truncated = pr2, x2, truncated + dropped
+            filt = [(theta_max, -np.inf)]
         c = problem.c(x)
         theta = float(np.linalg.norm(c))
         f = problem.f(x)
@@ -821,14 +861,18 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
         mu = fac.multipliers(grad)[:J.shape[0]]
         H = problem.hess(x, mu)
         Z = fac.Z
+        ndn = float(np.linalg.norm(dn))
+        if ndn > radius:
+            dn *= radius / ndn
+            ndn = radius
         dx = dn
         if Z.shape[1]:
             gz = Z.T @ (grad + H @ dn)
             gz_norm = float(np.linalg.norm(Z.T @ grad))
             Hz = Z.T @ H @ Z
             w, E = np.linalg.eigh(0.5 * (Hz + Hz.T))
-            w = np.maximum(np.abs(w), 1e-8 * max(float(np.max(np.abs(w))), 1e-300))
-            dx = dn + Z @ (-(E @ ((E.T @ gz) / w)))
+            dx = dn + Z @ _tr_step(w, E, gz, max(np.sqrt(max(radius ** 2 - ndn ** 2, 0.0)), 0.1 * radius))
+        ndx = float(np.linalg.norm(dx))
         m = float(grad @ dx)
         alpha = 1.0
         accepted = False
@@ -849,6 +893,7 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
             log.append((f, theta, alpha if accepted else 0.0, problem.rank))
         if not accepted:
             return NewtonReport(x, False, it, f, gz_norm, mu, "the filter line search failed", truncated, problem)
+        radius = max(radius, 2.0 * ndx) if alpha == 1.0 else max(alpha * ndx, 1e-8 * radius)
         x = xn
     return NewtonReport(x, False, it + 1, problem.f(x), gz_norm, mu, "iteration limit", truncated, problem)
 

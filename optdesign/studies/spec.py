@@ -349,6 +349,60 @@ def _columns_of(design: str) -> tuple[str, ...]:
     return (*common, "pole_error", "trace_Q", "max_abs_pole")
 
 
+def _fixed_arguments(source: str, fixed: Mapping[str, Any], cls: Any, forced: Mapping[str, Any],
+                     design: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The designer's keyword arguments and the constant grid values given in ``[fixed]``."""
+    fields = _designer_fields(cls)
+    axes_allowed = list(cls.AXES)
+    kwargs: dict[str, Any] = {}
+    constant_point: dict[str, Any] = {}
+    for k, v in fixed.items():
+        f = f"fixed.{k}"
+        if k in forced:
+            raise _err(source, f, f"is set by design = {design!r}")
+        if k not in fields and k not in axes_allowed:
+            allowed = sorted(set(fields) - set(forced)) + [a for a in axes_allowed if a not in fields]
+            raise _err(source, f, f"unknown argument for design {design!r}; expected one of "
+                                  f"{', '.join(allowed)}")
+        if k == "region":
+            try:
+                v = parse_region(v, field=f) if isinstance(v, str) else v
+            except ValidationError as exc:
+                raise SpecError(f"{source}: {exc}") from None
+            if not isinstance(v, Region):
+                raise _err(source, f, "must be a region string such as 'halfplane:1 & sector:0.7'")
+        elif k == "poles":
+            try:
+                v = tuple(parse_poles(v, field=f))
+            except ValidationError as exc:
+                raise SpecError(f"{source}: {exc}") from None
+        elif k == "options":
+            if not isinstance(v, Mapping):
+                raise _err(source, f, "must be a table of IPOPT options")
+            v = dict(v)
+        if k in fields:
+            kwargs[k] = v
+        else:
+            constant_point[k] = v
+    return kwargs, constant_point
+
+
+def _make_designer(source: str, cls: Any, problem: str, forced: Mapping[str, Any],
+                   kwargs: Mapping[str, Any]) -> Any:
+    """The designer of the spec; its validation errors name the ``[fixed]`` field (or the problem)."""
+    try:
+        return cls(problem=problem, **forced, **kwargs)
+    except ValidationError as exc:
+        msg = " ".join(str(exc).split())
+        where = next((f"fixed.{k}" for k in kwargs if k in msg), None)
+        if where is None:
+            about_problem = any(w in msg for w in ("noise", "target poles", "problem"))
+            where = "study.problem" if about_problem else "fixed"
+            if "target poles" in msg:
+                msg += " (in [fixed], e.g. poles = ['-1', '-2+1j', '-2-1j'])"
+        raise _err(source, where, msg) from None
+
+
 def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | Path = ".",
                default_name: str = "study") -> StudySpec:
     """Validate a spec already read from TOML (a dict); see the module docstring for the format.
@@ -418,49 +472,9 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
     fixed = data.get("fixed", {})
     if not isinstance(fixed, Mapping):
         raise _err(source, "fixed", "must be a table of designer arguments")
-    fields = _designer_fields(cls)
     axes_allowed = list(cls.AXES)
-    kwargs: dict[str, Any] = {}
-    constant_point: dict[str, Any] = {}
-    for k, v in fixed.items():
-        f = f"fixed.{k}"
-        if k in forced:
-            raise _err(source, f, f"is set by design = {design!r}")
-        if k not in fields and k not in axes_allowed:
-            allowed = sorted(set(fields) - set(forced)) + [a for a in axes_allowed if a not in fields]
-            raise _err(source, f, f"unknown argument for design {design!r}; expected one of "
-                                  f"{', '.join(allowed)}")
-        if k == "region":
-            try:
-                v = parse_region(v, field=f) if isinstance(v, str) else v
-            except ValidationError as exc:
-                raise SpecError(f"{source}: {exc}") from None
-            if not isinstance(v, Region):
-                raise _err(source, f, "must be a region string such as 'halfplane:1 & sector:0.7'")
-        elif k == "poles":
-            try:
-                v = tuple(parse_poles(v, field=f))
-            except ValidationError as exc:
-                raise SpecError(f"{source}: {exc}") from None
-        elif k == "options":
-            if not isinstance(v, Mapping):
-                raise _err(source, f, "must be a table of IPOPT options")
-            v = dict(v)
-        if k in fields:
-            kwargs[k] = v
-        else:
-            constant_point[k] = v
-    try:
-        designer = cls(problem=problem, **forced, **kwargs)
-    except ValidationError as exc:
-        msg = " ".join(str(exc).split())
-        where = next((f"fixed.{k}" for k in kwargs if k in msg), None)
-        if where is None:
-            about_problem = any(w in msg for w in ("noise", "target poles", "problem"))
-            where = "study.problem" if about_problem else "fixed"
-            if "target poles" in msg:
-                msg += " (in [fixed], e.g. poles = ['-1', '-2+1j', '-2-1j'])"
-        raise _err(source, where, msg) from None
+    kwargs, constant_point = _fixed_arguments(source, fixed, cls, forced, design)
+    designer = _make_designer(source, cls, problem, forced, kwargs)
 
     # grid
     g = data.get("grid")
