@@ -115,6 +115,16 @@ def as_matrix(
 
     Scalars become (1, 1); 1-D input is *not* silently reshaped (ambiguous between a row
     and a column), except when ``shape`` fixes one side to 1.
+
+    Raises
+    ------
+    ValidationError
+        Not numeric (strings, numeric ones included, objects, ragged nests), complex entries
+        when ``allow_complex`` is false.
+    DimensionError
+        Not 2-D, or not of ``shape`` (``None`` entries are free).
+    NotFiniteError
+        A NaN or infinite entry (its index is named).
     """
     arr = _numeric_array(name, X, "matrix", allow_complex)
     if arr.ndim == 0:
@@ -283,9 +293,10 @@ def as_positive_float(name: str, value: object, *, allow_zero: bool = False) -> 
         finite, or not positive.
     """
     cond = ">= 0" if allow_zero else "> 0"
-    if _is_real_scalar(value) and not np.isfinite(float(value)):  # type: ignore[arg-type]
-        raise NotFiniteError(f"{name} must be finite and {cond}; found {value!r}")
-    v = as_real(name, value)
+    try:
+        v = as_real(name, value)
+    except NotFiniteError:
+        raise NotFiniteError(f"{name} must be finite and {cond}; found {value!r}") from None
     if v < 0 or (v == 0 and not allow_zero):
         raise ValidationError(f"{name} must be finite and {cond}; found {value!r}")
     return v

@@ -269,3 +269,13 @@ def test_mode_on_boundary_not_excited(dt, where):
         kalman(plant, method="hamiltonian")
     # driven by the noise, the same plant has a stabilizing filter
     assert kalman(plant.replace(G=[[0.0], [1.0]])).success
+
+
+def test_time_limit_skips_the_cross_check_honestly():
+    plant = problems.load("kf_analytic_double_integrator_ct").plant
+    kf = kalman(plant, time_limit=1e-9)
+    assert kf.status is Status.TIME_LIMIT and not kf.success
+    assert "not run: the time limit" in kf.verification["cross_check"].detail
+    assert kalman(plant, time_limit=60.0).success
+    with pytest.raises(ValidationError, match="time_limit must be"):
+        kalman(plant, time_limit="1")

@@ -73,7 +73,7 @@ def test_design_poles_spellings(spelling, capsys):
     d = json.loads(out)
     assert d["success"] is True
     np.testing.assert_allclose(np.sort(np.asarray(d["target"]["re"])), [-4.0, -3.0, -2.0, -1.0])
-    assert d["verification"]["stability"]["passed"] is True
+    assert d["verification"]["stability_margin"]["passed"] is True
 
 
 def test_negative_values_of_every_numeric_option():
@@ -95,11 +95,11 @@ def test_design_place_refuses_to_call_unstable_poles_a_success(capsys):
     d = json.loads(out)
     assert code == 1 and d["success"] is False and d["status"] == "solved"
     assert d["verification"]["pole_error"]["passed"] is True  # the poles were placed as asked...
-    assert d["verification"]["stability"]["passed"] is False  # ...but they are not an observer's
-    assert d["verification"]["stability"]["value"] == pytest.approx(4.0)
+    assert d["verification"]["stability_margin"]["passed"] is False  # ...but they are not an observer's
+    assert d["verification"]["stability_margin"]["value"] == pytest.approx(-1.0)  # -max Re eig, pole 1
     assert "A - L C is not stable" in d["message"] and "Re s < 0" in d["message"]
     code, out, _ = run(["design", "pp_knv1985_ex1", "--method", "place", "--poles", "-1,-2,-3,0"], capsys)
-    assert code == 1 and "success: False" in out and "[FAIL] stability" in out
+    assert code == 1 and "success: False" in out and "[FAIL] stability_margin" in out
 
 
 def test_stability_check_uses_the_time_domain_of_the_plant():
@@ -108,10 +108,10 @@ def test_stability_check_uses_the_time_domain_of_the_plant():
 
     plant = problems.load("pp_knv1985_ex1").plant.replace(dt=0.1)  # discrete: |z| < 1 is stable
     ok = with_stability_check(plant, place_baseline(plant, [0.5, -0.5, 0.2, 0.1]))
-    assert ok.success and ok.verification["stability"].value == pytest.approx(-0.5)
+    assert ok.success and ok.verification["stability_margin"].value == pytest.approx(0.5)
     bad = with_stability_check(plant, place_baseline(plant, [-1.5, -0.5, 0.2, 0.1]))  # stable if continuous
     assert not bad.success and "|z| < 1" in bad.message
-    assert bad.verification["stability"].value == pytest.approx(0.5)
+    assert bad.verification["stability_margin"].value == pytest.approx(-0.5)
 
 
 def test_design_well_conditioned_in_a_region(capsys):

@@ -298,6 +298,11 @@ def test_region_designer_point_errors_are_recorded():
         ({"placement": "never"}, "placement must be 'always' or 'fallback'"),
         ({"initial_gain": np.ones((2, 2))}, r"initial_gain must be a finite \(3, 2\) array"),
         ({"problem": None}, "exactly one of problem"),
+        ({"time_limit": 0.0}, r"time_limit must be a finite number of seconds > 0 or None; found 0.0"),
+        ({"time_limit": "10"}, r"time_limit must be a number of seconds > 0 or None; found '10'"),
+        ({"options": [1, 2]}, r"options must be a dict of solver options .*; found list \[1, 2\]"),
+        ({"options": {"ipopt.bogus": 1}}, r"options must be IPOPT / CasADi .*No such IPOPT option: bogus"),
+        ({"options": {"ipopt.max_iter": True}}, r"options: 'ipopt.max_iter' must map to a string or a num"),
     ],
 )
 def test_region_designer_construction_errors(kwargs, match):
@@ -305,6 +310,23 @@ def test_region_designer_construction_errors(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValidationError, match=match):
         RegionSweepDesigner(**args)
+
+
+def test_region_designer_statuses_not_found_and_time_limit():
+    """No verified design is local evidence (not_found, never infeasible); a point's time budget gives
+    time_limit with its first start's best verified design (no timing assertion: 1 ms is always spent)."""
+    # kappa2 <= 1 (a normal A - LC) is impossible with a narrow sector and a fast decay (K[-1, 0] > 1.01
+    # in the reference sweep): IPOPT stops at local infeasibility from every start
+    d = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, kappa2_max=1.0)(alpha=3.0, zeta=0.8)
+    assert d.status == Status.NOT_FOUND and not d.success and d.certificate is None
+    assert "feasibility unknown" in d.message and "kappa2_bound" in d.message
+    clear_cache()
+    d = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, starts=3, time_limit=1e-3)(alpha=1.0,
+                                                                                           zeta=0.5)
+    assert d.status == Status.TIME_LIMIT and not d.success
+    assert len(d.starts) == 1 and "time limit of 0.001 s reached after 1 of 3 starts" in d.message
+    unlimited = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, starts=3)(alpha=1.0, zeta=0.5)
+    assert unlimited.success and len(unlimited.starts) == 3
 
 
 def test_region_designer_unknown_problem():

@@ -903,7 +903,8 @@ COMPLEIB_ALL = [n for n in problems.names() if n.startswith("compleib")]
 #: REA4 (n = 8, p = 1, eight unstable modes clustered near 0.6, weakly observable together): no gain
 #: placing the poles in this region is computable in double precision -- scipy YT at the naive poles
 #: and at sampled pole sets lands outside it (||L|| ~ 1e6..1e8), IPOPT stops at the iteration limit
-#: with unverifiable iterates -- and the design must say so (not success, failed checks named)
+#: with unverifiable iterates -- and the design must say so (status not_found: local evidence, no
+#: certificate; failed checks named)
 COMPLEIB_UNREACHABLE = {"compleib_rea4"}
 
 
@@ -947,8 +948,9 @@ def test_compleib_region_designs(name):
     plant = problems.load(name).plant
     region = suggested_region(plant)
     d = well_conditioned_observer(plant, region=region, starts=2 if FULL else 1)
-    if name in COMPLEIB_UNREACHABLE:
-        assert not d.success and not d.verification.passed
+    if name in COMPLEIB_UNREACHABLE:  # local evidence only: not_found, never infeasible
+        assert d.status == Status.NOT_FOUND and not d.success and not d.verification.passed
+        assert d.certificate is None and "feasibility unknown" in d.message
         assert "failed checks: " in d.message and "region_margin" in d.message
         rng = np.random.default_rng(0)
         for P in [naive_poles(plant, region)] + [region.sample_poles(plant.n, rng, n_real=k % 9 // 2 * 2)

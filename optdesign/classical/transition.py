@@ -359,7 +359,8 @@ def riccati_flow(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *, max_norm: flo
     max_substeps : int
         Largest total number of extra restarts the growth guard may add over all intervals.
     balance : bool
-        Rescale the equation first (:func:`hamiltonian_scaling`; exact, powers of 2).
+        Rescale the equation first (:func:`hamiltonian_scaling`; exact, powers of 2), when that
+        reduces ``||M||_1`` (the doublings needed and the digits each exponential loses).
     deadline : Deadline or float, optional
         Time budget (seconds or a shared :class:`~optdesign._deadline.Deadline`): once it has
         expired no new output interval is started, and P is returned at the times reached.
@@ -386,8 +387,11 @@ def riccati_flow(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *, max_norm: flo
         raise ValidationError("times must be non-negative and non-decreasing")
     scale = float(times[-1]) if times.size and times[-1] > 0 else 1.0
     d, rho = hamiltonian_scaling(M) if balance else (np.ones(n), 1.0)
-    M = _scaled(M, n, d, rho)
-    P = P / d[:, None] / d[None, :] / rho
+    Ms = _scaled(M, n, d, rho)
+    if np.linalg.norm(Ms, 1) < np.linalg.norm(M, 1):      # balanced: fewer doublings, fewer lost digits
+        M, P = Ms, P / d[:, None] / d[None, :] / rho
+    else:
+        d, rho = np.ones(n), 1.0
     out = np.empty((times.size, n, n))
     dts = np.diff(np.r_[0.0, times])
     live = dts > 1e-14 * scale

@@ -70,6 +70,7 @@ __all__ = [
     "psd_check",
     "psd_tolerance",
     "riccati_checks",
+    "forward_error_check",
     "independent_are",
     "cross_check",
     "relative_difference",
@@ -180,6 +181,14 @@ def _gain_tolerance(plant: Plant, L: NDArray, P: NDArray, err_p: float, err_are:
     return min(tol + 10.0 * n * _EPS, FORWARD_ERROR_TOL)
 
 
+def forward_error_check(err: AREErrorEstimate) -> Check:
+    """``forward_error``: the a posteriori relative error estimate of P is at most 1e-6."""
+    value = err.relative if np.isfinite(err.relative) else float("inf")
+    return Check.at_most("forward_error", value, FORWARD_ERROR_TOL,
+                         "estimated relative error of P (Newton correction of its residual + its response "
+                         "to rounding)")
+
+
 def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: str = "the returned Q",
                    resolve: bool = True) -> tuple[list[Check], object | None, AREErrorEstimate]:
     """The checks that ``(L, P, Q)`` is a steady-state Kalman filter of ``plant`` (with its R):
@@ -195,9 +204,7 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     checks = [
         Check.at_most("riccati_residual", filter_are_residual(plant, P, Qs=Qs), RESIDUAL_TOL,
                       f"relative residual of the filter ARE for the returned P with {what}"),
-        Check.at_most("forward_error", err_rel, FORWARD_ERROR_TOL,
-                      "estimated relative error of P (Newton correction of its residual + rounding "
-                      "floor ||Omega^-1|| n eps)"),
+        forward_error_check(err),
         psd_check("Q_min_eig", Qs, what="Q"),
         psd_check("P_min_eig", P, error=min(err_rel, 1.0), what="P"),
     ]

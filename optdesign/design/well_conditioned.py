@@ -88,6 +88,9 @@ __all__ = [
 REGION_STAGES = (0, 6, 12)
 #: relative pole accuracy required of a fixed-pole design
 POLE_TOL = 1e-6
+#: relative distance outside the region accepted (the NLP meets its constraints to ~1e-10; raised to
+#: the rounding floor of the poles when they are computable only less accurately)
+REGION_TOL = 1e-7
 #: relative eigen-residual ``||X Z - Z Lambda||_F / (||X||_F ||Z||_F)`` required of the solver's basis
 EIG_RESIDUAL_TOL = 1e-8
 #: relative agreement required between cond(solver's basis) and ``metrics.kappa2`` (numpy's
@@ -399,8 +402,10 @@ def evaluate_candidate(
     X = plant.A - L @ plant.C
     poles = _sort_poles(np.linalg.eigvals(X))
     scale = max(1.0, float(np.max(np.abs(poles))))
+    # how accurately these poles are computable at all (relative; capped like the pole check)
+    floor = min(metrics.eigenvalue_rounding_floor(X), POLE_TOL)
     if stable:
-        checks.append(_stability_check(poles, plant.is_discrete))
+        checks.append(_stability_check(poles, plant.is_discrete, floor))
     if target is not None:
         checks.append(
             Check.at_most(
@@ -415,8 +420,9 @@ def evaluate_candidate(
             Check.at_most(
                 "region_margin",
                 region.margin(poles),
-                1e-7 * scale,
-                "max signed distance of eig(A - LC) to the region (<= 0 inside)",
+                max(REGION_TOL, floor) * scale,
+                "max signed distance of eig(A - LC) to the region (<= 0 inside; tolerance REGION_TOL "
+                "or the rounding floor of the poles, relative)",
             )
         )
     summ = metrics.condition_summary(X)
@@ -482,16 +488,18 @@ def kappa2_agreement_tol(kappa2: float) -> float:
     return float(min(KAPPA_TOL_MAX, KAPPA_TOL + KAPPA_EPS_FACTOR * eps * float(kappa2)))
 
 
-def _stability_check(poles: NDArray, discrete: bool) -> Check:
-    """Strict stability of the error dynamics: max Re < 0, or spectral radius < 1."""
+def _stability_check(poles: NDArray, discrete: bool, floor: float) -> Check:
+    """Strict stability of the error dynamics beyond the rounding level of the poles: max Re below
+    ``-floor max(1, max |pole|)``, or spectral radius below ``1 - floor`` (``floor``: the relative
+    rounding floor of the poles, :func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`)."""
     if discrete:
         rho = float(np.max(np.abs(poles))) if poles.size else 0.0
         return Check.at_most(
-            "stability", rho, 1.0 - 1e-12, "spectral radius of A - LC < 1 (discrete time)"
+            "stability", rho, 1.0 - floor, "spectral radius of A - LC < 1 beyond rounding (discrete time)"
         )
     mr = float(np.max(poles.real)) if poles.size else -1.0
-    tol = -1e-12 * max(1.0, float(np.max(np.abs(poles)))) if poles.size else 0.0
-    return Check.at_most("stability", mr, tol, "max Re eig(A - LC) < 0 (continuous time)")
+    tol = -floor * max(1.0, float(np.max(np.abs(poles)))) if poles.size else 0.0
+    return Check.at_most("stability", mr, tol, "max Re eig(A - LC) < 0 beyond rounding (continuous time)")
 
 
 def _region_sup_modulus(region: Region) -> float:

@@ -349,15 +349,19 @@ def _from_start(setup: EngineSetup, blocks: SpectralBlocks, W: NDArray, scale: f
         x, ok, it = find_feasible(prob, x, expired=lambda: deadline.expired)
         rec["restoration_iterations"] = it
         return _Candidate(prob, x, "", rep.iterations + it) if ok else None
-    k = setup.k
-    prob = FactorProblem(blocks, k, setup.objective, nominal, diagonal)
-    V0 = _factor_of(Ws + 1e-12 * np.trace(Ws) * np.eye(k), k, diagonal)
+    k = _START_RANK[0](setup)
+    full = k == setup.k and not diagonal
+    prob = FactorProblem(blocks, k, setup.objective, nominal, diagonal, lower=full)
+    Wr = Ws + 1e-12 * np.trace(Ws) * np.eye(Ws.shape[0])
+    V0 = np.linalg.cholesky(Wr) if full else _factor_of(Wr, k, diagonal)
     x, ok, it = find_feasible(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)),
                               expired=lambda: deadline.expired)
     rec["gauss_newton_iterations"] = it
     if not ok:
         return None
     cand = _Candidate(prob, x, "", it)
+    if not _RANK_SDP[0]:
+        return cand
     _, _, g = prob.unpack(x)
     sol = _sdp_at(setup, blocks, g, Qn, deadline)[1]
     rec["sdp_at_start"] = _sdp_record(sol)
@@ -625,6 +629,8 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
 
 
 _PATH = ["projection"]
+_RANK_SDP = [False]
+_START_RANK = [lambda setup: setup.k]
 
 #: relative agreement of the certificate SDP's optimum with the Newton point (1000x Clarabel's gap)
 _AGREE = 1e3 * 1e-10

@@ -39,6 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from scipy.linalg import blas
+
 from .._deadline import Deadline
 
 __all__ = ["QNResult", "bfgs_minimize", "bfgs_minimize_batch"]
@@ -90,7 +92,8 @@ class _Member:
 
     def __init__(self, x: NDArray, f: float, g: NDArray, H0: NDArray | None) -> None:
         self.x, self.f, self.g = x, f, g
-        self.H = np.eye(x.size) if H0 is None else np.array(H0, dtype=float)
+        # symmetric, stored (and updated by BLAS) in its upper triangle, Fortran order
+        self.H = np.eye(x.size, order="F") if H0 is None else np.array(H0, dtype=float, order="F")
         self.scaled = H0 is not None
         self.it, self.nev, self.hist, self.reason = 0, 1, [f], ""
         self.d = g
@@ -100,10 +103,10 @@ class _Member:
 
     def new_direction(self) -> bool:
         """Start a line search along ``-H g`` (``-g`` if that is not a descent direction)."""
-        d = -(self.H @ self.g)
+        d = blas.dsymv(-1.0, self.H, self.g)
         gd = float(self.g @ d)
         if not gd < 0.0:
-            self.H = np.eye(self.x.size)
+            self.H = np.eye(self.x.size, order="F")
             self.scaled = False
             d = -self.g
             gd = float(self.g @ d)
@@ -146,11 +149,15 @@ class _Member:
         sy = float(s @ y)
         if sy > 0.0:
             if not self.scaled:
-                self.H = (sy / float(y @ y)) * np.eye(self.x.size)
+                self.H = (sy / float(y @ y)) * np.eye(self.x.size, order="F")
                 self.scaled = True
-            hy = (self.H @ y) / sy
-            c = (sy + float(y @ hy) * sy) / (sy * sy)  # (1 + y'Hy / sy) / sy
-            self.H += s[:, None] * (c * s - hy)[None, :] - hy[:, None] * s[None, :]
+            # H+ = H + c s s' - (h s' + s h'), h = H y / sy, c = (1 + y'h) / sy; in place on the upper
+            # triangle (BLAS dsyr / dsyr2: O(m^2) without temporaries, the cost that matters for
+            # m = n p in the hundreds)
+            h = blas.dsymv(1.0 / sy, self.H, y)
+            c = (1.0 + float(y @ h)) / sy
+            self.H = blas.dsyr(c, s, a=self.H, overwrite_a=1)
+            self.H = blas.dsyr2(-1.0, h, s, a=self.H, overwrite_a=1)
         self.x, self.f, self.g = xn, fn, gn
         self.it += 1
         self.hist.append(fn)
@@ -190,7 +197,8 @@ def bfgs_minimize_batch(
     deadline : Deadline, optional
         Checked once per round; on expiry every running start stops (``"time_limit"``).
     H0 : list of (m, m) ndarray or None, optional
-        Initial inverse-Hessian approximations (default: scaled identity after the first step).
+        Initial inverse-Hessian approximations (default: scaled identity after the first step);
+        only their upper triangles are read.
     c1, c2 : float
         Wolfe constants, ``0 < c1 < c2 < 1``.
     xtol : float
@@ -201,7 +209,8 @@ def bfgs_minimize_batch(
     results : list of QNResult
         One per start, never worse than the start.
     H : list of (m, m) ndarray
-        The final inverse-Hessian approximations (to continue a related minimization).
+        The final inverse-Hessian approximations (to continue a related minimization; symmetric,
+        only the upper triangle is maintained -- pass them back as ``H0`` as they are).
 
     Raises
     ------

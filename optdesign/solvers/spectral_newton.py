@@ -276,6 +276,9 @@ class FactorProblem:
         Scaled ``Q_nominal`` (objective ``"nearest"``).
     diagonal : bool
         ``Qdec = diag(v)^2`` (V diagonal).
+    lower : bool
+        V lower triangular (``rank = k``): a Cholesky factor, no gauge freedom -- the full-rank
+        start of a descent (a truncation makes V dense).
     fixed_g : bool
         The null vectors are constants (a fixed gain): x holds V (and t) only.
     g_fixed : (nb, p) complex array, optional
@@ -289,13 +292,16 @@ class FactorProblem:
     diagonal: bool = False
     fixed_g: bool = False
     g_fixed: NDArray | None = None
-    _cache: dict = field(default_factory=dict, repr=False)
+    lower: bool = False
 
     def __post_init__(self) -> None:
         k = self.blocks.k
         if self.diagonal:
             self.rank = k
             mask = np.eye(k, dtype=bool)
+        elif self.lower:
+            self.rank = k
+            mask = np.tril(np.ones((k, k), dtype=bool))
         else:
             mask = np.ones((k, self.rank), dtype=bool)
         self.idx = np.flatnonzero(mask.T.ravel())  # positions j*k + l of vec(V) (column-major)
@@ -470,7 +476,7 @@ class FactorProblem:
                             row[ra], row[ia_] = gb.imag, -gb.real
                             row[rb], row[ib] = -ga.imag, ga.real
                         rows.append(row)
-        if gauge and not self.diagonal and self.rank > 1:
+        if gauge and not (self.diagonal or self.lower) and self.rank > 1:
             k, r = bl.k, self.rank
             jj, ll = np.triu_indices(r, 1)
             G = np.zeros((jj.size, k * r))

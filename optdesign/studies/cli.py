@@ -104,32 +104,26 @@ def region_from_args(args: argparse.Namespace, discrete: bool = False):
 
 
 def with_stability_check(plant, res):
-    """``res`` (a placement result) with a ``stability`` check of ``A - L C`` added to its verification.
+    """``res`` (a placement result) with the ``stability_margin`` check of ``A - L C`` added to its
+    verification (:func:`optdesign.design.verification.stability_check`: stable in the plant's time
+    domain, ``Re < 0`` or ``|z| < 1``, by more than the rounding level of the poles).
 
-    A pole placement is not an observer unless its error dynamics are stable in the plant's time
-    domain (``Re < 0``, or ``|z| < 1``), by a margin above rounding: ``1e3 eps max(1, ||A||_2)``
-    (continuous) or ``1e3 eps`` (discrete), as for the Kalman filter.  Unstable requested poles are
-    placed (and shown), but the design is reported as not successful, with the reason.
+    A pole placement is no observer unless its error dynamics are stable: unstable requested poles
+    are placed (and shown), but the design is reported as not successful, with the reason.
     """
     import dataclasses
 
-    from ..results import Check, Verification
+    from ..design.verification import stability_check
+    from ..results import Verification
 
     if res.L is None:
         return res
-    poles = np.linalg.eigvals(plant.A - res.L @ plant.C)
-    eps = float(np.finfo(float).eps)
-    if plant.is_discrete:
-        value, tol, what = float(np.max(np.abs(poles))) - 1.0, -1e3 * eps, "max |eig(A - L C)| - 1"
-    else:
-        scale = max(1.0, float(np.linalg.norm(plant.A, 2)))
-        value, tol, what = float(np.max(poles.real)), -1e3 * eps * scale, "max Re eig(A - L C)"
-    check = Check.at_most("stability", value, tol, f"{what}: the error dynamics must be stable")
+    check = stability_check(plant.A - res.L @ plant.C, plant.is_discrete)
     message = res.message
     if not check.passed:
         domain = "|z| < 1" if plant.is_discrete else "Re s < 0"
-        message += (f"; A - L C is not stable ({what} = {value:.4g}): the requested poles are not all in "
-                    f"{domain}, so this gain is no observer")
+        message += (f"; A - L C is not stable (stability margin {check.value:.4g}): the requested poles "
+                    f"are not all in {domain}, so this gain is no observer")
     return dataclasses.replace(res, verification=res.verification + Verification.of([check]), message=message)
 
 
