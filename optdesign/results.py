@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import enum
 import math
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field, fields
 from typing import Any
+
+import numpy as np
 
 from .errors import InfeasibleError, SolverError
 
-__all__ = ["Status", "Check", "Verification", "SolverStats", "ResultMixin"]
+__all__ = ["Status", "Check", "Verification", "SolverStats", "Certificate", "DesignResult", "ResultMixin"]
 
 
 class Status(str, enum.Enum):
@@ -171,6 +173,92 @@ class SolverStats:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
+def _plain(value: Any) -> Any:
+    """A JSON-friendly form of a certificate or record value (arrays as lists; complex as
+    ``{"re", "im"}``; objects with ``as_dict`` by that)."""
+    if value is None or isinstance(value, (bool, int, float, str)):
+        return value
+    if isinstance(value, (np.floating, np.integer, np.bool_)):
+        return value.item()
+    if isinstance(value, complex):
+        return {"re": value.real, "im": value.imag}
+    if isinstance(value, np.ndarray):
+        return ({"re": value.real.tolist(), "im": value.imag.tolist()} if np.iscomplexobj(value)
+                else value.tolist())
+    if hasattr(value, "as_dict"):
+        return value.as_dict()
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return repr(value)
+
+
+class Certificate:
+    """Evidence for a verdict: ``kind`` (a short code), ``reason`` (one sentence) and ``data``.
+
+    The one certificate type of optdesign.  ``data`` holds the numbers behind the verdict (a
+    frequency and an eigenvalue, an SDP margin, the closest poles found, ...); each is also
+    readable as an attribute or item (``cert.omega``, ``cert["omega"]``) and is ``None`` when
+    absent.  Immutable.
+
+    Parameters
+    ----------
+    kind : str
+    reason : str
+    data : mapping, optional
+    **more
+        Further data entries (merged into ``data``).
+
+    Examples
+    --------
+    >>> c = Certificate("return_difference", "T R T* - R < 0 at w = 7.3", omega=7.3)
+    >>> c.kind, c.omega, c.margin
+    ('return_difference', 7.3, None)
+    """
+
+    __slots__ = ("kind", "reason", "data")
+
+    def __init__(self, kind: str, reason: str, data: Mapping[str, Any] | None = None, **more: Any) -> None:
+        object.__setattr__(self, "kind", str(kind))
+        object.__setattr__(self, "reason", str(reason))
+        object.__setattr__(self, "data", {**dict(data or {}), **more})
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        raise AttributeError(f"Certificate is immutable (cannot set {name!r})")
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):
+            raise AttributeError(name)
+        return object.__getattribute__(self, "data").get(name)
+
+    def __getitem__(self, name: str) -> Any:
+        if name in ("kind", "reason"):
+            return getattr(self, name)
+        return self.data[name]
+
+    def get(self, name: str, default: Any = None) -> Any:
+        return self.data.get(name, default)
+
+    def __contains__(self, name: object) -> bool:
+        return name in ("kind", "reason") or name in self.data
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain-data form (JSON friendly)."""
+        return {"kind": self.kind, "reason": self.reason,
+                **{k: _plain(v) for k, v in self.data.items() if not hasattr(v, "omega_worst")}}
+
+    def __str__(self) -> str:
+        return f"{self.kind}: {self.reason}"
+
+    def __repr__(self) -> str:
+        keys = ", ".join(sorted(self.data))
+        return f"Certificate(kind={self.kind!r}, reason={self.reason!r}, data keys: {keys or 'none'})"
+
+    def __reduce__(self):  # picklable (sweeps send results between processes)
+        return (Certificate, (self.kind, self.reason, self.data))
+
+
 class ResultMixin:
     """Behaviour common to design results (needs ``status``, ``message``, ``verification``)."""
 
@@ -196,3 +284,85 @@ class ResultMixin:
             f"{self.message} (status {status.value}" + (f"; failed checks: {failed}" if failed else "") + ")",
             backend=getattr(stats, "backend", ""), native_status=getattr(stats, "native_status", ""),
         )
+
+
+def _no_stats() -> SolverStats:
+    return SolverStats(backend="none")
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class DesignResult(ResultMixin):
+    """The one result base of optdesign's design verbs (frozen, keyword-only).
+
+    Every verb returns a subclass that adds its own fields (``L``, ``P``, ``Q``, ``poles``,
+    ``kappa2``, ...).  Verbs *return* a result for every outcome a solver can produce --
+    infeasible, not found, a limit, a numerical failure -- and *raise* only for bad input (a
+    :class:`~optdesign.errors.ValidationError`) or a missing backend; :meth:`raise_for_status`
+    turns an unsuccessful result into an exception when the caller prefers one.
+
+    Attributes
+    ----------
+    status : Status
+    message : str
+        One line: what was done and why it ended so.
+    solver_stats : SolverStats
+    verification : Verification
+        The independent checks (:mod:`optdesign.design.verification`).
+    certificate : Certificate or None
+        The evidence for an ``infeasible`` verdict (or for another claim the verb makes).
+    target_poles : ndarray of complex or None
+        The requested poles (fixed-pole questions).
+    extra : dict
+        Diagnostics of the run (per-stage reports, starts, ...).
+    """
+
+    status: Status
+    message: str = ""
+    solver_stats: SolverStats = field(default_factory=_no_stats)
+    verification: Verification = field(default_factory=Verification)
+    certificate: Certificate | None = None
+    target_poles: Any = None
+    extra: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    #: fields shown by :meth:`summary` and :meth:`record` beyond the common ones (subclasses)
+    _summary_fields: tuple[str, ...] = field(default=(), init=False, repr=False)
+
+    def summary(self) -> str:
+        """Multi-line human-readable report: status, message, the verb's main fields, the
+        certificate and every check."""
+        lines = [f"{type(self).__name__}: status={Status(self.status).value}, success={self.success}",
+                 f"  {self.message}"]
+        for name in self._summary_fields:
+            value = getattr(self, name, None)
+            if value is None:
+                continue
+            if isinstance(value, np.ndarray):
+                with np.printoptions(precision=6, linewidth=100, suppress=False):
+                    body = np.array2string(value, prefix=f"  {name} = ")
+                lines.append(f"  {name} = {body}")
+            else:
+                lines.append(f"  {name} = {value}")
+        if self.certificate is not None:
+            lines.append(f"  certificate: {self.certificate}")
+        if len(self.verification):
+            lines.append("  verification:")
+            lines.extend("    " + str(c) for c in self.verification)
+        return "\n".join(lines)
+
+    def record(self) -> dict[str, Any]:
+        """A flat, JSON-friendly record for sweeps and tables: status, success, the scalar fields,
+        and every check's value (``check:<name>``)."""
+        out: dict[str, Any] = {"status": Status(self.status).value, "success": self.success}
+        for f in fields(self):
+            if f.name in ("status", "verification", "solver_stats", "extra", "certificate", "message") \
+                    or f.name.startswith("_"):
+                continue
+            v = getattr(self, f.name)
+            if isinstance(v, (bool, int, float, str, np.floating, np.integer)):
+                out[f.name] = _plain(v)
+        out["time"] = self.solver_stats.time
+        out["iterations"] = self.solver_stats.iterations
+        out["certificate"] = None if self.certificate is None else self.certificate.kind
+        for c in self.verification:
+            out[f"check:{c.name}"] = c.value
+        return out
