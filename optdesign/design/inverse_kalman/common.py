@@ -1,0 +1,198 @@
+"""What every route of :func:`kalman_for_poles` shares: the placed gain, the noise of a decision
+covariance, the verification of a design, result helpers."""
+
+
+from __future__ import annotations
+
+import warnings
+from contextlib import contextmanager
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..._validate import as_square, check_symmetric
+from ...classical.placement import place_observer, pole_error
+from ...classical.riccati import filter_are
+from ...errors import ValidationError
+from ...formulate.inverse_kalman import (
+    _psd_part,
+)
+from ...model.plant import Plant
+from ...results import Check, SolverStats, Verification
+from ...solvers.polish import min_norm_lstsq, sym
+from ..verification import pole_check, pole_tolerance, psd_check, relative_difference, riccati_checks
+from .results import InverseKalmanResult
+
+METHODS = ("auto", "sdp", "nlp", "sequential")
+
+
+EPS = float(np.finfo(float).eps)
+
+
+def stable_poles(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
+    z = np.asarray(z, dtype=complex)
+    return np.abs(z) < 1.0 if discrete else z.real < 0.0
+
+
+
+
+rel = relative_difference
+
+
+
+
+def noise_of(structure: str, G: NDArray | None, Wdec: NDArray) -> tuple[NDArray, NDArray | None]:
+    """(Q, Qw) from the decision covariance."""
+    if structure == "full":
+        return sym(Wdec), None
+    Qw = np.diag(np.asarray(Wdec).ravel()) if structure == "diagonal" else sym(Wdec)
+    return sym(G @ Qw @ G.T), Qw
+
+
+def project_psd(X: NDArray) -> NDArray:
+    return sym(_psd_part(X))
+
+
+def refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int = 6) -> NDArray:
+    """Newton steps on ``eig(A - L C) = target`` (min-norm corrections); keeps the best L."""
+    from scipy.optimize import linear_sum_assignment
+
+    best, best_err = L, pole_error(np.linalg.eigvals(A - L @ C), target)
+    if best_err == 0.0:
+        return L
+    n, p = L.shape
+    for _ in range(iters):
+        F = A - best @ C
+        lam, X = np.linalg.eig(F)
+        try:
+            Y = np.linalg.inv(X).conj().T  # left eigenvectors, y_i^H x_i = 1
+        except np.linalg.LinAlgError:
+            return best
+        cost = np.abs(lam[:, None] - target[None, :])
+        r, c = linear_sum_assignment(cost)
+        rows, rhs = [], []
+        for i, j in zip(r, c, strict=True):
+            if lam[i].imag < -1e-12 * max(1.0, abs(lam[i])):
+                continue  # the conjugate equation is implied
+            # d lambda_i = -y_i^H dL C x_i
+            g = -np.outer(Y[:, i].conj(), C @ X[:, i]).reshape(-1)  # d/d vec_rowmajor(dL)
+            d = target[j] - lam[i]
+            rows.append(g.real)
+            rhs.append(d.real)
+            if abs(lam[i].imag) > 1e-12 * max(1.0, abs(lam[i])):
+                rows.append(g.imag)
+                rhs.append(d.imag)
+        J = np.asarray(rows)
+        dL = min_norm_lstsq(J, np.asarray(rhs))
+        cand = best + dL.reshape(n, p)
+        err = pole_error(np.linalg.eigvals(A - cand @ C), target)
+        if not err < best_err:
+            break
+        best, best_err = cand, err
+    return best
+
+
+def placed_gain(plant: Plant, target: NDArray) -> NDArray:
+    """Robust pole placement (scipy, refined by Newton); for one output and repeated targets,
+    where scipy refuses, Ackermann's formula ``L = phi(A) O^-1 e_n`` (the gain is unique)."""
+    try:
+        L0 = place_observer(plant, target)
+    except ValidationError:
+        if plant.p != 1:
+            raise
+        n = plant.n
+        coeffs = np.real(np.poly(target))
+        phi = np.zeros((n, n))
+        for c in coeffs:
+            phi = phi @ plant.A + c * np.eye(n)
+        e = np.zeros((n, 1))
+        e[-1, 0] = 1.0
+        return phi @ np.linalg.solve(plant.observability_matrix(), e)
+    return refine_gain(plant.A, plant.C, L0, target)
+
+
+def verify_design(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
+            structure: str, tol: float) -> tuple[Verification, NDArray]:
+    """Independent checks of a design (:mod:`optdesign.design.verification`: numpy eigenvalues,
+    residual and forward error, re-solved ARE, PSD)."""
+    A, C = plant.A, plant.C
+    pcheck, poles = pole_check(A - L @ C, target, tol)
+    kalman, are, _ = riccati_checks(plant, L, P, Q, what="the returned Q")
+    checks = [pcheck, *kalman]
+    if are is not None:
+        checks.append(Check.at_most("are_resolve_poles", pole_error(are.poles, target),
+                                    pole_tolerance(A - are.L @ C, tol),
+                                    "poles of the independent filter_are solve vs the targets"))
+    if structure != "full" and Qw is not None:
+        G = plant.G
+        mis = rel(G @ Qw @ G.T, Q)
+        off = float(np.max(np.abs(Qw - np.diag(np.diag(Qw))))) if structure == "diagonal" else 0.0
+        stol = 10.0 * (plant.n + plant.m) * EPS * max(1.0, float(np.linalg.norm(G, 2)) ** 2)
+        checks.append(Check.at_most("structure", max(mis, off), stol,
+                                    "||G Qw G' - Q|| / max(1, ||Q||) (and off-diagonal of Qw for "
+                                    "'diagonal'); rounding level of the product"))
+        checks.append(psd_check("Qw_min_eig", Qw, what="Qw"))
+    return Verification.of(checks), poles
+
+
+def objective_of(objective: str, Q: NDArray, Wdec: NDArray, Qn: NDArray | None) -> float:
+    if objective == "min_trace":
+        return float(np.trace(Q))
+    if objective == "nearest":
+        return float(np.linalg.norm(Wdec - Qn)) if Qn is not None else float("nan")
+    W = np.diag(Wdec) if np.ndim(Wdec) == 1 else Wdec
+    return float(np.linalg.eigvalsh(sym(np.asarray(W)))[0])
+
+
+def make_stats(backend: str, native: str = "", t: float = 0.0, iterations=None, **extra) -> SolverStats:
+    return SolverStats(backend=backend, native_status=native, time=t, iterations=iterations, extra=extra)
+
+
+def nominal_noise(plant: Plant, structure: str, objective: str, Q_nominal) -> NDArray | None:
+    if Q_nominal is None:
+        if objective != "nearest":
+            return None
+        if plant.Q is None:
+            raise ValidationError("objective='nearest' needs Q_nominal (or a plant with Q to use as "
+                                  "the nominal)")
+        return plant.process_noise() if structure == "full" else np.asarray(plant.Q, dtype=float)
+    k = plant.n if structure == "full" else plant.m
+    what = "n x n (state-space Q)" if structure == "full" else "m x m (noise-input Qw)"
+    Qn = as_square("Q_nominal", Q_nominal)
+    if Qn.shape[0] != k:
+        raise ValidationError(f"Q_nominal for structure={structure!r} must be {what}, i.e. ({k}, {k}); "
+                              f"found {Qn.shape}")
+    return check_symmetric("Q_nominal", Qn)
+
+
+def empty_result(common, status, message, certificate, stats, verification=None, details=None):
+    return InverseKalmanResult(
+        L=None, Q=None, Qw=None, P=None, poles=None, status=status, message=message,
+        solver_stats=stats, verification=verification or Verification.of([]), certificate=certificate,
+        objective_value=float("nan"), details=details or {}, **common)
+
+
+@contextmanager
+def quiet():
+    """Silence the backends' advisory warnings (the statuses are reported in the result)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=".*may be inaccurate.*")
+        warnings.filterwarnings("ignore", message=".*Convergence was not reached.*")
+        yield
+
+
+def design_from_Q(plant, target, structure, Q, Qw, tol):
+    """L and P by a Riccati solve with the optimizer's Q, then verified."""
+    Q = project_psd(Q)
+    if Qw is not None:
+        Qw = np.diag(np.maximum(np.diag(Qw), 0.0)) if structure == "diagonal" else project_psd(Qw)
+        Q = sym(plant.G @ Qw @ plant.G.T)
+    are = filter_are(plant.replace(G=None, Q=Q), residual_tol=np.inf)
+    ver, poles = verify_design(plant, target, are.L, are.P, Q, Qw, structure, tol)
+    return are.L, are.P, Q, Qw, ver, poles
+
+
+def decision_size(plant: Plant, structure: str) -> int:
+    m = plant.m
+    return {"full": plant.n * (plant.n + 1) // 2, "input": m * (m + 1) // 2, "diagonal": m}[structure]
+

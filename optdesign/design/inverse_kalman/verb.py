@@ -1,0 +1,261 @@
+"""The public verb :func:`kalman_for_poles`: validate, pick the route, answer."""
+
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._deadline import Deadline
+from ..._validate import as_int, as_poles, as_positive_float
+from ...classical.placement import pole_error
+from ...classical.riccati import _fmt
+from ...classical.solheim import solheim
+from ...errors import RiccatiError, ValidationError
+from ...formulate.inverse_kalman import (
+    OBJECTIVES,
+    STRUCTURES,
+    _check_choice,
+)
+from ...model.plant import Plant
+from ...results import Status
+from ..verification import pole_tolerance
+from .certificates import identity_certificate
+from .common import METHODS, empty_result, make_stats, nominal_noise, quiet, stable_poles, verify_design
+from .nlp_route import run_nlp
+from .results import InfeasibilityCertificate, InverseKalmanResult
+from .sdp_route import fixed_gain_design, run_sdp
+
+
+def kalman_for_poles(
+    plant: Plant,
+    poles: ArrayLike,
+    *,
+    method: str = "auto",
+    objective: str = "min_trace",
+    Q_nominal: ArrayLike | None = None,
+    structure: str = "full",
+    solver: str | None = None,
+    seed: int = 0,
+    tol: float = 1e-8,
+    time_limit: float | None = None,
+    nlp_options: dict[str, Any] | None = None,
+) -> InverseKalmanResult:
+    r"""Process noise ``Q >= 0`` whose steady-state Kalman filter has the prescribed poles.
+
+    Finds L, P and Q with ``eig(A - L C) = poles`` and the filter Riccati equation satisfied
+    (continuous ``A P + P A' - P C' R^-1 C P + Q = 0``, ``L = P C' R^-1``; discrete predictor
+    DARE, ``L = A P C' (C P C' + R)^-1``).  See the module docstring for which member of the
+    family each objective returns.
+
+    Parameters
+    ----------
+    plant : Plant
+        ``A`` (n, n), ``C`` (p, n), ``R`` (p, p) (required), ``G`` (n, m) for structured Q,
+        ``dt`` for discrete time.  ``plant.Q`` is only used as the default ``Q_nominal``.
+    poles : (n,) array_like of complex
+        Target error poles, closed under conjugation.
+    method : {"auto", "sdp", "nlp", "sequential"}
+        ``"sdp"``: one output -- L is fixed by the poles, the fixed-gain SDP (cvxpy, then
+        polished) gives Q; several outputs -- L from the NLP (else the sequential method),
+        then the fixed-gain SDP at that L gives the objective's optimum over its family of Q;
+        ``"nlp"``: CasADi/IPOPT over ``(L, P, Q = F F')`` (any number of outputs; local);
+        ``"sequential"``: Solheim's method (:func:`optdesign.classical.solheim`; structure
+        ``"full"``, objective ignored); ``"auto"``: ``"sdp"`` for one output, else ``"nlp"``.
+    objective : {"min_trace", "nearest", "feasibility"}
+    Q_nominal : array_like, optional
+        For ``"nearest"``: (n, n) for ``"full"``, (m, m) (compared with Qw) otherwise.
+        Default: the plant's noise model.
+    structure : {"full", "diagonal", "input"}
+        ``"full"``: any n x n ``Q >= 0``; ``"input"``: ``Q = G Qw G'``, ``Qw >= 0``;
+        ``"diagonal"``: ``Q = G diag(qw) G'``, ``qw >= 0``.
+    solver : {"CLARABEL", "SCS"} or None
+        SDP solver (default Clarabel).
+    seed : int
+        Seeds the NLP multi-start and the closest-poles search (an integer >= 0).
+    tol : float
+        Pole accuracy required by the verification (relative, :func:`pole_error`; raised to the
+        rounding floor of the poles where that is larger).
+    nlp_options : dict, optional
+        Settings of the NLP route: ``"derivatives"`` (``"closed_form"``, the default, or
+        ``"symbolic"``: CasADi's automatic derivatives -- for comparisons) and ``"ipopt.*"`` options
+        merged over the route's own.
+    time_limit : float, optional
+        Seconds of wall time.  Every stage gets what is left (IPOPT ``max_wall_time``, the SDP
+        solvers' time limits) and no new start or search begins after it; when it runs out the
+        result has status ``time_limit`` and the best verified design found so far, if any.
+
+    Returns
+    -------
+    InverseKalmanResult
+        ``INFEASIBLE`` only with a global certificate (``certificate``): an unstable target, a
+        determinant or trace identity every Kalman filter satisfies, the frequency where the
+        return-difference inequality fails at the gain the poles fix (one output), or an accurate
+        convex SDP.  When a local search finds nothing the status is ``NOT_FOUND`` (feasibility
+        unknown; the closest poles found are in ``details["closest"]``), never ``INFEASIBLE``.
+        A solver failure gives its status and the reason in ``message``.
+
+    Raises
+    ------
+    ValidationError
+        Bad choice of method / objective / structure, no R, a malformed ``Q_nominal``, a
+        seed that is not an integer >= 0.
+    BackendUnavailableError
+        The SDP methods without an installed SDP solver (names the package to install).
+    DimensionError, NotConjugateClosedError
+        Wrong number of poles, not closed under conjugation.
+    NotObservableError
+        (C, A) is not observable (names the modes).
+
+    References
+    ----------
+    Chang & Lee 1984 (seed 000); Anderson & Moore, *Optimal Filtering* (1979).
+
+    Examples
+    --------
+    >>> from optdesign import Plant, kalman_for_poles
+    >>> res = kalman_for_poles(Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]]), [-5, -8])
+    >>> res.success, res.L.ravel().round(9).tolist()
+    (True, [8.0, -6.0])
+    """
+    dl = Deadline(time_limit)
+    nlp = _nlp_settings(nlp_options)
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    _check_choice("method", method, METHODS)
+    _check_choice("objective", objective, OBJECTIVES)
+    _check_choice("structure", structure, STRUCTURES)
+    tol = as_positive_float("tol", tol)
+    seed = as_int("seed", seed, 0)
+    if plant.R is None:
+        raise ValidationError("kalman_for_poles needs the measurement-noise covariance R: the plant has no R")
+    target = as_poles("poles", poles, plant.n)
+    Qn = nominal_noise(plant, structure, objective, Q_nominal)
+    plant.require_observable(what="placing every filter pole")
+    p = plant.p
+    if method == "auto":
+        method = "sdp" if p == 1 else "nlp"
+    if method == "sequential" and structure != "full":
+        raise ValidationError("method='sequential' (Solheim) gives a full Q; use structure='full'")
+    common = dict(target=target, method=method, objective=objective, structure=structure, plant=plant)
+
+    disc = plant.is_discrete
+    if not np.all(stable_poles(target, disc)):
+        bad = target[~stable_poles(target, disc)]
+        where = "inside the unit circle" if disc else "in the open left half-plane"
+        cert = InfeasibilityCertificate(
+            kind="unstable_target",
+            reason=f"target pole(s) {', '.join(_fmt(z) for z in bad)} not {where}: every steady-state "
+                   f"Kalman filter is stable")
+        return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+                      make_stats("none", t=dl.elapsed))
+    cert = identity_certificate(plant, target)
+    if cert is not None:
+        return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+                      make_stats("analytic", t=dl.elapsed))
+    if objective == "min_trace" and open_loop_target(plant, target, tol):
+        return zero_noise_design(plant, target, common, tol, dl)
+
+    with quiet():
+        if method == "sequential":
+            return run_sequential(plant, target, common, tol, dl)
+        if method == "sdp":
+            if p > 1:
+                return run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl, nlp)
+            return run_sdp(plant, target, common, Qn, solver, tol, seed, dl)
+        return run_nlp(plant, target, common, Qn, solver, tol, seed, dl, nlp)
+
+
+def open_loop_target(plant: Plant, target: NDArray, tol: float) -> bool:
+    """The targets are the (stable) open-loop poles, to their rounding level."""
+    return pole_error(np.linalg.eigvals(plant.A), target) <= pole_tolerance(plant.A, tol)
+
+
+def zero_noise_design(plant, target, common, tol, dl):
+    """Targets = the open-loop poles of a stable plant: ``Q = 0`` gives ``P = 0`` and ``L = 0``
+    exactly, and has the smallest trace there is (issue 11, item 3: the SDP's near-zero P broke the
+    scale of the residual check)."""
+    n, p = plant.n, plant.p
+    Z = np.zeros((n, n))
+    Qw = None if common["structure"] == "full" else np.zeros((plant.m, plant.m))
+    L = np.zeros((n, p))
+    ver, poles = verify_design(plant, target, L, Z, Z, Qw, common["structure"], tol)
+    return InverseKalmanResult(
+        L=L, Q=Z, Qw=Qw, P=Z.copy(), poles=poles, status=Status.OPTIMAL,
+        message="the targets are the open-loop poles of a stable plant: Q = 0 (P = 0, L = 0) is exact and "
+                "has the smallest trace",
+        solver_stats=make_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
+        objective_value=0.0, details={}, **common)
+
+
+def run_sequential(plant, target, common, tol, dl):
+    try:
+        sol = solheim(plant, target)
+    except (ValidationError, RiccatiError) as exc:
+        return empty_result(common, Status.SOLVER_ERROR, f"sequential method not applicable: {exc}", None,
+                      make_stats("solheim", "error", dl.elapsed))
+    ver, poles = verify_design(plant, target, sol.L, sol.P, sol.Q, None, "full", tol)
+    msg = f"Solheim's sequential method: {sol.message}"
+    if not ver.passed:
+        msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
+    return InverseKalmanResult(
+        L=sol.L, Q=sol.Q, Qw=None, P=sol.P, poles=poles, status=Status.SOLVED, message=msg,
+        solver_stats=make_stats("solheim", "solved", dl.elapsed, len(sol.steps)),
+        verification=ver, certificate=None, objective_value=float(np.trace(sol.Q)),
+        details={"solheim": sol}, **common)
+
+
+def run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl, settings=None):
+    """Several outputs: the poles do not fix L.  L from the NLP (else, for a full Q, from the
+    sequential method), then the fixed-gain SDP at that L gives the objective's optimum over
+    that gain's (convex) family of Q -- a genuine SDP certificate that L is a Kalman gain with
+    the target poles; verified as every design is."""
+    nlp = run_nlp(plant, target, {**common, "method": "nlp"}, Qn, solver, tol, seed, dl, settings)
+    L, source = (nlp.L, "the NLP") if nlp.success else (None, None)
+    seq_msg = ""
+    if L is None and common["structure"] == "full":
+        try:
+            sol = solheim(plant, target)
+            if sol.success:
+                L, source = sol.L, "Solheim's sequential method"
+            else:
+                seq_msg = f"; the sequential method: {sol.message}"
+        except (ValidationError, RiccatiError) as exc:
+            seq_msg = f"; the sequential method is not applicable: {exc}"
+    if L is None:
+        msg = (f"method='sdp' with {plant.p} outputs needs a Kalman gain with these poles, and none was "
+               f"found: {nlp.message}{seq_msg}")
+        return dataclasses.replace(nlp, message=msg)
+    res = fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl, L=L)
+    res.details["L_source"] = source
+    res.details["nlp_message"] = nlp.message
+    if res.success:
+        msg = (f"L from {source} ({plant.p} outputs: the poles do not fix L), Q from the fixed-gain "
+               + res.message)
+        return dataclasses.replace(res, message=msg)
+    if nlp.success:  # the SDP stage failed at a verified gain: the NLP's design is the answer
+        msg = (f"method='sdp': the fixed-gain SDP at the NLP's gain gave no verified design "
+               f"({res.message}); the NLP's design is returned: {nlp.message}")
+        return dataclasses.replace(nlp, message=msg)
+    return res
+
+
+
+def _nlp_settings(nlp_options: Any) -> dict[str, Any]:
+    """Validated ``nlp_options`` of :func:`kalman_for_poles`."""
+    if nlp_options is None:
+        return {}
+    if not isinstance(nlp_options, dict) or not all(isinstance(k, str) for k in nlp_options):
+        raise ValidationError(f"nlp_options must be a dict with string keys or None; found {nlp_options!r}")
+    out = dict(nlp_options)
+    der = out.get("derivatives", "closed_form")
+    if der not in ("closed_form", "symbolic"):
+        raise ValidationError(f"nlp_options['derivatives'] must be 'closed_form' or 'symbolic'; "
+                              f"found {der!r}")
+    bad = [k for k in out if k != "derivatives" and not k.startswith("ipopt.")]
+    if bad:
+        raise ValidationError(f"nlp_options keys must be 'derivatives' or 'ipopt.<option>'; found {bad[0]!r}")
+    return out
