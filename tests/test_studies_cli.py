@@ -96,7 +96,7 @@ def test_design_place_refuses_to_call_unstable_poles_a_success(capsys):
     assert code == 1 and d["success"] is False and d["status"] == "solved"
     assert d["verification"]["pole_error"]["passed"] is True  # the poles were placed as asked...
     assert d["verification"]["stability_margin"]["passed"] is False  # ...but they are not an observer's
-    assert d["verification"]["stability_margin"]["value"] == pytest.approx(-1.0)  # -max Re eig, pole 1
+    assert d["verification"]["stability_margin"]["value"] == pytest.approx(-4.0)  # -max Re eig(A - L C)
     assert "A - L C is not stable" in d["message"] and "Re s < 0" in d["message"]
     code, out, _ = run(["design", "pp_knv1985_ex1", "--method", "place", "--poles", "-1,-2,-3,0"], capsys)
     assert code == 1 and "success: False" in out and "[FAIL] stability_margin" in out

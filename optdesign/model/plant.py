@@ -258,10 +258,11 @@ class Plant:
         """
         if tol is not None:
             return _unobservable_modes(self.A, self.C, as_positive_float("tol", tol))
-        cached = self.__dict__.get("_unobservable")
+        cached: NDArray[np.complex128] | None = self.__dict__.get("_unobservable")
         if cached is None:
-            cached = _readonly(_unobservable_modes(self.A, self.C, 1e3 * self.n * np.finfo(float).eps))
-            object.__setattr__(self, "_unobservable", cached)
+            cached = _unobservable_modes(self.A, self.C, 1e3 * self.n * np.finfo(float).eps)
+            cached.setflags(write=False)
+            object.__setattr__(self, "_unobservable", cached)  # the plant is immutable: computed once
         return cached.copy()
 
     def is_observable(self, tol: float | None = None) -> bool:
