@@ -933,7 +933,7 @@ def test_spectral_sdp_route_reproduces_example1():
 
     plant = _ex1_plant()
     target = np.array([-8.0 + 0j, -5.0 + 0j])
-    common = dict(target=target, method="sdp", objective="min_trace", structure="full", plant=plant)
+    common = dict(target_poles=target, method="sdp", objective="min_trace", structure="full", plant=plant)
     res = _run_spectral_sdp(plant, target, common, None, None, 1e-8,
                             spectral_terms(plant.A, plant.C, target, None), Deadline(None))
     _assert_valid(res, plant, target, tol=1e-10)

@@ -169,7 +169,7 @@ def empty_result(common, status, message, certificate, stats, verification=None,
     return InverseKalmanResult(
         L=None, Q=None, Qw=None, P=None, poles=None, status=status, message=message,
         solver_stats=stats, verification=verification or Verification.of([]), certificate=certificate,
-        objective_value=float("nan"), details=details or {}, **common)
+        objective_value=float("nan"), extra=details or {}, **common)
 
 
 @contextmanager

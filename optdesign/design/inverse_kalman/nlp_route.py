@@ -234,7 +234,7 @@ class NLPRoute:
             solver_stats=make_stats("ipopt", st.native_status, self.dl.elapsed, st.iterations,
                                 objective=st.extra.get("objective"), starts=starts_used,
                                 formulation=self.formulation),
-            verification=ver, certificate=None, objective_value=val, details=self.details, **self.common)
+            verification=ver, certificate=None, objective_value=val, extra=self.details, **self.common)
 
     def not_found(self, reached) -> InverseKalmanResult:
         """Nothing verified with several outputs: feasibility unknown (local evidence only)."""

@@ -10,8 +10,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._deadline import Deadline
-from ..._validate import as_matrix, as_positive_float, as_vector
-from ...analysis.robustness import _resolve_R, circle_condition
+from ..._validate import as_frequencies, as_matrix, as_positive_float
+from ...analysis.robustness import circle_condition, resolve_R
 from ...classical.riccati import _fmt
 from ...errors import ValidationError
 from ...model.plant import Plant
@@ -142,12 +142,10 @@ def decide_optimality(plant, L, R, omega, solver, tol, time_limit) -> KalmanOpti
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
     L = as_matrix("L", L, (plant.n, plant.p))
-    R = _resolve_R(plant, R, "is_kalman_optimal")
+    R = resolve_R(plant, R, "is_kalman_optimal")
     tol = as_positive_float("tol", tol)
     if omega is not None:
-        w = as_vector("omega", omega)
-        if np.any(w < 0):
-            raise ValidationError(f"omega must be frequencies >= 0 (rad/s); found {w[w < 0][0]:g}")
+        omega = as_frequencies("omega", omega)
     poles = np.linalg.eigvals(plant.A - L @ plant.C)
     ctx = OptimalityContext(plant, L, R, t0)
     disc = plant.is_discrete

@@ -12,23 +12,25 @@ from numpy.typing import NDArray
 
 from ...classical.riccati import _fmt
 from ...model.plant import Plant
-from ...results import ResultMixin, SolverStats, Status, Verification
+from ...results import Certificate, DesignResult
 
 
-@dataclass(frozen=True, eq=False)
-class InfeasibilityCertificate:
+class InfeasibilityCertificate(Certificate):
     """Evidence that a target (or a gain) is not reachable by a steady-state Kalman filter.
+
+    A :class:`~optdesign.results.Certificate` whose ``data`` has the named entries below (each
+    also an attribute, None when absent).
 
     Attributes
     ----------
     kind : str
         ``"unstable_target"`` (a target pole is unstable: every Kalman filter is stable),
+        ``"trace"`` / ``"determinant"`` (an identity every Kalman filter satisfies is violated),
         ``"gain_relation"`` (no symmetric P satisfies ``P C' = L R`` / its discrete analogue:
         ``C L R`` resp. ``V - R`` is not symmetric positive semidefinite),
         ``"return_difference"`` (the circle condition fails at ``omega``),
         ``"sdp_margin"`` (the family of Q has no PSD member: ``margin < 0``),
-        ``"structure"`` (a structured Q cannot reach the target; see the closest poles),
-        ``"nlp_local"`` (several outputs: IPOPT found no feasible point -- local evidence only).
+        ``"structure"`` (one output: no Q of the structure in the gain's family: an accurate SDP).
     reason : str
         One sentence.
     margin : float or None
@@ -51,30 +53,26 @@ class InfeasibilityCertificate:
     closest_L, closest_Q, closest_Qw : ndarray or None
     """
 
-    kind: str
-    reason: str
-    margin: float | None = None
-    omega: float | None = None
-    min_eigenvalue: float | None = None
-    circle: Any = None
-    closest_poles: NDArray[np.complex128] | None = None
-    closest_pole_error: float | None = None
-    closest_L: NDArray[np.float64] | None = None
-    closest_Q: NDArray[np.float64] | None = None
-    closest_Qw: NDArray[np.float64] | None = None
+    __slots__ = ()
+
+    def __init__(self, kind: str, reason: str, *, margin: float | None = None, omega: float | None = None,
+                 min_eigenvalue: float | None = None, circle: Any = None,
+                 closest_poles: NDArray[np.complex128] | None = None, closest_pole_error: float | None = None,
+                 closest_L: NDArray | None = None, closest_Q: NDArray | None = None,
+                 closest_Qw: NDArray | None = None, **more: Any) -> None:
+        super().__init__(kind, reason, dict(
+            margin=margin, omega=omega, min_eigenvalue=min_eigenvalue, circle=circle,
+            closest_poles=closest_poles, closest_pole_error=closest_pole_error, closest_L=closest_L,
+            closest_Q=closest_Q, closest_Qw=closest_Qw), **more)
+
+    def __reduce__(self):
+        return (_rebuild_certificate, (self.kind, self.reason, self.data))
 
     def as_dict(self) -> dict[str, Any]:
         """Plain-data form (JSON friendly)."""
-
-        def arr(x):
-            if x is None:
-                return None
-            a = np.asarray(x)
-            return {"re": a.real.tolist(), "im": a.imag.tolist()} if np.iscomplexobj(a) else a.tolist()
-
-        return {"kind": self.kind, "reason": self.reason, "margin": self.margin, "omega": self.omega,
-                "min_eigenvalue": self.min_eigenvalue, "closest_poles": arr(self.closest_poles),
-                "closest_pole_error": self.closest_pole_error}
+        d = super().as_dict()
+        keep = ("kind", "reason", "margin", "omega", "min_eigenvalue", "closest_poles", "closest_pole_error")
+        return {k: d.get(k) for k in keep}
 
     def __str__(self) -> str:
         parts = [f"{self.kind}: {self.reason}"]
@@ -88,8 +86,12 @@ class InfeasibilityCertificate:
         return "; ".join(parts)
 
 
-@dataclass(frozen=True, eq=False)
-class InverseKalmanResult(ResultMixin):
+def _rebuild_certificate(kind: str, reason: str, data: dict) -> InfeasibilityCertificate:
+    return InfeasibilityCertificate(kind, reason, **data)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class InverseKalmanResult(DesignResult):
     """Outcome of :func:`kalman_for_poles`.
 
     Attributes
@@ -105,11 +107,12 @@ class InverseKalmanResult(ResultMixin):
         Steady-state error covariance (discrete: a-priori).
     poles : (n,) ndarray of complex or None
         ``eig(A - L C)`` by numpy.
-    target : (n,) ndarray of complex
-        Requested poles (sorted, conjugate pairs adjacent).
+    target_poles : (n,) ndarray of complex
+        Requested poles (sorted, conjugate pairs adjacent); also ``target``.
     status : Status
-        ``OPTIMAL`` / ``OPTIMAL_INACCURATE`` / ``SOLVED`` (sequential), ``INFEASIBLE`` (with
-        ``certificate``), or a failure status with the reason in ``message``.
+        ``OPTIMAL`` / ``OPTIMAL_INACCURATE`` / ``SOLVED`` (sequential), ``INFEASIBLE`` (with a
+        global ``certificate``), ``NOT_FOUND`` (a local search found nothing: evidence in
+        ``extra["closest"]``), ``TIME_LIMIT``, or a failure status with the reason in ``message``.
     message : str
     solver_stats : SolverStats
     verification : Verification
@@ -123,27 +126,31 @@ class InverseKalmanResult(ResultMixin):
     objective_value : float
         ``trace(Q)``, ``||Q - Q_nominal||_F`` or the smallest eigenvalue, by objective (nan if none).
     plant : Plant
-    details : dict
-        Extras: backend reports of every stage, the SDP gain, NLP starts, ...
+    extra : dict
+        Diagnostics: backend reports of every stage, the SDP gain, NLP starts, the closest poles
+        of a search that found nothing, ...; also ``details``.
     """
 
-    L: NDArray[np.float64] | None
-    Q: NDArray[np.float64] | None
-    Qw: NDArray[np.float64] | None
-    P: NDArray[np.float64] | None
-    poles: NDArray[np.complex128] | None
-    target: NDArray[np.complex128]
-    status: Status
-    message: str
-    solver_stats: SolverStats
-    verification: Verification
-    certificate: InfeasibilityCertificate | None
+    L: NDArray[np.float64] | None = None
+    Q: NDArray[np.float64] | None = None
+    Qw: NDArray[np.float64] | None = None
+    P: NDArray[np.float64] | None = None
+    poles: NDArray[np.complex128] | None = None
     method: str
     objective: str
     structure: str
-    objective_value: float
+    objective_value: float = float("nan")
     plant: Plant = field(repr=False)
-    details: dict[str, Any] = field(default_factory=dict, repr=False)
+
+    @property
+    def target(self) -> NDArray[np.complex128]:
+        """The requested poles (``target_poles``)."""
+        return self.target_poles
+
+    @property
+    def details(self) -> dict[str, Any]:
+        """The run's diagnostics (``extra``)."""
+        return self.extra
 
     @property
     def pole_error(self) -> float:
@@ -154,7 +161,7 @@ class InverseKalmanResult(ResultMixin):
         """Multi-line human-readable report."""
         lines = [f"kalman_for_poles: method={self.method}, objective={self.objective}, "
                  f"structure={self.structure}, status={self.status.value}, success={self.success}",
-                 f"  target poles: {', '.join(_fmt(z) for z in self.target)}",
+                 f"  target poles: {', '.join(_fmt(z) for z in self.target_poles)}",
                  f"  {self.message}"]
         if self.L is not None:
             with np.printoptions(precision=6, linewidth=100):
@@ -172,8 +179,8 @@ class InverseKalmanResult(ResultMixin):
                 f"success={self.success}, pole_error={pe:.2e})")
 
 
-@dataclass(frozen=True, eq=False)
-class KalmanOptimalityResult(ResultMixin):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class KalmanOptimalityResult(DesignResult):
     """Outcome of :func:`is_kalman_optimal`.
 
     Attributes
@@ -214,17 +221,12 @@ class KalmanOptimalityResult(ResultMixin):
     optimal: bool
     L: NDArray[np.float64]
     R: NDArray[np.float64]
-    Q: NDArray[np.float64] | None
-    P: NDArray[np.float64] | None
-    margin: float
-    min_eigenvalue: float
-    omega: float
-    circle: Any
-    certificate: InfeasibilityCertificate | None
-    status: Status
-    message: str
-    verification: Verification
-    solver_stats: SolverStats
+    Q: NDArray[np.float64] | None = None
+    P: NDArray[np.float64] | None = None
+    margin: float = float("nan")
+    min_eigenvalue: float = float("nan")
+    omega: float = float("nan")
+    circle: Any = None
 
     def __post_init__(self) -> None:
         # "optimal" is a verified claim: a certificate that fails a check proves nothing
@@ -232,6 +234,8 @@ class KalmanOptimalityResult(ResultMixin):
             object.__setattr__(self, "optimal", False)
 
     def __bool__(self) -> bool:
+        """``bool(result)`` is ``optimal`` (a verified claim), so ``if is_kalman_optimal(...)`` reads
+        as it should."""
         return bool(self.optimal) and self.verification.passed
 
     def __repr__(self) -> str:

@@ -102,7 +102,7 @@ def run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, dl, L=None,
         solver_stats=make_stats(st.backend, st.native_status, dl.elapsed, st.iterations,
                             solve_time=st.time, objective=st.extra.get("objective")),
         verification=ver, certificate=None, objective_value=objective_of(objective, Q, wd, Qn),
-        details=details, **common)
+        extra=details, **common)
 
 
 def fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl, L=None):
@@ -200,5 +200,5 @@ def run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, dl):
     return InverseKalmanResult(
         L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=rep.status, message=msg, solver_stats=stats,
         verification=ver, certificate=None, objective_value=objective_of(objective, Q, wd, Qn),
-        details={"spectral_sdp_report": rep}, **common)
+        extra={"spectral_sdp_report": rep}, **common)
 

@@ -140,7 +140,7 @@ def kalman_for_poles(
         method = "sdp" if p == 1 else "nlp"
     if method == "sequential" and structure != "full":
         raise ValidationError("method='sequential' (Solheim) gives a full Q; use structure='full'")
-    common = dict(target=target, method=method, objective=objective, structure=structure, plant=plant)
+    common = dict(target_poles=target, method=method, objective=objective, structure=structure, plant=plant)
 
     disc = plant.is_discrete
     if not np.all(stable_poles(target, disc)):
@@ -188,7 +188,7 @@ def zero_noise_design(plant, target, common, tol, dl):
         message="the targets are the open-loop poles of a stable plant: Q = 0 (P = 0, L = 0) is exact and "
                 "has the smallest trace",
         solver_stats=make_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
-        objective_value=0.0, details={}, **common)
+        objective_value=0.0, extra={}, **common)
 
 
 def run_sequential(plant, target, common, tol, dl):
@@ -205,7 +205,7 @@ def run_sequential(plant, target, common, tol, dl):
         L=sol.L, Q=sol.Q, Qw=None, P=sol.P, poles=poles, status=Status.SOLVED, message=msg,
         solver_stats=make_stats("solheim", "solved", dl.elapsed, len(sol.steps)),
         verification=ver, certificate=None, objective_value=float(np.trace(sol.Q)),
-        details={"solheim": sol}, **common)
+        extra={"solheim": sol}, **common)
 
 
 def run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl, settings=None):
