@@ -49,6 +49,8 @@ from ..model.plant import Plant
 
 __all__ = [
     "AREResult",
+    "format_pole",
+    "sort_poles",
     "AREErrorEstimate",
     "filter_are",
     "filter_are_error",
@@ -71,7 +73,8 @@ _BOUNDARY_TOL = 4.0 * _EPS
 
 
 # --------------------------------------------------------------------------- helpers
-def _fmt(z: complex) -> str:
+def format_pole(z: complex) -> str:
+    """A pole for messages: ``-5`` or ``-1+2j`` (6 significant digits)."""
     z = complex(z)
     if z.imag == 0:
         return f"{z.real:.6g}"
@@ -192,7 +195,7 @@ def _boundary_bound(sens: NDArray, tol: float, scale: float) -> NDArray:
 
 def _boundary_error(kind: str, where: str, lam: complex, dist: float, bound: float) -> RiccatiError:
     return RiccatiError(
-        f"{kind}: eigenvalue(s) on the {where} (closest: {_fmt(lam)}, distance {dist:.3g} "
+        f"{kind}: eigenvalue(s) on the {where} (closest: {format_pole(lam)}, distance {dist:.3g} "
         f"<= {bound:.3g}, its rounding uncertainty); no stabilizing solution exists (a mode on "
         f"the {where} that is uncontrollable or unobservable, or an indefinite problem)"
     )
@@ -292,7 +295,7 @@ def hamiltonian_are(
     tol = _BOUNDARY_TOL if tol is None else float(tol)
     lam, sens = _eig_condition(H)
     dist = np.abs(lam.real)
-    closest = _fmt(lam[int(np.argmin(dist))])
+    closest = format_pole(lam[int(np.argmin(dist))])
     bound = _boundary_bound(sens, tol, float(np.linalg.norm(H)))
     k = int(np.argmin(dist - bound))
     if 0 < bound[k] and dist[k] <= bound[k]:  # tol = 0 disables the test
@@ -393,7 +396,7 @@ def symplectic_dare(
     finite = np.isfinite(lam)
     dist = np.full(lam.shape, np.inf)
     dist[finite] = np.abs(np.abs(lam[finite]) - 1.0)
-    closest = _fmt(lam[int(np.argmin(dist))])
+    closest = format_pole(lam[int(np.argmin(dist))])
     bound = np.zeros(lam.shape)
     bound[finite] = _boundary_bound(sens[finite] / np.maximum(1.0, np.abs(lam[finite])), tol, 1.0)
     k = int(np.argmin(np.where(finite, dist - bound, np.inf)))
@@ -667,7 +670,7 @@ def _require_noise_reaches_boundary_modes(plant: Plant) -> None:
     where = "unit circle" if plant.is_discrete else "imaginary axis"
     if bad.size:
         label = f" of plant {plant.name!r}" if plant.name else ""
-        shown = ", ".join(_fmt(z) for z in bad)
+        shown = ", ".join(format_pole(z) for z in bad)
         raise RiccatiError(
             f"no stabilizing solution of the filter Riccati equation{label}: mode(s) {shown} on the "
             f"{where} are not excited by the process noise ((A, G Q^1/2) has uncontrollable "
@@ -675,7 +678,8 @@ def _require_noise_reaches_boundary_modes(plant: Plant) -> None:
         )
 
 
-def _sort_poles(p: NDArray) -> NDArray[np.complex128]:
+def sort_poles(p: NDArray) -> NDArray[np.complex128]:
+    """Poles sorted by real part, then imaginary part (conjugate pairs adjacent)."""
     p = np.asarray(p, dtype=complex)
     return p[np.lexsort((p.imag, p.real))]
 
@@ -751,7 +755,7 @@ def filter_are(
     else:
         Kf = None
         L = np.linalg.solve(R, C @ P).T
-    poles = _sort_poles(np.linalg.eigvals(A - L @ C))
+    poles = sort_poles(np.linalg.eigvals(A - L @ C))
     residual = filter_are_residual(plant, P)
     if not residual <= residual_tol:
         raise RiccatiError(
@@ -770,3 +774,8 @@ def filter_are(
                                f"= {alpha:.6g} >= 0)")
     return AREResult(P=P, L=L, poles=poles, residual=residual, method=method, Kf=Kf)
 
+
+
+# the former private spellings (still imported by modules being moved to the public names)
+_fmt = format_pole
+_sort_poles = sort_poles

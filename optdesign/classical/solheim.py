@@ -91,7 +91,8 @@ from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, Status, Verification
 from .placement import pole_error
-from .riccati import _sort_poles, filter_are, filter_are_residual, hamiltonian_are, symplectic_dare
+from .riccati import filter_are, filter_are_residual, hamiltonian_are, symplectic_dare
+from .riccati import sort_poles as _sort_poles
 
 __all__ = ["solheim", "SolheimResult", "SolheimStep", "COMPLEX_TO_REAL"]
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import BackendUnavailableError
+from .._backends import import_casadi
 from ..results import SolverStats, Status
 from .report import SolverReport
 from .status import map_status
@@ -25,17 +25,6 @@ DEFAULT_IPOPT_OPTIONS: dict[str, Any] = {
     "ipopt.acceptable_tol": 1e-6,
     "ipopt.max_iter": 500,
 }
-
-
-def import_casadi():
-    """Import CasADi or raise :class:`BackendUnavailableError` naming the package to install."""
-    try:
-        import casadi
-    except ImportError as exc:  # pragma: no cover - casadi is a hard dependency
-        raise BackendUnavailableError(
-            "the NLP backend needs CasADi with IPOPT: pip install casadi"
-        ) from exc
-    return casadi
 
 
 def _error_line(exc: BaseException) -> str:

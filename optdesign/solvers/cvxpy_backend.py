@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from .._backends import import_cvxpy
 from ..errors import BackendUnavailableError, ValidationError
 from ..results import SolverStats
 from .report import SolverReport
@@ -24,15 +25,6 @@ DEFAULT_OPTIONS: dict[str, dict[str, Any]] = {
     "CLARABEL": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10, "max_iter": 400},
     "SCS": {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iters": 200_000},
 }
-
-
-def import_cvxpy():
-    """Import cvxpy or raise :class:`BackendUnavailableError` naming the package to install."""
-    try:
-        import cvxpy
-    except ImportError as exc:  # pragma: no cover - cvxpy is a hard dependency
-        raise BackendUnavailableError("the SDP backend needs cvxpy: pip install cvxpy clarabel scs") from exc
-    return cvxpy
 
 
 @functools.lru_cache(maxsize=1)

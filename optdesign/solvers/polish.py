@@ -11,8 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..formulate.inverse_kalman import (
-    _tril_index,
     fixed_gain_maps,
+    tril_index,
 )
 
 
@@ -30,7 +30,7 @@ def min_norm_lstsq(M: NDArray, b: NDArray) -> NDArray:
 
 def duplication(n: int) -> NDArray:
     """D with vec(P) = D svec(P) (column-major vec, svec = lower-triangle entries)."""
-    I, J = _tril_index(n)
+    I, J = tril_index(n)
     D = np.zeros((n * n, I.size))
     cols = np.arange(I.size)
     D[J * n + I, cols] = 1.0
@@ -40,7 +40,7 @@ def duplication(n: int) -> NDArray:
 
 def lower_rows(n: int) -> NDArray[np.intp]:
     """Positions of the svec entries in the column-major vec."""
-    I, J = _tril_index(n)
+    I, J = tril_index(n)
     return J * n + I
 
 

@@ -9,8 +9,8 @@ from numpy.typing import NDArray
 from ..._deadline import Deadline
 from ...analysis.robustness import circle_condition
 from ...classical.placement import pole_error
-from ...classical.riccati import _sort_poles as _sorted_poles
 from ...classical.riccati import filter_are
+from ...classical.riccati import sort_poles as _sorted_poles
 from ...errors import OptDesignError, RiccatiError, ValidationError
 from ...model.plant import Plant
 from ...results import Status

@@ -15,7 +15,7 @@ from ...classical.placement import place_observer, pole_error
 from ...classical.riccati import filter_are
 from ...errors import ValidationError
 from ...formulate.inverse_kalman import (
-    _psd_part,
+    psd_part,
 )
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Verification
@@ -50,7 +50,7 @@ def noise_of(structure: str, G: NDArray | None, Wdec: NDArray) -> tuple[NDArray,
 
 
 def project_psd(X: NDArray) -> NDArray:
-    return sym(_psd_part(X))
+    return sym(psd_part(X))
 
 
 def refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int = 6) -> NDArray:

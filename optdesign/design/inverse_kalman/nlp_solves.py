@@ -13,11 +13,11 @@ from ...errors import OptDesignError, RiccatiError, ValidationError
 from ...formulate.inverse_kalman import (
     FAST_OBJECTIVES,
     FAST_STRUCTURES,
-    _chol_factor,
-    _tril_index,
     build_pole_nlp,
     build_spectral_nlp,
     build_spectral_nlpsol,
+    chol_factor,
+    tril_index,
 )
 from ...model.plant import Plant
 from ...solvers.casadi_backend import solve_nlpsol, solve_opti
@@ -89,7 +89,7 @@ def eig_nlp_solve(plant, target, structure, objective, Qn, start, *, closest=Fal
         opti.set_initial(nlp.Fvec, np.maximum(np.asarray(W).ravel(), max(t0, 0.0) + 1e-8))
     else:
         k = W.shape[0]
-        opti.set_initial(nlp.Fvec, _chol_factor(project_psd(W - t0 * np.eye(k)))[_tril_index(k)])
+        opti.set_initial(nlp.Fvec, chol_factor(project_psd(W - t0 * np.eye(k)))[tril_index(k)])
     X0, mu0 = modal_start(plant.A - start["L"] @ plant.C, nlp.blocks)
     opti.set_initial(nlp.X, X0)
     if nlp.mu is not None:

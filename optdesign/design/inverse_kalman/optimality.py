@@ -12,7 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._deadline import Deadline
 from ..._validate import as_frequencies, as_matrix, as_positive_float
 from ...analysis.robustness import circle_condition, resolve_R
-from ...classical.riccati import _fmt
+from ...classical.riccati import format_pole as _fmt
 from ...errors import ValidationError
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification

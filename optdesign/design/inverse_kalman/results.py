@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ...classical.riccati import _fmt
+from ...classical.riccati import format_pole as _fmt
 from ...model.plant import Plant
 from ...results import Certificate, DesignResult
 

@@ -12,13 +12,13 @@ from numpy.typing import ArrayLike, NDArray
 from ..._deadline import Deadline
 from ..._validate import as_int, as_poles, as_positive_float
 from ...classical.placement import pole_error
-from ...classical.riccati import _fmt
+from ...classical.riccati import format_pole as _fmt
 from ...classical.solheim import solheim
 from ...errors import RiccatiError, ValidationError
 from ...formulate.inverse_kalman import (
     OBJECTIVES,
     STRUCTURES,
-    _check_choice,
+    check_choice,
 )
 from ...model.plant import Plant
 from ...results import Status
@@ -125,9 +125,9 @@ def kalman_for_poles(
     nlp = _nlp_settings(nlp_options)
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
-    _check_choice("method", method, METHODS)
-    _check_choice("objective", objective, OBJECTIVES)
-    _check_choice("structure", structure, STRUCTURES)
+    check_choice("method", method, METHODS)
+    check_choice("objective", objective, OBJECTIVES)
+    check_choice("structure", structure, STRUCTURES)
     tol = as_positive_float("tol", tol)
     seed = as_int("seed", seed, 0)
     if plant.R is None:
