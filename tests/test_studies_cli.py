@@ -103,7 +103,7 @@ def test_design_place_refuses_to_call_unstable_poles_a_success(capsys):
 
 
 def test_stability_check_uses_the_time_domain_of_the_plant():
-    from optdesign.studies.cli import with_stability_check
+    from optdesign.cli.design import with_stability_check
     from optdesign.studies.designers import place_baseline
 
     plant = problems.load("pp_knv1985_ex1").plant.replace(dt=0.1)  # discrete: |z| < 1 is stable

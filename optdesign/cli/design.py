@@ -1,4 +1,4 @@
-"""Sub-commands of the ``optdesign`` command that live in the studies layer.
+"""The ``design``, ``study`` and ``reproduce`` commands.
 
 ::
 
@@ -6,7 +6,7 @@
     optdesign study SPEC.toml [--executor ...] [--workers N] [--out DIR]
     optdesign reproduce [PAPER ...] [--out DIR] [--quick]
 
-Registered with :func:`optdesign.cli.register` when the command starts.  Every user error is a
+Every user error is a
 one-line message with exit code 2 (:class:`optdesign.cli.CLIError`, or an
 :class:`~optdesign.errors.OptDesignError` such as a bad spec file); a design that runs but does
 not succeed exits with 1, as does a reproduction with a missing or failing paper.
@@ -21,8 +21,18 @@ from typing import Any
 
 import numpy as np
 
-from ..cli import CLIError, plant_of, print_json, register
+from .._validate import as_poles
+from ..design.inverse_kalman import kalman_for_poles
+from ..design.kalman import kalman
+from ..design.verification import stability_check
+from ..design.well_conditioned import well_conditioned_kalman, well_conditioned_observer
 from ..errors import ValidationError
+from ..model.regions import Disk, HalfPlane, Sector
+from ..results import Verification
+from ..studies.designers import _gain_values, place_baseline
+from ..studies.reproduce import PAPERS, paper_id, reproduce_all
+from ..studies.spec import load_spec, parse_poles, parse_region, run_spec
+from .common import CLIError, plant_of, print_json
 
 __all__ = ["cmd_design", "cmd_study", "cmd_reproduce", "DESIGN_METHODS", "region_from_args",
            "with_stability_check"]
@@ -69,9 +79,6 @@ examples:
 
 def region_from_args(args: argparse.Namespace, discrete: bool = False):
     """The region of ``--region`` / ``--alpha`` / ``--zeta`` / ``--radius`` (None if none given)."""
-    from ..model.regions import Disk, HalfPlane, Sector
-    from .spec import parse_region
-
     members = []
     if args.region is not None:
         try:
@@ -112,9 +119,6 @@ def with_stability_check(plant, res):
     are placed (and shown), but the design is reported as not successful, with the reason.
     """
     import dataclasses
-
-    from ..design.verification import stability_check
-    from ..results import Verification
 
     if res.L is None:
         return res
@@ -200,9 +204,6 @@ def _check_applicable(args: argparse.Namespace) -> None:
 
 
 def _target_poles(args: argparse.Namespace, prob) -> np.ndarray:
-    from .._validate import as_poles
-    from .spec import parse_poles
-
     if args.poles is not None:
         try:
             poles = parse_poles(args.poles, field="--poles")
@@ -223,15 +224,11 @@ def cmd_design(args: argparse.Namespace) -> int:
     method = args.method
     out: dict[str, Any] = {"problem": prob.name, "method": method}
     if method == "kalman":
-        from ..design.kalman import kalman
-
         if not plant.has_noise_model:
             raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): --method kalman needs both")
         res = kalman(plant, method=args.riccati or "scipy")
         out.update(P=res.P, residual=res.residual)
     elif method == "inverse":
-        from ..design.inverse_kalman import kalman_for_poles
-
         if plant.R is None:
             raise CLIError(f"problem {prob.name!r} has no measurement-noise covariance R: --method inverse "
                            "needs it")
@@ -241,13 +238,9 @@ def cmd_design(args: argparse.Namespace) -> int:
         out.update(target=res.target, Q=res.Q, P=res.P, solver=res.method, objective=res.objective,
                    certificate=res.certificate.as_dict() if res.certificate is not None else None)
     elif method == "place":
-        from .designers import place_baseline
-
         res = with_stability_check(plant, place_baseline(plant, _target_poles(args, prob)))
         out.update(target=res.target)
     elif method == "well_conditioned":
-        from ..design.well_conditioned import well_conditioned_observer
-
         region = region_from_args(args, plant.is_discrete)
         kw: dict[str, Any] = {"seed": args.seed}
         for k in ("objective", "max_gain", "starts"):
@@ -269,8 +262,6 @@ def cmd_design(args: argparse.Namespace) -> int:
             res = well_conditioned_observer(plant, poles=target, **kw)
             out.update(target=target)
     else:  # wc_kalman
-        from ..design.well_conditioned import well_conditioned_kalman
-
         region = region_from_args(args, plant.is_discrete)
         kw = {"seed": args.seed}
         for k in ("objective", "starts"):
@@ -282,8 +273,6 @@ def cmd_design(args: argparse.Namespace) -> int:
     L = getattr(res, "L", None)
     vals: dict[str, Any] = {}
     if L is not None and np.all(np.isfinite(L)):
-        from .designers import _gain_values
-
         vals = _gain_values(plant, L)
     out.update(status=str(getattr(res.status, "value", res.status)), success=bool(res.success),
                message=res.message,
@@ -337,8 +326,6 @@ def _cfg_study(sp: argparse.ArgumentParser) -> None:
 
 def cmd_study(args: argparse.Namespace) -> int:
     """``optdesign study``: run a sweep described in a TOML file; CSV, JSON and figures."""
-    from .spec import load_spec, run_spec
-
     if args.workers is not None and args.workers < 1:
         raise CLIError(f"--workers must be >= 1; found {args.workers}")
     spec = load_spec(args.spec)
@@ -387,8 +374,6 @@ def _check_out_dir(out: str) -> None:
 
 
 def _cfg_reproduce(sp: argparse.ArgumentParser) -> None:
-    from .reproduce import PAPERS
-
     sp.formatter_class = argparse.RawDescriptionHelpFormatter
     sp.epilog = "papers:\n" + "\n".join(f"  {k}  {v}" for k, v in PAPERS.items())
     sp.add_argument("papers", nargs="*", metavar="PAPER", help="seed paper(s): 000 ... 004 (default: all)")
@@ -400,8 +385,6 @@ def _cfg_reproduce(sp: argparse.ArgumentParser) -> None:
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
     """``optdesign reproduce``: regenerate the seed papers' examples and figures, with a summary table."""
-    from .reproduce import paper_id, reproduce_all
-
     try:
         papers = [paper_id(p) for p in args.papers] or None
     except ValidationError as exc:
@@ -423,8 +406,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
     return 0 if not bad else 1
 
 
-register("design", "design an estimator for a problem with any verb (kalman, inverse, well_conditioned, ...)",
-         _cfg_design, cmd_design)
-register("study", "run a sweep described in a TOML spec: CSV, JSON and figures", _cfg_study, cmd_study)
-register("reproduce", "regenerate every seed paper's examples and figures, with a summary table",
-         _cfg_reproduce, cmd_reproduce)
+#: (name, help, configure(subparser), run)
+COMMANDS = (
+    ("design", "design an estimator for a problem with any verb (kalman, inverse, well_conditioned, ...)",
+     _cfg_design, cmd_design),
+    ("study", "run a sweep described in a TOML spec: CSV, JSON and figures", _cfg_study, cmd_study),
+    ("reproduce", "regenerate every seed paper's examples and figures, with a summary table",
+     _cfg_reproduce, cmd_reproduce),
+)

@@ -1,0 +1,85 @@
+"""The ``list``, ``show`` and ``kalman`` commands."""
+
+from __future__ import annotations
+
+import argparse
+
+from .. import problems
+from ..design.kalman import kalman
+from .common import DEFAULT_PROBLEM, CLIError, plant_of, print_json
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    names = problems.names(tag=args.tag, kind=args.kind)
+    if not names:
+        raise CLIError(f"no problem matches kind={args.kind!r} tag={args.tag!r}")
+    rows = []
+    for n in names:
+        p = problems.load(n)
+        size = f"n={p.plant.n} p={p.plant.p}" if p.plant is not None else "(no plant)"
+        rows.append((n, p.kind, size, p.title))
+    if args.json:
+        print_json([dict(zip(("name", "kind", "size", "title"), r, strict=True)) for r in rows])
+        return 0
+    w = [max(len(r[k]) for r in rows) for k in range(3)]
+    for r in rows:
+        print(f"{r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}")
+    print(f"\n{len(rows)} problems")
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    if args.json:
+        p = problems.load(args.problem)
+        print_json({"name": p.name, "title": p.title, "kind": p.kind, "citation": p.citation,
+                     "source": p.source, "notes": p.notes, "tags": p.tags,
+                     "plant": None if p.plant is None else p.plant.to_dict(),
+                     "targets": p.targets, "references": p.references})
+    else:
+        print(problems.describe(args.problem))
+    return 0
+
+
+def cmd_kalman(args: argparse.Namespace) -> int:
+    prob = plant_of(args.problem)
+    plant = prob.plant
+    if not plant.has_noise_model:
+        raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): a Kalman filter needs both")
+    kf = kalman(plant, method=args.method)
+    if args.json:
+        print_json({"problem": prob.name, "L": kf.L, "P": kf.P, "poles": kf.poles,
+                     "residual": kf.residual, "status": str(kf.status), "success": kf.success,
+                     "verification": kf.verification.as_dict()})
+    else:
+        print(f"problem: {prob.name} — {prob.title}")
+        print(kf.summary())
+    return 0 if kf.success else 1
+
+
+def _cfg_list(sp: argparse.ArgumentParser) -> None:
+    sp.add_argument("--kind", help="only problems of this kind (e.g. riccati_care, pole_placement)")
+    sp.add_argument("--tag", help="only problems with this tag (e.g. seed000) or name prefix (e.g. carex)")
+    sp.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def _cfg_show(sp: argparse.ArgumentParser) -> None:
+    sp.add_argument("problem", help="problem name (see `optdesign list`)")
+    sp.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def _cfg_kalman(sp: argparse.ArgumentParser) -> None:
+    sp.add_argument("problem", nargs="?", default=DEFAULT_PROBLEM,
+                    help=f"problem name (default: {DEFAULT_PROBLEM})")
+    sp.add_argument("--method", choices=("scipy", "hamiltonian"), default="scipy",
+                    help="Riccati solver (default scipy; hamiltonian = ordered Schur of the Hamiltonian)")
+    sp.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+
+
+#: (name, help, configure(subparser), run)
+COMMANDS = (
+    ("list", "list the problems in the library", _cfg_list, cmd_list),
+    ("show", "show one problem", _cfg_show, cmd_show),
+    ("kalman", "steady-state Kalman filter of a problem's plant", _cfg_kalman, cmd_kalman),
+)
