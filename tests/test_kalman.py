@@ -242,7 +242,8 @@ def test_errors():
         kalman(Plant([[0.0, 1.0], [0.0, 0.0]], [[1.0, 0.0]]))
     with pytest.raises(ValidationError, match="plant 'x' has no R"):
         kalman(Plant([[0.0]], [[1.0]], Q=[[1.0]], name="x"))
-    with pytest.raises(ValidationError, match="plant must be an optdesign.Plant; found ndarray"):
+    with pytest.raises(ValidationError, match="plant must be an optdesign.Plant, a python-control StateSpace "
+                                              "or a scipy.signal StateSpace / lti / dlti .*; found ndarray"):
         kalman(np.eye(2))
     with pytest.raises(ValidationError, match=r"method must be one of \('scipy', 'hamiltonian'\); found"):
         kalman(Plant([[0.0]], [[1.0]], Q=[[1.0]], R=[[1.0]]), method="lqe")
