@@ -64,9 +64,9 @@ print(f"is_kalman_optimal(L = [0.4, 9.04]): {answer.optimal}; |T|^2 - 1 = {answe
 # --------------------------------------------------------------- 5. structure and discrete time
 dplant = Plant([[1.0, 0.1], [0.0, 1.0]], [[1.0, 0.0]], G=[[0.005], [0.1]], R=[[0.04]], dt=0.1)
 target = kalman(dplant.replace(Q=[[3.0]])).poles                 # reachable with Q = G q G'
-res = kalman_for_poles(dplant, target, structure="input")
+res = kalman_for_poles(dplant, target, q_structure="input")
 print("discrete, Q = G Qw G':", res.Qw.ravel(), "(3 expected)", res.success)
-res = kalman_for_poles(dplant, [0.5, 0.2], structure="input")
+res = kalman_for_poles(dplant, [0.5, 0.2], q_structure="input")
 print("discrete target 0.5, 0.2 with noise through G:", res.status.value, "->", res.certificate, "\n")
 
 # --------------------------------------------------------------- 6. printed vs reproduced, figures

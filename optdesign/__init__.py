@@ -21,6 +21,7 @@ from .errors import (
     InfeasibleError,
     NotConjugateClosedError,
     NotFiniteError,
+    NotControllableError,
     NotObservableError,
     NotPositiveDefiniteError,
     NotPositiveSemidefiniteError,
@@ -32,15 +33,32 @@ from .errors import (
     ValidationError,
 )
 from .model.plant import Plant
-from .results import Check, SolverStats, Status, Verification
+from .results import Certificate, Check, DesignResult, SolverStats, Status, Verification
 
 __version__ = "0.1.0"
 
 # public name -> module that defines it (imported on first access)
 _LAZY: dict[str, str] = {
-    # foundation
+    # foundation: the Kalman filter and its complete API
     "kalman": "optdesign.design.kalman",
     "KalmanFilter": "optdesign.design.kalman",
+    "kalmd": "optdesign.design.kalman",
+    "kalman_finite_horizon": "optdesign.design.kalman",
+    "KalmanSequence": "optdesign.design.kalman",
+    "van_loan": "optdesign.design.kalman",
+    # systems in and out
+    "as_plant": "optdesign.model.coerce",
+    "as_system": "optdesign.model.coerce",
+    "estimator_system": "optdesign.design.estimator",
+    "EstimatorArrays": "optdesign.design.estimator",
+    # state feedback by duality
+    "place": "optdesign.design.feedback",
+    "PlacementResult": "optdesign.design.feedback",
+    "well_conditioned_feedback": "optdesign.design.feedback",
+    "FeedbackDesign": "optdesign.design.feedback",
+    "lqr_for_poles": "optdesign.design.feedback",
+    "InverseLQRResult": "optdesign.design.feedback",
+    "dual_plant": "optdesign.design.feedback",
     # inverse Kalman (seed 000)
     "kalman_for_poles": "optdesign.design.inverse_kalman",
     "InverseKalmanResult": "optdesign.design.inverse_kalman",
@@ -76,6 +94,8 @@ __all__ = [
     "Check",
     "Verification",
     "SolverStats",
+    "Certificate",
+    "DesignResult",
     "OptDesignError",
     "ValidationError",
     "DimensionError",
@@ -84,6 +104,7 @@ __all__ = [
     "NotPositiveDefiniteError",
     "NotPositiveSemidefiniteError",
     "NotObservableError",
+    "NotControllableError",
     "NotConjugateClosedError",
     "EmptyRegionError",
     "InfeasibleError",

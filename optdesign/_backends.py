@@ -11,7 +11,7 @@ from typing import Any
 
 from .errors import BackendUnavailableError
 
-__all__ = ["import_casadi", "import_cvxpy"]
+__all__ = ["import_casadi", "import_cvxpy", "import_control"]
 
 
 def import_casadi() -> Any:
@@ -30,3 +30,18 @@ def import_cvxpy() -> Any:
     except ImportError as exc:  # pragma: no cover - cvxpy is a hard dependency
         raise BackendUnavailableError("the SDP backend needs cvxpy: pip install cvxpy clarabel scs") from exc
     return cvxpy
+
+
+def import_control(purpose: str = "this") -> Any:
+    """Import python-control (an optional extra) or raise :class:`BackendUnavailableError` naming it.
+
+    Parameters
+    ----------
+    purpose : str
+        What needs it, for the message (e.g. ``"output='control'"``).
+    """
+    try:
+        import control
+    except ImportError as exc:
+        raise BackendUnavailableError(f"{purpose} needs python-control: pip install control") from exc
+    return control

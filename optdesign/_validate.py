@@ -23,6 +23,7 @@ from .errors import (
 )
 
 __all__ = [
+    "renamed",
     "as_array",
     "as_matrix",
     "as_square",
@@ -417,3 +418,30 @@ def as_poles(
             f"{name} is not closed under complex conjugation: {lower[0]} has no partner"
         )
     return np.asarray(out, dtype=complex)
+
+
+_UNSET: Any = object()
+
+
+def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *, stacklevel: int = 4) -> Any:
+    """An argument renamed in the one vocabulary of the verbs (``structure`` -> ``q_structure``,
+    ``solver`` -> ``sdp_solver``, ...): the old spelling is accepted for one release with a
+    :class:`DeprecationWarning`; both at once is an error.
+
+    ``new_value`` / ``old_value`` are what the caller passed (``None`` = not given); returns the value
+    to use (``default`` when neither was given).
+
+    Raises
+    ------
+    ValidationError
+        Both spellings given.
+    """
+    import warnings
+
+    if old_value is None:
+        return default if new_value is None else new_value
+    if new_value is not None:
+        raise ValidationError(f"give {new}= or its old spelling {old}=, not both")
+    warnings.warn(f"{old}= is deprecated: use {new}= (the old spelling goes in the next release)",
+                  DeprecationWarning, stacklevel=stacklevel)
+    return old_value

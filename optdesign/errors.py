@@ -23,6 +23,7 @@ __all__ = [
     "NotPositiveDefiniteError",
     "NotPositiveSemidefiniteError",
     "NotObservableError",
+    "NotControllableError",
     "NotConjugateClosedError",
     "EmptyRegionError",
     "InfeasibleError",
@@ -73,6 +74,12 @@ class NotObservableError(ValidationError):
     def __init__(self, message: str, modes=None):
         super().__init__(message)
         self.modes = np.asarray([] if modes is None else modes, dtype=complex)
+
+
+class NotControllableError(NotObservableError):
+    """The pair (A, B) is not controllable (or not stabilizable): the dual of
+    :class:`NotObservableError` for state-feedback designs; ``modes`` are the uncontrollable
+    eigenvalues of A."""
 
 
 class NotConjugateClosedError(ValidationError):

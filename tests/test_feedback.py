@@ -183,7 +183,7 @@ def test_inverse_lqr_checked_by_scipy_and_python_control(dt, structure):
     # the dual: kalman_for_poles of (A', B') gives the same Q and K = L'
     Gd = {"full": None, "diagonal": np.eye(n), "output": C.T}[structure]
     kstruct = {"full": "full", "diagonal": "diagonal", "output": "input"}[structure]
-    dual = kalman_for_poles(dual_plant(A, B, dt=dt, R=R, G=Gd), target, structure=kstruct)
+    dual = kalman_for_poles(dual_plant(A, B, dt=dt, R=R, G=Gd), target, q_structure=kstruct)
     np.testing.assert_array_equal(res.K, dual.L.T)
     np.testing.assert_array_equal(res.Q, dual.Q)
 

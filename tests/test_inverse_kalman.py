@@ -130,7 +130,7 @@ def test_example1_nlp_agrees_with_the_sdp():
 
 def test_example1_with_scs():
     plant = _ex1_plant()
-    res = kalman_for_poles(plant, [-5, -8], solver="SCS")
+    res = kalman_for_poles(plant, [-5, -8], sdp_solver="SCS")
     _assert_valid(res, plant, [-5, -8])
     assert res.solver_stats.backend == "scs"
 
@@ -556,7 +556,7 @@ def test_input_structure_reachable_and_diagonal_recovered(rng):
         gplant = plant.replace(G=G, Q=np.diag(qw))
         target = filter_are(gplant).poles
         for structure in ("input", "diagonal"):
-            res = kalman_for_poles(gplant, target, structure=structure)
+            res = kalman_for_poles(gplant, target, q_structure=structure)
             assert res.success, res.summary()
             np.testing.assert_allclose(res.Q, G @ res.Qw @ G.T, atol=1e-10 * np.linalg.norm(res.Q))
             assert np.linalg.eigvalsh(res.Qw)[0] >= -1e-12
@@ -623,7 +623,7 @@ def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng, c
     target = filter_are(plant.replace(Q=np.eye(3) + 0.5)).poles  # full-rank Q
     G = [[1.0], [0.0], [0.0]] if columns == 1 else [[1.0, 0.0], [0.0, 1.0], [0.0, 0.0]]
     gplant = plant.replace(G=G)                                   # no noise on the third state
-    res = kalman_for_poles(gplant, target, structure=structure)
+    res = kalman_for_poles(gplant, target, q_structure=structure)
     assert res.status == Status.NOT_FOUND and res.certificate is None and not res.success
     assert "feasibility unknown" in res.message and "evidence, not proof" in res.message
     cert = SimpleNamespace(**res.details["closest"])
@@ -649,14 +649,14 @@ def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng, c
 def test_single_output_structured_infeasible_uses_the_sdp():
     # -1, -3 needs q11 = 10 and q22 = 9 (both fixed by L): rank one Q = q g g' cannot do it
     di = problems.load("double_integrator_poles_m1_m3").plant.replace(G=[[1.0], [2.0]])
-    res = kalman_for_poles(di, [-1, -3], structure="input")
+    res = kalman_for_poles(di, [-1, -3], q_structure="input")
     assert res.status == Status.INFEASIBLE and res.certificate.kind == "structure"
     assert res.certificate.closest_pole_error > 0.01  # (no margin: even the linear relations fail)
     are = _are(di, res.certificate.closest_Q)
     assert np.linalg.matrix_rank(res.certificate.closest_Q, tol=1e-9 * np.linalg.norm(are.P)) == 1
     # noise on the position only: the integrator mode is not excited, no stabilizing filter at all
     di1 = di.replace(G=[[1.0], [0.0]])
-    res = kalman_for_poles(di1, [-1, -3], structure="input")
+    res = kalman_for_poles(di1, [-1, -3], q_structure="input")
     assert res.status == Status.INFEASIBLE and res.certificate.closest_poles is None
     assert "no closest poles" in res.certificate.reason
 
@@ -808,9 +808,9 @@ def test_kalman_for_poles_error_paths():
     with pytest.raises(ValidationError, match="objective must be one of"):
         kalman_for_poles(plant, [-5, -8], objective="max_trace")
     with pytest.raises(ValidationError, match="structure must be one of"):
-        kalman_for_poles(plant, [-5, -8], structure="banded")
+        kalman_for_poles(plant, [-5, -8], q_structure="banded")
     with pytest.raises(ValidationError, match="gives a full Q"):
-        kalman_for_poles(plant, [-5, -8], method="sequential", structure="input")
+        kalman_for_poles(plant, [-5, -8], method="sequential", q_structure="input")
     with pytest.raises(ValidationError, match="has no R"):
         kalman_for_poles(plant.replace(R=None), [-5, -8])
     with pytest.raises(ValidationError, match="needs Q_nominal"):

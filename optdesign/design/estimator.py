@@ -42,9 +42,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._backends import import_control
 from .._validate import as_matrix, as_str
 from ..errors import BackendUnavailableError, ValidationError
-from ..model.coerce import import_control
 from ..model.plant import Plant
 
 __all__ = ["EstimatorArrays", "estimator_system", "estimator_of", "FORMS", "OUTPUTS"]

@@ -46,12 +46,14 @@ from numpy.typing import ArrayLike, NDArray
 from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, as_str, check_pd
 from ..analysis import metrics
 from ..classical.riccati import sort_poles
-from ..errors import NotObservableError, ValidationError
+from ..errors import NotControllableError, ValidationError
 from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..model.regions import Region
 from ..results import Check, DesignResult, Status, Verification
+from .inverse_kalman import kalman_for_poles
 from .verification import pole_check, stability_check
+from .well_conditioned import well_conditioned_observer
 
 __all__ = [
     "dual_plant",
@@ -115,7 +117,7 @@ def _require_controllable(dual: Plant, what: str) -> None:
     modes = dual.unobservable_modes()
     if modes.size:
         shown = ", ".join(f"{complex(z):.6g}".strip("()") for z in modes)
-        raise NotObservableError(f"(A, B) is not controllable, so {what} is impossible: uncontrollable "
+        raise NotControllableError(f"(A, B) is not controllable, so {what} is impossible: uncontrollable "
                                  f"mode(s) {shown} (PBH test: rank [lambda I - A, B] < n)", modes=modes)
 
 
@@ -264,8 +266,6 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
     >>> bool(d.success), d.K.round(6).tolist()    # one input: K is fixed by the poles
     (True, [[8.0, 4.0]])
     """
-    from .well_conditioned import well_conditioned_observer
-
     pl, A, B = _feedback_plant(plant)
     dual = dual_plant(A, B, dt=pl.dt, name=pl.name)
     _require_controllable(dual, "placing every closed-loop pole")
@@ -532,8 +532,6 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None, s
     >>> bool(res.success), res.K.round(6).tolist()
     (True, [[34.0, 8.0]])
     """
-    from .inverse_kalman import kalman_for_poles
-
     pl, A, B = _feedback_plant(plant)
     m = B.shape[1]
     Rm = np.eye(m) if R is None else check_pd("R", as_square("R", R, m))
@@ -541,7 +539,7 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None, s
     dual = dual_plant(A, B, dt=pl.dt, G=Gd, R=Rm, name=pl.name)
     _require_controllable(dual, "placing every LQR pole")
     target = as_poles("poles", poles, pl.n)
-    res = kalman_for_poles(dual, target, objective=objective, structure=kstruct, Q_nominal=Q_nominal,
+    res = kalman_for_poles(dual, target, objective=objective, q_structure=kstruct, Q_nominal=Q_nominal,
                            **options)
     K = None if res.L is None else np.array(res.L, dtype=float).T
     checks = list(res.verification)

@@ -82,7 +82,9 @@ _EPS = float(np.finfo(float).eps)
 CHECK_NAMES = frozenset({
     "pole_error", "stability_margin", "stability", "spectral_radius", "riccati_residual", "forward_error",
     "P_min_eig", "Q_min_eig", "Qw_min_eig", "are_resolve_gain", "are_resolve_poles", "cross_check",
-    "structure", "gain_relation_asymmetry", "gain_relation_min_eig", "margin", "circle_condition",
+    "structure", "gain_relation_asymmetry", "gain_relation_min_eig", "gain_relation_residual", "margin",
+    "circle_condition", "feedback_pole_error", "feedback_region_margin", "feedback_stability_margin",
+    "nonfinite", "error_estimate",
 })
 
 #: relative residual of the filter Riccati equation accepted (the residual is scale-free)

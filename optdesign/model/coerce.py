@@ -37,11 +37,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._backends import import_control
 from .._validate import as_matrix
-from ..errors import BackendUnavailableError, ValidationError
+from ..errors import ValidationError
 from .plant import Plant
 
-__all__ = ["SystemData", "as_system", "as_plant", "system_kind", "import_control", "SYSTEM_KINDS"]
+__all__ = ["SystemData", "as_system", "as_plant", "system_kind", "SYSTEM_KINDS"]
 
 #: what :func:`as_plant` accepts, for messages
 SYSTEM_KINDS = ("an optdesign.Plant", "a python-control StateSpace",
@@ -77,21 +78,6 @@ class SystemData:
     sensors: tuple[int, ...] | None = None
     known: tuple[int, ...] | None = None
     source: str = "Plant"
-
-
-def import_control(purpose: str = "this") -> Any:
-    """Import python-control (an optional extra) or raise :class:`BackendUnavailableError` naming it.
-
-    Parameters
-    ----------
-    purpose : str
-        What needs it, for the message (e.g. ``"output='control'"``).
-    """
-    try:
-        import control
-    except ImportError as exc:
-        raise BackendUnavailableError(f"{purpose} needs python-control: pip install control") from exc
-    return control
 
 
 def system_kind(obj: Any) -> str | None:

@@ -5,15 +5,17 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._deadline import Deadline
-from ..._validate import as_frequencies, as_matrix, as_positive_float
+from ..._validate import as_frequencies, as_matrix, as_positive_float, renamed
 from ...analysis.robustness import circle_condition, resolve_R
 from ...classical.riccati import format_pole as _fmt
 from ...errors import ValidationError
+from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
 from ..verification import riccati_checks
@@ -23,14 +25,15 @@ from .sdp_stage import feasibility_margin, polished_point, sdp_fixed_gain, white
 
 
 def is_kalman_optimal(
-    plant: Plant,
+    plant: Plant | Any,
     L: ArrayLike,
+    *args: Any,
     R: ArrayLike | None = None,
-    *,
     omega: ArrayLike | None = None,
-    solver: str | None = None,
+    sdp_solver: Literal["CLARABEL", "SCS"] | None = None,
     tol: float = 1e-8,
     time_limit: float | None = None,
+    solver: str | None = None,
 ) -> KalmanOptimalityResult:
     r"""Is L the steady-state Kalman gain of the plant for some process noise ``Q >= 0``?
 
@@ -55,14 +58,16 @@ def is_kalman_optimal(
 
     Parameters
     ----------
-    plant : Plant
+    plant : Plant, python-control StateSpace or scipy StateSpace / lti / dlti
         A (n, n), C (p, n), dt; R from the plant unless given.
     L : (n, p) array_like
     R : (p, p) array_like, optional
-        Measurement-noise covariance, symmetric positive definite.
+        Measurement-noise covariance, symmetric positive definite (keyword-only; a positional R
+        is deprecated).
     omega : array_like, optional
         Seed frequency grid (rad/s) for the circle-condition scan.
-    solver : {"CLARABEL", "SCS"} or None
+    sdp_solver : {"CLARABEL", "SCS"} or None
+        (Old spelling ``solver=``: deprecated.)
     tol : float
         Relative tolerance: optimal when ``t >= -tol * max(1, ||Q||)``.
     time_limit : float, optional
@@ -92,6 +97,11 @@ def is_kalman_optimal(
     >>> bool(is_kalman_optimal(di, [[4], [3]])), bool(is_kalman_optimal(di, [[0.4], [9.04]]))
     (True, False)
     """
+    if args:  # the former positional R (plant first, R keyword-only in every verb)
+        if len(args) > 1 or R is not None:
+            raise ValidationError("is_kalman_optimal takes (plant, L) positionally; give R= as a keyword")
+        R = renamed("R", None, "a positional R", args[0], None, stacklevel=3)
+    solver = renamed("sdp_solver", sdp_solver, "solver", solver, None, stacklevel=3)
     with quiet():
         return decide_optimality(plant, L, R, omega, solver, tol, time_limit)
 
@@ -139,8 +149,7 @@ def gain_relation_checks(plant: Plant, L: NDArray, R: NDArray):
 def decide_optimality(plant, L, R, omega, solver, tol, time_limit) -> KalmanOptimalityResult:
     t0 = time.perf_counter()
     deadline = Deadline(time_limit)
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    plant = as_plant(plant)
     L = as_matrix("L", L, (plant.n, plant.p))
     R = resolve_R(plant, R, "is_kalman_optimal")
     tol = as_positive_float("tol", tol)

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from ...classical.riccati import format_pole as _fmt
 from ...model.plant import Plant
 from ...results import Certificate, DesignResult
+from ..estimator import estimator_of
 
 
 class InfeasibilityCertificate(Certificate):
@@ -151,6 +152,18 @@ class InverseKalmanResult(DesignResult):
     def details(self) -> dict[str, Any]:
         """The run's diagnostics (``extra``)."""
         return self.extra
+
+    def estimator(self, *, form: str | None = None, output: str = "auto"):
+        """The filter as a system: inputs ``[u; y]``, outputs ``[y_hat; x_hat]``
+        (:func:`optdesign.estimator_system`; a python-control ``StateSpace`` when python-control is
+        installed, plain arrays otherwise).
+
+        Raises
+        ------
+        ValidationError
+            No gain (the design failed).
+        """
+        return estimator_of(self, self.plant, form=form, output=output)
 
     @property
     def pole_error(self) -> float:

@@ -4,13 +4,13 @@
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._deadline import Deadline
-from ..._validate import as_int, as_poles, as_positive_float
+from ..._validate import as_int, as_poles, as_positive_float, renamed
 from ...classical.placement import pole_error
 from ...classical.riccati import format_pole as _fmt
 from ...classical.solheim import solheim
@@ -20,6 +20,7 @@ from ...formulate.inverse_kalman import (
     STRUCTURES,
     check_choice,
 )
+from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Status
 from ..verification import pole_tolerance
@@ -31,18 +32,22 @@ from .sdp_route import fixed_gain_design, run_sdp
 
 
 def kalman_for_poles(
-    plant: Plant,
+    plant: Plant | Any,
     poles: ArrayLike,
     *,
-    method: str = "auto",
-    objective: str = "min_trace",
+    method: Literal["auto", "sdp", "nlp", "sequential"] = "auto",
+    objective: Literal["min_trace", "nearest", "feasibility"] = "min_trace",
     Q_nominal: ArrayLike | None = None,
-    structure: str = "full",
-    solver: str | None = None,
+    q_structure: Literal["full", "diagonal", "input"] | None = None,
+    sdp_solver: Literal["CLARABEL", "SCS"] | None = None,
+    R: ArrayLike | None = None,
+    G: ArrayLike | None = None,
     seed: int = 0,
     tol: float = 1e-8,
     time_limit: float | None = None,
     nlp_options: dict[str, Any] | None = None,
+    structure: str | None = None,
+    solver: str | None = None,
 ) -> InverseKalmanResult:
     r"""Process noise ``Q >= 0`` whose steady-state Kalman filter has the prescribed poles.
 
@@ -53,9 +58,10 @@ def kalman_for_poles(
 
     Parameters
     ----------
-    plant : Plant
-        ``A`` (n, n), ``C`` (p, n), ``R`` (p, p) (required), ``G`` (n, m) for structured Q,
-        ``dt`` for discrete time.  ``plant.Q`` is only used as the default ``Q_nominal``.
+    plant : Plant, python-control StateSpace or scipy StateSpace / lti / dlti
+        ``A`` (n, n), ``C`` (p, n), ``R`` (p, p) (required: from the plant or ``R=``), ``G`` (n, m)
+        for structured Q, ``dt`` for discrete time.  ``plant.Q`` is only used as the default
+        ``Q_nominal``.  Systems are converted by :func:`optdesign.as_plant`.
     poles : (n,) array_like of complex
         Target error poles, closed under conjugation.
     method : {"auto", "sdp", "nlp", "sequential"}
@@ -69,11 +75,15 @@ def kalman_for_poles(
     Q_nominal : array_like, optional
         For ``"nearest"``: (n, n) for ``"full"``, (m, m) (compared with Qw) otherwise.
         Default: the plant's noise model.
-    structure : {"full", "diagonal", "input"}
-        ``"full"``: any n x n ``Q >= 0``; ``"input"``: ``Q = G Qw G'``, ``Qw >= 0``;
-        ``"diagonal"``: ``Q = G diag(qw) G'``, ``qw >= 0``.
-    solver : {"CLARABEL", "SCS"} or None
-        SDP solver (default Clarabel).
+    q_structure : {"full", "diagonal", "input"}
+        ``"full"`` (default): any n x n ``Q >= 0``; ``"input"``: ``Q = G Qw G'``, ``Qw >= 0``;
+        ``"diagonal"``: ``Q = G diag(qw) G'``, ``qw >= 0``.  (Old spelling ``structure=``:
+        deprecated.)
+    sdp_solver : {"CLARABEL", "SCS"} or None
+        SDP solver (default Clarabel).  (Old spelling ``solver=``: deprecated.)
+    R, G : array_like, optional
+        Measurement-noise covariance and noise-input matrix for a system that does not carry
+        them (a python-control or scipy system).
     seed : int
         Seeds the NLP multi-start and the closest-poles search (an integer >= 0).
     tol : float
@@ -123,8 +133,9 @@ def kalman_for_poles(
     """
     dl = Deadline(time_limit)
     nlp = _nlp_settings(nlp_options)
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    structure = renamed("q_structure", q_structure, "structure", structure, "full")
+    solver = renamed("sdp_solver", sdp_solver, "solver", solver, None)
+    plant = as_plant(plant, R=R, G=G)
     check_choice("method", method, METHODS)
     check_choice("objective", objective, OBJECTIVES)
     check_choice("structure", structure, STRUCTURES)
