@@ -9,6 +9,8 @@ import sys
 import numpy as np
 import pytest
 
+from optdesign import problems
+from optdesign.classical.placement import pole_error
 from optdesign.cli import DEFAULT_PROBLEM, main
 
 
@@ -78,3 +80,24 @@ def test_console_script_entry_point():
     out = subprocess.run([sys.executable, "-m", "optdesign", "show", "nope"], capture_output=True, text=True)
     assert out.returncode == 2 and out.stderr.startswith("optdesign: error:")
     assert "Traceback" not in out.stderr
+
+
+def test_feedback_mode_places_state_feedback_poles(capsys):
+    """``optdesign design ... --feedback``: a controller by duality on the problem's (A, B)."""
+    assert main(["design", "pp_knv1985_ex1", "--method", "place", "--feedback", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["feedback"] and out["success"]
+    prob = problems.load("pp_knv1985_ex1")
+    A, B = np.asarray(prob.data["A"]), np.asarray(prob.data["B"])
+    K = np.asarray(out["K"])
+    assert pole_error(np.linalg.eigvals(A - B @ K), prob.targets["poles"]) < 1e-8
+    # a plant without B is refused with the reason, exit code 2
+    assert main(["design", "chang_lee_1984_ex1", "--method", "inverse", "--feedback"]) == 2
+    assert "has no input matrix B" in capsys.readouterr().err
+
+
+def test_kalman_options_on_the_command_line(capsys):
+    assert main(["kalman", "kf_analytic_double_integrator_ct", "--kalmd", "0.1"]) == 0
+    assert "discrete, dt = 0.1" in capsys.readouterr().out
+    assert main(["kalman", "--sensors", "x"]) == 2
+    assert "--sensors must be comma-separated" in capsys.readouterr().err

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from .. import problems
-from ..design.kalman import kalman
+from ..design.kalman import kalman, kalmd
 from .common import DEFAULT_PROBLEM, CLIError, plant_of, print_json
 
 
@@ -45,7 +45,11 @@ def cmd_kalman(args: argparse.Namespace) -> int:
     plant = prob.plant
     if not plant.has_noise_model:
         raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): a Kalman filter needs both")
-    kf = kalman(plant, method=args.method)
+    opts = {"sensors": _int_list("--sensors", args.sensors), "known": _int_list("--known", args.known)}
+    if args.kalmd is not None:
+        kf = kalmd(plant, args.kalmd, method=args.method, **opts)
+    else:
+        kf = kalman(plant, method=args.method, **opts)
     if args.json:
         print_json({"problem": prob.name, "L": kf.L, "P": kf.P, "poles": kf.poles,
                      "residual": kf.residual, "status": str(kf.status), "success": kf.success,
@@ -72,9 +76,22 @@ def _cfg_kalman(sp: argparse.ArgumentParser) -> None:
                     help=f"problem name (default: {DEFAULT_PROBLEM})")
     sp.add_argument("--method", choices=("scipy", "hamiltonian"), default="scipy",
                     help="Riccati solver (default scipy; hamiltonian = ordered Schur of the Hamiltonian)")
+    sp.add_argument("--sensors", help="measured outputs, e.g. --sensors 0,2 (MATLAB's sensors; default all)")
+    sp.add_argument("--known", help="known inputs, e.g. --known 0 (MATLAB's known; default all of B)")
+    sp.add_argument("--kalmd", type=float, metavar="TS",
+                    help="a discrete filter for the continuous plant at sample time TS (MATLAB's kalmd)")
     sp.add_argument("--json", action="store_true", help="machine-readable output")
 
 
+def _int_list(flag: str, text: str | None) -> list[int] | None:
+    """``"0,2"`` -> ``[0, 2]`` (None for None)."""
+    if text is None:
+        return None
+    try:
+        return [int(t) for t in text.replace(";", ",").split(",") if t.strip()]
+    except ValueError:
+        raise CLIError(f"{flag} must be comma-separated output/input indices, e.g. 0,2; "
+                       f"found {text!r}") from None
 
 
 #: (name, help, configure(subparser), run)

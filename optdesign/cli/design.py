@@ -22,11 +22,13 @@ from typing import Any
 import numpy as np
 
 from .._validate import as_poles
+from ..design.feedback import lqr_for_poles, place, well_conditioned_feedback
 from ..design.inverse_kalman import kalman_for_poles
 from ..design.kalman import kalman
 from ..design.verification import stability_check
 from ..design.well_conditioned import well_conditioned_kalman, well_conditioned_observer
 from ..errors import ValidationError
+from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Sector
 from ..results import Verification
 from ..studies.designers import _gain_values, place_baseline
@@ -164,6 +166,10 @@ def _cfg_design(sp: argparse.ArgumentParser) -> None:
                     help="inverse: algorithm of kalman_for_poles (default auto)")
     sp.add_argument("--riccati", choices=("scipy", "hamiltonian"), help="kalman: Riccati solver (default "
                                                                         "scipy)")
+    sp.add_argument("--feedback", action="store_true",
+                    help="controller mode (state feedback u = -K x by duality): place, well_conditioned and "
+                         "inverse (the inverse LQR) on (A, B) -- the problem's data A, B for pole-placement "
+                         "problems, else the plant's A, B")
     sp.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -216,6 +222,67 @@ def _target_poles(args: argparse.Namespace, prob) -> np.ndarray:
     return np.asarray(prob.targets["poles"], dtype=complex).ravel()
 
 
+def _feedback_system(prob) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """(A, B, dt) of a problem for controller mode: the source data of a pole-placement problem
+    (stored as state feedback; its plant is the observer dual), else the plant with its B."""
+    data = getattr(prob, "data", None) or {}
+    if "A" in data and "B" in data and prob.kind == "pole_placement":
+        return np.asarray(data["A"], dtype=float), np.asarray(data["B"], dtype=float), prob.plant.dt
+    plant = prob.plant
+    if plant.B is None:
+        raise CLIError(f"problem {prob.name!r} has no input matrix B: --feedback needs (A, B)")
+    return plant.A, plant.B, plant.dt
+
+
+def _design_feedback(args: argparse.Namespace, prob) -> tuple[Any, dict[str, Any]]:
+    """``--feedback``: the controller designs by duality; returns (result, extra output)."""
+    A, B, dt = _feedback_system(prob)
+    fplant = Plant(A, np.eye(A.shape[0]), B=B, dt=dt, name=prob.name)
+    method = args.method
+    if method == "place":
+        target = _target_poles(args, prob)
+        res = place(A, B, target, dt=dt, seed=args.seed)
+        return res, {"target": target, "K": res.gain_matrix, "poles": res.computed_poles}
+    if method == "inverse":
+        target = _target_poles(args, prob)
+        kw = {"objective": args.objective} if args.objective else {}
+        res = lqr_for_poles(fplant, target, **kw)
+        return res, {"target": target, "K": res.K, "Q": res.Q, "poles": getattr(res, "poles", None),
+                     "certificate": res.certificate.as_dict() if res.certificate is not None else None}
+    if method == "well_conditioned":
+        region = region_from_args(args, dt is not None)
+        kw: dict[str, Any] = {"seed": args.seed}
+        for k in ("objective", "max_gain", "starts"):
+            if getattr(args, k) is not None:
+                kw[k] = getattr(args, k)
+        if region is not None:
+            res = well_conditioned_feedback(fplant, region=region, **kw)
+            return res, {"region": region.to_dict(), "K": res.K, "poles": res.poles}
+        target = _target_poles(args, prob)
+        res = well_conditioned_feedback(fplant, poles=target, **kw)
+        return res, {"target": target, "K": res.K, "poles": res.poles}
+    raise CLIError(f"--feedback applies to --method place, well_conditioned and inverse; found {method!r}")
+
+
+def _print_feedback(prob, method: str, res, out: dict[str, Any]) -> None:
+    print(f"problem: {prob.name} -- {prob.title}")
+    print(f"method: {method} (state feedback)    status: {out['status']}    success: {out['success']}")
+    if out.get("target") is not None:
+        print(f"target poles: {_fmt_poles(out['target'])}")
+    for k in ("K", "Q"):
+        if out.get(k) is not None:
+            with np.printoptions(precision=6, linewidth=100):
+                print(f"{k} =", np.array2string(np.asarray(out[k]), prefix=f"{k} = "))
+    if out.get("poles") is not None:
+        print(f"poles of A - B K: {_fmt_poles(out['poles'])}")
+    print(res.message)
+    if out.get("certificate"):
+        print(f"certificate: {res.certificate}")
+    print("verification:")
+    for c in res.verification:
+        print(f"  {c}")
+
+
 def cmd_design(args: argparse.Namespace) -> int:
     """``optdesign design``: run one design verb on a problem and report the verified result."""
     _check_applicable(args)
@@ -223,6 +290,15 @@ def cmd_design(args: argparse.Namespace) -> int:
     plant = prob.plant
     method = args.method
     out: dict[str, Any] = {"problem": prob.name, "method": method}
+    if args.feedback:
+        res, extra = _design_feedback(args, prob)
+        out.update(extra, feedback=True, status=str(getattr(res.status, "value", res.status)),
+                   success=bool(res.success), message=res.message, verification=res.verification.as_dict())
+        if args.json:
+            print_json(out)
+        else:
+            _print_feedback(prob, method, res, out)
+        return 0 if res.success else 1
     if method == "kalman":
         if not plant.has_noise_model:
             raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): --method kalman needs both")
