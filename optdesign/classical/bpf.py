@@ -97,7 +97,6 @@ IEEE TAC 21 (1976) 677-689.
 Anderson, B. D. O. & Moore, J. B., *Optimal Filtering*, Prentice-Hall 1979 (doubling algorithm).
 """
 
-
 from __future__ import annotations
 
 import warnings

@@ -51,8 +51,9 @@ Cost and time limits
 --------------------
 Post-processing is done only when asked: ``estimate_error`` (one more exact solve) and
 ``steady_state`` (one algebraic Riccati solve, as costly as the whole trajectory at n = 100).
-The verification that stays is cheap: a count of non-finite entries and a PSD certificate by
-one batched Cholesky factorization (exact eigenvalues only where it fails).  ``time_limit``
+The verification that stays is cheap: a count of non-finite entries and a PSD certificate, a
+Cholesky factor of every ``P_k`` shifted by a rounding-level multiple of I (exact eigenvalues
+only where one fails).  ``time_limit``
 (seconds): once it has expired no new output interval, block or integrator step is started;
 the result holds the part of the trajectory computed so far (``t`` stops early), with status
 ``time_limit`` and a message saying where it stopped.
@@ -76,7 +77,7 @@ from scipy.linalg.lapack import dpotrf as _potrf
 from .._deadline import Deadline
 from .._validate import as_bool, as_positive_float, as_square, as_vector, check_psd
 from ..classical.bpf import bpf_evaluate, bpf_restart_blocks, bpf_riccati, filter_hamiltonian
-from ..classical.transition import riccati_flow
+from ..classical.transition import as_hamiltonian, riccati_flow
 from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
@@ -194,16 +195,6 @@ class RiccatiTrajectory(ResultMixin):
 
 
 # ------------------------------------------------------------------ validation
-def _as_number(name: str, value: object) -> float:
-    """A finite real number > 0.  Strings (numeric ones too), bools and other types are refused
-    here, whatever :func:`as_positive_float` accepts."""
-    if isinstance(value, (str, bytes, bool, np.bool_)) or not isinstance(
-            value, (int, float, np.integer, np.floating)):
-        kind = "a string" if isinstance(value, (str, bytes)) else type(value).__name__
-        raise ValidationError(f"{name} must be a real number > 0; found {value!r} ({kind})")
-    return as_positive_float(name, value)
-
-
 def _as_steps(value) -> int | None:
     if value is None:
         return None
@@ -217,7 +208,11 @@ def _as_steps(value) -> int | None:
 def _as_t_eval(t_eval, t_final: float) -> NDArray[np.float64] | None:
     if t_eval is None:
         return None
-    if isinstance(t_eval, (str, bytes)) or np.asarray(t_eval).dtype.kind in "USVO":
+    try:
+        kind = "U" if isinstance(t_eval, (str, bytes)) else np.asarray(t_eval).dtype.kind
+    except (ValueError, TypeError):                      # ragged nests
+        kind = "O"
+    if kind in "USVO":
         raise ValidationError(f"t_eval must be a numeric vector of times; found {t_eval!r}")
     t = as_vector("t_eval", t_eval)
     if t.size == 0:
@@ -332,9 +327,9 @@ def riccati_de(
     plant.require_noise_model()
     n = plant.n
     P0 = check_psd("P0", as_square("P0", P0, n))
-    t_final = _as_number("t_final", t_final)
+    t_final = as_positive_float("t_final", t_final)
     steps = _as_steps(steps)
-    tol_v = DEFAULT_TOL[method] if tol is None else _as_number("tol", tol)
+    tol_v = DEFAULT_TOL[method] if tol is None else as_positive_float("tol", tol)
     post = {"estimate_error": as_bool("estimate_error", estimate_error),
             "steady_state": as_bool("steady_state", steady_state)}
     if plant.is_discrete:
@@ -451,11 +446,12 @@ def ode_integrator(M: ArrayLike, t_final: float) -> tuple[str, dict]:
       must not exceed one right-hand side (``6 n^3`` flops plus ``1e5`` for the call overhead):
       n <= 7.
 
-    Measured at rtol 1e-12: Radau on n = 50 over 1000 s (before issue 14, on the 1275 entries of
-    vech(P)) needed 8.4 s CPU for its first 3,000 evaluations, which reached t = 0.0125 s, where
-    DOP853 covers the 1000 s in about 30 s; on n = 10 over 1000 s Radau costs 1.5x DOP853; on
-    CAREX 2.3 (n = 2, ``rho(M) = 1000``) 1.6x over 10 s and 0.2x over 100 s (break-even near
-    ``rho(M) t_final = 1.6e4``; Radau is also 1e4 times more accurate there).
+    Measured at rtol 1e-12 (random plants as in the tests): Radau on n = 50 over 1000 s (before
+    issue 14, on the 1275 entries of vech(P)) took 50 s CPU on one plant, where DOP853 takes 13 s,
+    and 8.4 s for its first 3,000 evaluations (reaching t = 0.0125 s) on another; n = 20 over 200 s:
+    2.9 s against 0.28 s; n = 10 over 1000 s: 1.5x DOP853; CAREX 2.3 (n = 2, ``rho(M) = 1000``):
+    1.6x over 10 s and 0.2x over 100 s (break-even near ``rho(M) t_final = 1.6e4``; Radau is also
+    1e4 times more accurate there).
 
     Parameters
     ----------
@@ -468,11 +464,17 @@ def ode_integrator(M: ArrayLike, t_final: float) -> tuple[str, dict]:
     integrator : {"DOP853", "Radau"}
     info : dict
         ``rho_t`` (``rho(M) t_final``), ``stiff``, ``implicit_affordable``.
+
+    Raises
+    ------
+    DimensionError, NotFiniteError
+        M not a finite 2n x 2n matrix.
+    ValidationError
+        t_final not a finite number > 0.
     """
-    M = as_square("M", M)
-    n = M.shape[0] // 2
+    M, n = as_hamiltonian(M)
     N = n * n
-    rho_t = float(np.max(np.abs(np.linalg.eigvals(M)))) * float(t_final) if n else 0.0
+    rho_t = float(np.max(np.abs(np.linalg.eigvals(M)))) * as_positive_float("t_final", t_final) if n else 0.0
     stiff = rho_t > STIFF_RHO_T
     affordable = 10.0 * N**2 + N**3 / 3.0 <= 6.0 * n**3 + _RHS_OVERHEAD_FLOPS
     integrator = "Radau" if stiff and affordable else "DOP853"
