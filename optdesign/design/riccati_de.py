@@ -79,6 +79,7 @@ from .._validate import as_bool, as_positive_float, as_square, as_vector, check_
 from ..classical.bpf import bpf_evaluate, bpf_restart_blocks, bpf_riccati, filter_hamiltonian
 from ..classical.transition import as_hamiltonian, riccati_flow
 from ..errors import NotObservableError, RiccatiError, ValidationError
+from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
 
@@ -319,8 +320,7 @@ def riccati_de(
     Seed 004 (Ahn et al.), eqs (3.10)-(3.12), (4.4), (4.11), (4.24)-(4.26).
     """
     clock = Deadline(time_limit)
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    plant = as_plant(plant)
     if not isinstance(method, str) or method not in _METHODS:
         raise ValidationError(f"method must be one of {', '.join(repr(m) for m in _METHODS)}; "
                               f"found {method!r}")
