@@ -63,7 +63,6 @@ __all__ = [
 ]
 
 
-
 def is_stable(A: ArrayLike, dt: float | None = None) -> bool:
     """Strict stability: every eigenvalue has ``Re < 0`` (continuous) or ``|z| < 1`` (``dt`` given).
 
@@ -81,13 +80,15 @@ def is_stable(A: ArrayLike, dt: float | None = None) -> bool:
     return bool(np.all(np.abs(w) < 1.0)) if dt is not None else bool(np.all(w.real < 0.0))
 
 
-def _system(A: ArrayLike, B: ArrayLike, C: ArrayLike | None, D: ArrayLike | None):
-    A = as_square("A", A)
-    n = A.shape[0]
-    B = as_matrix("B", B, (n, None))
-    C = np.eye(n) if C is None else as_matrix("C", C, (None, n))
-    D = np.zeros((C.shape[0], B.shape[1])) if D is None else as_matrix("D", D, (C.shape[0], B.shape[1]))
-    return A, B, C, D
+def _system(
+    A: ArrayLike, B: ArrayLike, C: ArrayLike | None, D: ArrayLike | None
+) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    Am = as_square("A", A)
+    n = Am.shape[0]
+    Bm = as_matrix("B", B, (n, None))
+    Cm = np.eye(n) if C is None else as_matrix("C", C, (None, n))
+    Dm = np.zeros((Cm.shape[0], Bm.shape[1])) if D is None else as_matrix("D", D, (Cm.shape[0], Bm.shape[1]))
+    return Am, Bm, Cm, Dm
 
 
 def _check_dt(dt: float | None) -> float | None:
@@ -119,12 +120,12 @@ def h2_norm(A: ArrayLike, B: ArrayLike, C: ArrayLike | None = None, *, dt: float
     ValidationError
         ``dt`` not a positive number.
     """
-    A, B, C, _ = _system(A, B, C, None)
+    Am, Bm, Cm, _ = _system(A, B, C, None)
     dt = _check_dt(dt)
-    if not is_stable(A, dt):
+    if not is_stable(Am, dt):
         return math.inf
-    W = _gramian(A, B, dt)
-    return math.sqrt(max(0.0, float(np.trace(C @ W @ C.T))))
+    W = _gramian(Am, Bm, dt)
+    return math.sqrt(max(0.0, float(np.trace(Cm @ W @ Cm.T))))
 
 
 def _gramian(A: NDArray, B: NDArray, dt: float | None) -> NDArray[np.float64]:
@@ -146,7 +147,8 @@ class HinfNorm:
         The norm (``inf`` for an unstable system), a lower bound within ``rtol`` of the norm.
     frequency : float
         A peak frequency in rad/s (rad/s of the sampled system for discrete time: ``theta / dt``,
-        ``theta`` in ``[0, pi]``); ``nan`` when unstable.
+        ``theta`` in ``[0, pi]``); ``inf`` when the supremum is the feedthrough's ``sigma_max(D)``
+        approached at infinite frequency (continuous time); ``nan`` when unstable.
     upper : float
         A level certified by the Hamiltonian test to be above the norm (``value <= norm <= upper``
         up to the accuracy of the eigenvalue test).
@@ -201,7 +203,9 @@ def _hinf_continuous(A, B, C, D, rtol: float, max_iter: int) -> tuple[float, flo
     cands += list(np.geomspace(lo_w, hi_w, 40))
     vals = _sigma_max(A, B, C, D, cands)
     k = int(np.argmax(vals))
-    glb, wpk = max(float(vals[k]), sD), cands[k]
+    glb, wpk = float(vals[k]), float(cands[k])
+    if sD > glb:  # the supremum is approached at infinite frequency (the feedthrough)
+        glb, wpk = sD, math.inf
     if glb == 0.0:
         return 0.0, 0.0, 0.0, 0
     # imaginary-axis test: loose on purpose (an eigenvalue that is not imaginary only costs one
@@ -229,8 +233,16 @@ def _hinf_continuous(A, B, C, D, rtol: float, max_iter: int) -> tuple[float, flo
     return glb, wpk, gamma, it
 
 
-def hinf_norm(A: ArrayLike, B: ArrayLike, C: ArrayLike | None = None, D: ArrayLike | None = None, *,
-              dt: float | None = None, rtol: float = 1e-10, max_iter: int = 60) -> HinfNorm:
+def hinf_norm(
+    A: ArrayLike,
+    B: ArrayLike,
+    C: ArrayLike | None = None,
+    D: ArrayLike | None = None,
+    *,
+    dt: float | None = None,
+    rtol: float = 1e-10,
+    max_iter: int = 60,
+) -> HinfNorm:
     """H-infinity norm of ``(A, B, C, D)`` by the Hamiltonian level-set iteration.
 
     Parameters
@@ -263,15 +275,15 @@ def hinf_norm(A: ArrayLike, B: ArrayLike, C: ArrayLike | None = None, D: ArrayLi
     ----------
     Bruinsma & Steinbuch 1990; Boyd & Balakrishnan 1990 (module docstring).
     """
-    A, B, C, D = _system(A, B, C, D)
+    Am, Bm, Cm, Dm = _system(A, B, C, D)
     dt = _check_dt(dt)
     rtol = as_positive_float("rtol", rtol)
-    if not is_stable(A, dt):
+    if not is_stable(Am, dt):
         return HinfNorm(math.inf, math.nan, math.inf, 0)
     if dt is None:
-        g, w, up, it = _hinf_continuous(A, B, C, D, rtol, max_iter)
+        g, w, up, it = _hinf_continuous(Am, Bm, Cm, Dm, rtol, max_iter)
         return HinfNorm(g, w, up, it)
-    Ac, Bc, Cc, Dc = _bilinear(A, B, C, D)
+    Ac, Bc, Cc, Dc = _bilinear(Am, Bm, Cm, Dm)
     g, w, up, it = _hinf_continuous(Ac, Bc, Cc, Dc, rtol, max_iter)
     return HinfNorm(g, 2.0 * math.atan(w) / dt, up, it)
 
@@ -309,10 +321,13 @@ def error_channel(plant: Plant, L: ArrayLike) -> tuple[NDArray[np.float64], NDAr
     DimensionError
         ``L`` is not (n, p).
     """
-    L = _gain(plant, L)
+    Lm = _gain(plant, L)
     plant.require_noise_model()
-    X = plant.A - L @ plant.C
-    B = np.hstack([plant.G @ psd_sqrt(plant.Q), -L @ psd_sqrt(plant.R)])
+    Q, R = plant.Q, plant.R
+    if Q is None or R is None:  # pragma: no cover - require_noise_model raised already
+        raise ValidationError("the plant has no noise model")
+    X = plant.A - Lm @ plant.C
+    B = np.hstack([np.asarray(plant.G) @ psd_sqrt(Q), -Lm @ psd_sqrt(R)])
     return X, B
 
 

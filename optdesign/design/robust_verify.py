@@ -31,10 +31,11 @@ check                    tolerance
                          (:func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`, relative)
                          times ``max(1, |lambda|)``
 ``stability``            the same floor (strictly inside by more than rounding)
-``gain_bound``,          relative ``100 eps sqrt(n p)`` (a norm computed by an SVD)
+``gain_bound``           relative ``100 eps sqrt(n p)`` (a norm computed by an SVD)
 ``kappa2_bound``         relative: the agreement of two eigenbases, ``1e-6 + 1e3 eps kappa2``
-``h2_bound``             relative ``100 eps cond``, ``cond`` the 2-norm condition of the Lyapunov
-                         operator estimate ``||Sigma|| ||Lam||`` (both Gramians)
+``h2_bound``             relative ``100 eps ||X||_2 ||Lam||_2`` (capped at 1e-3), ``Lam`` the
+                         observability Gramian of ``X = A - L C``: a conditioning estimate of the
+                         Lyapunov operator
 ``hinf_bound``           relative: the level-set accuracy ``1e-9``
 LMI inequalities         ``10 d eps ||M||_F / lambda_min(P)`` (``d`` the size of ``M``)
 =======================  ======================================================================
@@ -122,8 +123,9 @@ def _sort(p: NDArray) -> NDArray[np.complex128]:
     return np.asarray(sorted(np.asarray(p, dtype=complex), key=lambda z: (z.real, z.imag)), dtype=complex)
 
 
-def evaluate_models(models: ModelSet, L: NDArray, regions: Sequence[Region | None], *,
-                    norms: bool = True) -> ModelMetrics:
+def evaluate_models(
+    models: ModelSet, L: NDArray, regions: Sequence[Region | None], *, norms: bool = True
+) -> ModelMetrics:
     """Poles, conditioning, norms and region margins of the gain ``L`` on every model.
 
     Parameters
@@ -137,8 +139,10 @@ def evaluate_models(models: ModelSet, L: NDArray, regions: Sequence[Region | Non
     """
     N = len(models)
     poles = []
-    out = {k: np.full(N, np.nan) for k in ("kappa2", "eta", "h2", "hinf", "hinf_frequency", "margin",
-                                            "stability", "floor")}
+    out = {
+        k: np.full(N, np.nan)
+        for k in ("kappa2", "eta", "h2", "hinf", "hinf_frequency", "margin", "stability", "floor")
+    }
     for i, pl in enumerate(models):
         X = pl.A - L @ pl.C
         lam = _sort(np.linalg.eigvals(X))
@@ -148,8 +152,9 @@ def evaluate_models(models: ModelSet, L: NDArray, regions: Sequence[Region | Non
         out["stability"][i] = float(np.max(np.abs(lam))) if pl.is_discrete else float(np.max(lam.real))
         fl = metrics.eigenvalue_rounding_floor(X)
         out["floor"][i] = fl * max(1.0, float(np.max(np.abs(lam))))
-        if regions[i] is not None:
-            out["margin"][i] = regions[i].margin(lam)
+        reg = regions[i]
+        if reg is not None:
+            out["margin"][i] = reg.margin(lam)
         if norms and pl.has_noise_model:
             out["h2"][i] = estimation_error_h2(pl, L)
             h = estimation_error_hinf(pl, L)
@@ -163,10 +168,18 @@ def _worst(values: NDArray) -> tuple[float, int]:
     return float(values[k]), k
 
 
-def gain_checks(models: ModelSet, L: NDArray, mm: ModelMetrics, regions: Sequence[Region | None], *,
-                mask: NDArray[np.bool_] | None = None, max_gain: float | None = None,
-                kappa2_max: float | None = None, h2_max: float | None = None,
-                hinf_max: float | None = None) -> Verification:
+def gain_checks(
+    models: ModelSet,
+    L: NDArray,
+    mm: ModelMetrics,
+    regions: Sequence[Region | None],
+    *,
+    mask: NDArray[np.bool_] | None = None,
+    max_gain: float | None = None,
+    kappa2_max: float | None = None,
+    h2_max: float | None = None,
+    hinf_max: float | None = None,
+) -> Verification:
     """The per-model checks of a gain (worst model named in each check's detail).
 
     Returns
@@ -182,14 +195,26 @@ def gain_checks(models: ModelSet, L: NDArray, mm: ModelMetrics, regions: Sequenc
     # stability: strictly inside by more than the rounding floor
     slack = mm.stability - (1.0 if disc else 0.0) + mm.floor
     val, k = _worst(slack)
-    checks.append(Check.at_most("stability", val, 0.0,
-                                f"{'spectral radius - 1' if disc else 'max Re'} of A_i - L C_i plus the rounding "
-                                f"floor (< 0: strictly stable); worst {models.label(k)}"))
+    checks.append(
+        Check.at_most(
+            "stability",
+            val,
+            0.0,
+            f"{'spectral radius - 1' if disc else 'max Re'} of A_i - L C_i plus the rounding "
+            f"floor (< 0: strictly stable); worst {models.label(k)}",
+        )
+    )
     if any(r is not None for r in regions):
         val, k = _worst(mm.margin - mm.floor)
-        checks.append(Check.at_most("region_margin", val, 0.0,
-                                    f"signed distance of the worst pole to its region minus the rounding floor "
-                                    f"(<= 0: inside); worst {models.label(k)}"))
+        checks.append(
+            Check.at_most(
+                "region_margin",
+                val,
+                0.0,
+                f"signed distance of the worst pole to its region minus the rounding floor "
+                f"(<= 0: inside); worst {models.label(k)}",
+            )
+        )
     if mask is not None and not np.all(mask):
         off = float(np.max(np.abs(L[~mask])))
         checks.append(Check.at_most("mask", off, 0.0, "largest |L| entry outside gain_mask"))
@@ -199,17 +224,35 @@ def gain_checks(models: ModelSet, L: NDArray, mm: ModelMetrics, regions: Sequenc
         checks.append(Check.at_most("gain_bound", gn, max_gain * (1.0 + tol), "||L||_2 <= max_gain"))
     if kappa2_max is not None:
         val, k = _worst(mm.kappa2)
-        checks.append(Check.at_most("kappa2_bound", val, kappa2_max * (1.0 + kappa2_tolerance(val)),
-                                    f"kappa2 <= kappa2_max on every model; worst {models.label(k)}"))
+        checks.append(
+            Check.at_most(
+                "kappa2_bound",
+                val,
+                kappa2_max * (1.0 + kappa2_tolerance(val)),
+                f"kappa2 <= kappa2_max on every model; worst {models.label(k)}",
+            )
+        )
     if h2_max is not None:
         val, k = _worst(mm.h2)
         tol = _h2_tolerance(models[k], L)
-        checks.append(Check.at_most("h2_bound", val, h2_max * (1.0 + tol),
-                                    f"H2 of the estimation error <= h2_max on every model; worst {models.label(k)}"))
+        checks.append(
+            Check.at_most(
+                "h2_bound",
+                val,
+                h2_max * (1.0 + tol),
+                f"H2 of the estimation error <= h2_max on every model; worst {models.label(k)}",
+            )
+        )
     if hinf_max is not None:
         val, k = _worst(mm.hinf)
-        checks.append(Check.at_most("hinf_bound", val, hinf_max * (1.0 + 1e-9),
-                                    f"H-infinity of the estimation error <= hinf_max; worst {models.label(k)}"))
+        checks.append(
+            Check.at_most(
+                "hinf_bound",
+                val,
+                hinf_max * (1.0 + 1e-9),
+                f"H-infinity of the estimation error <= hinf_max; worst {models.label(k)}",
+            )
+        )
     return Verification.of(checks)
 
 
@@ -264,9 +307,16 @@ class LMICertificate:
     holds: bool
 
     def as_dict(self) -> dict[str, Any]:
-        return {"P": self.P.tolist(), "P_min_eig": self.P_min_eig, "P_cond": self.P_cond,
-                "shrink": self.shrink.tolist(), "h2_bound": self.h2_bound, "hinf_bound": self.hinf_bound,
-                "covers": self.covers, "holds": self.holds}
+        return {
+            "P": self.P.tolist(),
+            "P_min_eig": self.P_min_eig,
+            "P_cond": self.P_cond,
+            "shrink": self.shrink.tolist(),
+            "h2_bound": self.h2_bound,
+            "hinf_bound": self.hinf_bound,
+            "covers": self.covers,
+            "holds": self.holds,
+        }
 
 
 def _gen_max_eig(M: NDArray, B: NDArray) -> float:
@@ -339,8 +389,15 @@ def _hinf_bound(data: dict, P: NDArray, L: NDArray, discrete: bool) -> float:
     return best if math.isfinite(best) else math.nan
 
 
-def certify(models: ModelSet, L: NDArray, P: NDArray, regions: Sequence[Region | None], *,
-            h2: bool = False, hinf: bool = False) -> LMICertificate:
+def certify(
+    models: ModelSet,
+    L: NDArray,
+    P: NDArray,
+    regions: Sequence[Region | None],
+    *,
+    h2: bool = False,
+    hinf: bool = False,
+) -> LMICertificate:
     """Evaluate the LMI certificate ``P`` for the gain ``L`` in numpy (module docstring).
 
     Parameters
@@ -362,38 +419,69 @@ def certify(models: ModelSet, L: NDArray, P: NDArray, regions: Sequence[Region |
     ok = pmin > 10.0 * P.shape[0] * _EPS * float(w[-1])
     if ok:
         for i, pl in enumerate(models):
-            if regions[i] is None:
+            reg = regions[i]
+            if reg is None:
                 continue
             Z = P @ (pl.A - L @ pl.C)
-            M = region_lmi(regions[i], P, Z, 0.0)
+            M = region_lmi(reg, P, Z, 0.0)
             q = M.shape[0] // P.shape[0]
             shrink[i] = -_gen_max_eig(M, np.kron(np.eye(q), P))
             tol[i] = 10.0 * M.shape[0] * _EPS * float(np.linalg.norm(M)) / pmin
     holds = bool(ok and np.all(np.isnan(shrink) | (shrink > tol)))
     data = models.vertex_data()
     h2b = _h2_bound(data, P, L, models.is_discrete) if (h2 and ok and models.has_noise_model) else math.nan
-    hib = _hinf_bound(data, P, L, models.is_discrete) if (hinf and ok and models.has_noise_model) else math.nan
-    return LMICertificate(P, pmin, float(w[-1] / pmin) if pmin > 0 else math.inf, shrink, tol, h2b, hib,
-                          "convex hull" if models.covers_convex_hull else "models", holds)
+    hib = (
+        _hinf_bound(data, P, L, models.is_discrete) if (hinf and ok and models.has_noise_model) else math.nan
+    )
+    return LMICertificate(
+        P,
+        pmin,
+        float(w[-1] / pmin) if pmin > 0 else math.inf,
+        shrink,
+        tol,
+        h2b,
+        hib,
+        "convex hull" if models.covers_convex_hull else "models",
+        holds,
+    )
 
 
-def certificate_checks(cert: LMICertificate, *, h2_claim: float | None = None,
-                       hinf_claim: float | None = None) -> Verification:
+def certificate_checks(
+    cert: LMICertificate, *, h2_claim: float | None = None, hinf_claim: float | None = None
+) -> Verification:
     """Checks that the certificate proves what is claimed (region; H2 / H-infinity bounds)."""
     checks = [Check.at_least("lmi_P_min_eig", cert.P_min_eig, 0.0, "common Lyapunov matrix P > 0")]
     has = ~np.isnan(cert.shrink)
     if np.any(has):
         margin = cert.shrink[has] - cert.tolerance[has]
-        checks.append(Check.at_least("lmi_region", float(np.min(margin)), 0.0,
-                                     "min over models of the certified region shrink eps minus its rounding level "
-                                     "(> 0: every pole of every covered model strictly inside)"))
+        checks.append(
+            Check.at_least(
+                "lmi_region",
+                float(np.min(margin)),
+                0.0,
+                "min over models of the certified region shrink eps minus its rounding level "
+                "(> 0: every pole of every covered model strictly inside)",
+            )
+        )
     if h2_claim is not None:
-        checks.append(Check.at_most("lmi_h2_bound", cert.h2_bound if math.isfinite(cert.h2_bound) else math.inf,
-                                    h2_claim * (1.0 + 1e-6), "H2 bound proven by P (numpy) <= the claimed bound"))
+        checks.append(
+            Check.at_most(
+                "lmi_h2_bound",
+                cert.h2_bound if math.isfinite(cert.h2_bound) else math.inf,
+                h2_claim * (1.0 + 1e-6),
+                "H2 bound proven by P (numpy) <= the claimed bound",
+            )
+        )
     if hinf_claim is not None:
         val = cert.hinf_bound if math.isfinite(cert.hinf_bound) else math.inf
-        checks.append(Check.at_most("lmi_hinf_bound", val, hinf_claim * (1.0 + 1e-6),
-                                    "H-infinity bound proven by P (numpy) <= the claimed bound"))
+        checks.append(
+            Check.at_most(
+                "lmi_hinf_bound",
+                val,
+                hinf_claim * (1.0 + 1e-6),
+                "H-infinity bound proven by P (numpy) <= the claimed bound",
+            )
+        )
     return Verification.of(checks)
 
 
@@ -427,9 +515,9 @@ class DenseCheck:
         return self.in_region / self.count if self.count else math.nan
 
 
-def dense_check(models: ModelSet, L: NDArray, region: Region | None, count: int,
-                seed: int = 0) -> DenseCheck:
-    """Poles, kappa2 and H2 of ``L`` at ``count`` random interior plants (:meth:`ModelSet.interior_points`)."""
+def dense_check(models: ModelSet, L: NDArray, region: Region | None, count: int, seed: int = 0) -> DenseCheck:
+    """Poles, kappa2 and H2 of ``L`` at ``count`` random interior plants of the set
+    (:meth:`ModelSet.interior_points`)."""
     plants = models.interior_points(count, seed)
     inside = stable = 0
     wm = wk = wh = -math.inf
@@ -446,8 +534,14 @@ def dense_check(models: ModelSet, L: NDArray, region: Region | None, count: int,
         if pl.has_noise_model:
             wh = max(wh, estimation_error_h2(pl, L))
     nan = math.nan
-    return DenseCheck(len(plants), inside, stable, wm if plants else nan, wk if plants else nan,
-                      wh if wh > -math.inf else nan)
+    return DenseCheck(
+        len(plants),
+        inside,
+        stable,
+        wm if plants else nan,
+        wk if plants else nan,
+        wh if wh > -math.inf else nan,
+    )
 
 
 # --------------------------------------------------------------------------- infeasibility
@@ -493,10 +587,19 @@ def farkas_check(lmi: RobustLMI, models: ModelSet, *, refinements: int = 3) -> d
             v.value = val
         vals: dict[str, Any] = {}
         for k, e in lmi.variables.items():
-            vals[k] = [np.asarray(w.value, dtype=float) for w in e] if k == "W" else np.asarray(e.value, dtype=float)
+            vals[k] = (
+                [np.asarray(w.value, dtype=float) for w in e]
+                if k == "W"
+                else np.asarray(e.value, dtype=float)
+            )
         bl = lmi_blocks(lmi.spec, data, vals)
-        return np.concatenate([np.ravel(np.asarray(F, dtype=float))
-                               for grp in ("region", "h2", "hinf", "norm", "gain") for F in bl.get(grp, [])])
+        return np.concatenate(
+            [
+                np.ravel(np.asarray(F, dtype=float))
+                for grp in ("region", "h2", "hinf", "norm", "gain")
+                for F in bl.get(grp, [])
+            ]
+        )
 
     def basis(v) -> list[NDArray]:
         shape = v.shape
@@ -530,7 +633,7 @@ def farkas_check(lmi: RobustLMI, models: ModelSet, *, refinements: int = 3) -> d
     def project(z: NDArray) -> NDArray:
         out, k = [], 0
         for sh, sz in zip(shapes, sizes, strict=True):
-            part = z[k:k + sz]
+            part = z[k : k + sz]
             out.append(_psd_part(part.reshape(sh)).ravel() if len(sh) == 2 else np.maximum(part, 0.0))
             k += sz
         return np.concatenate(out)
@@ -545,5 +648,10 @@ def farkas_check(lmi: RobustLMI, models: ModelSet, *, refinements: int = 3) -> d
     rn = float(np.linalg.norm(r))
     scale = max(1.0, max(float(np.linalg.norm(A, 2)) for A in data["A"]))
     radius = math.inf if rn == 0.0 else (-c0 / rn if c0 < 0 else 0.0)
-    return {"verified": bool(c0 < 0 and radius > 1e8 * scale), "c0": c0, "residual": rn, "radius": radius,
-            "scale": scale}
+    return {
+        "verified": bool(c0 < 0 and radius > 1e8 * scale),
+        "c0": c0,
+        "residual": rn,
+        "radius": radius,
+        "scale": scale,
+    }

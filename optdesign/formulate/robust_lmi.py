@@ -64,6 +64,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._backends import import_cvxpy
 from ..errors import ValidationError
 from ..model.model_set import ModelSet
 from ..model.regions import Region
@@ -202,8 +203,9 @@ def _noise_input(P, Y, Bw: NDArray, Dv: NDArray, hstack):
     return hstack([P @ Bw, -(Y @ Dv)])
 
 
-def lmi_blocks(spec: LMISpec, data: dict[str, NDArray], values: dict[str, Any], *,
-               cp: Any = None) -> dict[str, list[Any]]:
+def lmi_blocks(
+    spec: LMISpec, data: dict[str, NDArray], values: dict[str, Any], *, cp: Any = None
+) -> dict[str, list[Any]]:
     """Every constraint matrix of the problem, each of which must be ``>= 0`` (PSD) or, for
     scalars, ``>= 0``.
 
@@ -252,15 +254,18 @@ def lmi_blocks(spec: LMISpec, data: dict[str, NDArray], values: dict[str, Any], 
             else:
                 out["h2"].append(_sym(-(Z + Z.T + rho * eye(n))))
             out["h2"].append(_sym(bmat([[W, PB.T], [PB, P]])))
-            bound = values["nu"] if spec.objective == "h2" else rho * spec.h2_max**2
+            h2m = spec.h2_max
+            bound = values["nu"] if (spec.objective == "h2" or h2m is None) else rho * h2m**2
             out["h2"].append(bound - trace(W))
-            if spec.objective == "h2" and spec.h2_max is not None:
-                out["h2"].append(spec.h2_max**2 - trace(W))
+            if spec.objective == "h2" and h2m is not None:
+                out["h2"].append(h2m**2 - trace(W))
         if spec.objective == "hinf" or spec.hinf_max is not None:
-            g2 = values["nu"] if spec.objective == "hinf" else rho * spec.hinf_max**2
+            him = spec.hinf_max
+            g2 = values["nu"] if (spec.objective == "hinf" or him is None) else rho * him**2
             if spec.discrete:
-                M = bmat([[P, Z, PB], [Z.T, P - rho * eye(n), zeros((n, k))],
-                          [PB.T, zeros((k, n)), g2 * eye(k)]])
+                M = bmat(
+                    [[P, Z, PB], [Z.T, P - rho * eye(n), zeros((n, k))], [PB.T, zeros((k, n)), g2 * eye(k)]]
+                )
                 out["hinf"].append(_sym(M))
             else:
                 M = bmat([[Z + Z.T + rho * eye(n), PB], [PB.T, -g2 * eye(k)]])
@@ -291,10 +296,18 @@ def default_margin(models: ModelSet) -> float:
     return 1e-6 * max(1.0, max(float(np.linalg.norm(pl.A, 2)) for pl in models))
 
 
-def build_robust_lmi(models: ModelSet, regions: Sequence[Region | None], *, objective: str = "cond",
-                     h2_max: float | None = None, hinf_max: float | None = None,
-                     max_gain: float | None = None, gain_mask: NDArray[np.bool_] | None = None,
-                     margin: float | None = None, fixed_gain: NDArray | None = None) -> RobustLMI:
+def build_robust_lmi(
+    models: ModelSet,
+    regions: Sequence[Region | None],
+    *,
+    objective: str = "cond",
+    h2_max: float | None = None,
+    hinf_max: float | None = None,
+    max_gain: float | None = None,
+    gain_mask: NDArray[np.bool_] | None = None,
+    margin: float | None = None,
+    fixed_gain: NDArray | None = None,
+) -> RobustLMI:
     r"""The robust LMI problem (module docstring) for ``models``.
 
     Parameters
@@ -328,28 +341,38 @@ def build_robust_lmi(models: ModelSet, regions: Sequence[Region | None], *, obje
         with nothing to normalize it (objective h2/hinf need the noise model; cond/gain always
         have one).
     """
-    from ..solvers.cvxpy_backend import import_cvxpy
-
     cp = import_cvxpy()
     if objective not in LMI_OBJECTIVES:
         raise ValidationError(f"objective must be one of {LMI_OBJECTIVES}; found {objective!r}")
     regions = tuple(regions)
     if len(regions) != len(models):
-        raise ValidationError(f"regions must give one region (or None) per model: {len(models)} models, "
-                              f"{len(regions)} regions")
+        raise ValidationError(
+            f"regions must give one region (or None) per model: {len(models)} models, {len(regions)} regions"
+        )
     data = models.vertex_data()
     if margin is None:
         margin = default_margin(models)
     if fixed_gain is not None:
         fixed_gain = np.asarray(fixed_gain, dtype=float)
         if fixed_gain.shape != (models.n, models.p):
-            raise ValidationError(f"fixed_gain must have shape ({models.n}, {models.p}); found {fixed_gain.shape}")
+            raise ValidationError(
+                f"fixed_gain must have shape ({models.n}, {models.p}); found {fixed_gain.shape}"
+            )
         gain_mask, max_gain = None, None
-    spec = LMISpec(models.is_discrete, regions, objective, h2_max, hinf_max, max_gain,
-                   None if gain_mask is None else np.asarray(gain_mask, dtype=bool), float(margin))
+    spec = LMISpec(
+        models.is_discrete,
+        regions,
+        objective,
+        h2_max,
+        hinf_max,
+        max_gain,
+        None if gain_mask is None else np.asarray(gain_mask, dtype=bool),
+        float(margin),
+    )
     if spec.needs_noise and not models.has_noise_model:
         raise ValidationError(
-            f"objective {objective!r} / the H2 and H-infinity bounds need a noise model (Q and R) in every model"
+            f"objective {objective!r} / the H2 and H-infinity bounds need a noise model (Q and R) in "
+            "every model"
         )
     n, p = models.n, models.p
     var: dict[str, Any] = {}

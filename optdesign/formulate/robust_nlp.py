@@ -55,9 +55,12 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
+from .._backends import import_casadi
+from ..analysis.norms import hinf_norm
 from ..errors import ValidationError
 from ..model.model_set import ModelSet
 from ..model.regions import Region
+from .robust_lmi import default_margin
 
 __all__ = [
     "NLP_OBJECTIVES",
@@ -106,10 +109,16 @@ class Spectrum:
 
 
 def spectrum(X: NDArray, C: NDArray) -> Spectrum | None:
-    """The eigen-decomposition of ``X`` (None when it is numerically defective / not finite)."""
+    """The eigen-decomposition of ``X`` (None when two eigenvalues coincide to rounding, V is singular, or
+    X is not finite)."""
     if not np.all(np.isfinite(X)):
         return None
     lam, V = np.linalg.eig(X)
+    gaps = np.abs(lam[:, None] - lam[None, :]) + np.diag(np.full(lam.size, np.inf))
+    if lam.size > 1 and float(np.min(gaps)) <= 1e3 * np.finfo(float).eps * max(
+        1.0, float(np.max(np.abs(lam)))
+    ):
+        return None  # a (numerically) repeated eigenvalue: no eigenvector derivative
     V = V.astype(complex) / np.linalg.norm(V, axis=0)
     try:
         W = np.linalg.inv(V)
@@ -168,7 +177,7 @@ def _region_values(region: Region, re: NDArray, im: NDArray) -> tuple[NDArray, N
     R = np.concatenate([re + 0j, re + 1j * _H, re + 0j])
     I = np.concatenate([im + 0j, im + 0j, im + 1j * _H])
     G = np.array([np.broadcast_to(v, R.shape) for v in region.constraints(R, I)])
-    return G[:, :n].real, G[:, n:2 * n].imag / _H, G[:, 2 * n:].imag / _H
+    return G[:, :n].real, G[:, n : 2 * n].imag / _H, G[:, 2 * n :].imag / _H
 
 
 def region_terms(sp: Spectrum, region: Region, mask_free: NDArray[np.intp]) -> tuple[NDArray, NDArray]:
@@ -204,8 +213,9 @@ def region_terms(sp: Spectrum, region: Region, mask_free: NDArray[np.intp]) -> t
     return vals, jac
 
 
-def h2_terms(A: NDArray, C: NDArray, L: NDArray, BwBw: NDArray, R: NDArray,
-             discrete: bool) -> tuple[float, NDArray[np.float64]]:
+def h2_terms(
+    A: NDArray, C: NDArray, L: NDArray, BwBw: NDArray, R: NDArray, discrete: bool
+) -> tuple[float, NDArray[np.float64]]:
     """``trace(Sigma)`` (the squared H2 norm of the error channel) and its gradient in ``L``.
 
     Returns ``(inf, zeros)`` when ``A - L C`` is not strictly stable.
@@ -227,8 +237,9 @@ def h2_terms(A: NDArray, C: NDArray, L: NDArray, BwBw: NDArray, R: NDArray,
     return float(np.trace(S)), grad
 
 
-def hinf_terms(A: NDArray, C: NDArray, L: NDArray, Bw: NDArray, Dv: NDArray,
-               dt: float | None) -> tuple[float, NDArray[np.float64]]:
+def hinf_terms(
+    A: NDArray, C: NDArray, L: NDArray, Bw: NDArray, Dv: NDArray, dt: float | None
+) -> tuple[float, NDArray[np.float64]]:
     """H-infinity norm of the error channel and its gradient in ``L`` at the peak frequency.
 
     ``gamma = sigma_max(T(s*))`` with ``T(s) = (s I - X)^-1 [Bw, -L Dv]``; by the envelope theorem
@@ -238,13 +249,13 @@ def hinf_terms(A: NDArray, C: NDArray, L: NDArray, Bw: NDArray, Dv: NDArray,
 
     Returns ``(inf, zeros)`` when ``A - L C`` is not strictly stable.
     """
-    from ..analysis.norms import hinf_norm
-
     X = A - L @ C
     B = np.hstack([Bw, -L @ Dv])
     h = hinf_norm(X, B, dt=dt)
     if not math.isfinite(h.value):
         return math.inf, np.zeros_like(L)
+    if not math.isfinite(h.frequency):  # no feedthrough here, so only for a zero channel
+        return float(h.value), np.zeros_like(L)
     n, m = A.shape[0], Bw.shape[1]
     s = np.exp(1j * h.frequency * dt) if dt is not None else 1j * h.frequency
     R = np.linalg.inv(s * np.eye(n) - X)
@@ -285,6 +296,9 @@ class RobustNLP:
         Current kappa2 smoothing order (:meth:`set_order`).
     kappa2_max, h2_max, hinf_max, max_gain : float or None
     soft_weight : float
+    soft_margin : float
+        The soft penalty is on ``max(0, g + soft_margin)``: ``> 0`` pulls the poles that far inside
+        (the feasibility phase of the verb uses it to land strictly inside the hard regions).
     mask : (n, p) ndarray of bool
     gain_scale : float
         ``L = gain_scale * x[:f]`` (x of order one).
@@ -304,6 +318,7 @@ class RobustNLP:
     h2_max: float | None = None
     max_gain: float | None = None
     soft_weight: float = 1.0
+    soft_margin: float = 0.0
     h2_ref: float = 1.0
     hinf_max: float | None = None
     _cache: dict[str, Any] = field(default_factory=dict, repr=False)
@@ -336,7 +351,8 @@ class RobustNLP:
             return xl
         if t is None:
             terms = self._model_terms(np.asarray(L, dtype=float))
-            t = float(np.max(terms["c"])) if np.all(np.isfinite(terms["c"])) else 0.0
+            ok = not terms["bad"] and bool(np.all(np.isfinite(terms["c"])))
+            t = float(np.max(terms["c"])) if ok else 0.0
         return np.concatenate([xl, [t]])
 
     def set_order(self, order: int | None) -> None:
@@ -350,66 +366,57 @@ class RobustNLP:
         """Per-model objective terms, constraint blocks and their gradients (in the free gain entries)."""
         N = len(self.models)
         free = self.free
-        c = np.full(N, math.inf)
-        dc = np.zeros((N, free.size))
+        wants_kappa = self.objective == "kappa2" or self.kappa2_max is not None
+        kv, kj = np.full(N, math.inf), np.zeros((N, free.size))
         reg_v: list[NDArray] = []
         reg_j: list[NDArray] = []
-        soft = 0.0
-        dsoft = np.zeros(free.size)
-        bad = False
+        soft, dsoft = 0.0, np.zeros(free.size)
         for i, pl in enumerate(self.models):
-            X = pl.A - L @ pl.C
-            need_spec = (self.objective == "kappa2" or self.kappa2_max is not None
-                         or self.regions[i] is not None or self.soft_regions[i] is not None)
-            sp = spectrum(X, pl.C) if need_spec else None
-            if need_spec and sp is None:
-                bad = True
-                break
-            if self.objective == "kappa2" or self.kappa2_max is not None:
+            reg, sreg = self.regions[i], self.soft_regions[i]
+            if not (wants_kappa or reg is not None or sreg is not None):
+                continue
+            sp = spectrum(pl.A - L @ pl.C, pl.C)
+            if sp is None:
+                return {"bad": True}
+            if wants_kappa:
                 v, gX = log_kappa_bound(sp, self.order)
-                c[i] = v
-                dc[i] = (-(gX @ pl.C.T)).ravel(order="F")[free]
-            if self.regions[i] is not None:
-                rv, rj = region_terms(sp, self.regions[i], free)
+                kv[i], kj[i] = v, (-(gX @ pl.C.T)).ravel(order="F")[free]
+            if reg is not None:
+                rv, rj = region_terms(sp, reg, free)
                 reg_v.append(rv)
                 reg_j.append(rj)
-            if self.soft_regions[i] is not None:
-                sv, sj = region_terms(sp, self.soft_regions[i], free)
-                viol = np.maximum(sv, 0.0)
+            if sreg is not None:
+                sv, sj = region_terms(sp, sreg, free)
+                viol = np.maximum(sv + self.soft_margin, 0.0)
                 soft += self.soft_weight * float(np.sum(viol**2))
                 dsoft += self.soft_weight * 2.0 * (viol @ sj)
-        out: dict[str, Any] = {"bad": bad}
-        if bad:
-            return out
+        out: dict[str, Any] = {
+            "bad": False,
+            "c": kv,
+            "dc": kj,
+            "reg_v": reg_v,
+            "reg_j": reg_j,
+            "soft": soft,
+            "dsoft": dsoft,
+        }
+        if self.kappa2_max is not None:
+            out["kv"], out["kj"] = kv, kj
         if self.objective == "h2" or self.h2_max is not None:
-            h = np.full(N, math.inf)
-            dh = np.zeros((N, free.size))
+            Bws, Dvs = self._noise()
+            h, dh = np.full(N, math.inf), np.zeros((N, free.size))
             for i, pl in enumerate(self.models):
-                val, gL = h2_terms(pl.A, pl.C, L, pl.process_noise(), pl.R, pl.is_discrete)
-                h[i] = val
-                dh[i] = gL.ravel(order="F")[free]
+                val, gL = h2_terms(pl.A, pl.C, L, Bws[i] @ Bws[i].T, Dvs[i] @ Dvs[i].T, pl.is_discrete)
+                h[i], dh[i] = val, gL.ravel(order="F")[free]
             out["h"], out["dh"] = h, dh
             if self.objective == "h2":
-                c, dc = h / self.h2_ref, dh / self.h2_ref
+                out["c"], out["dc"] = h / self.h2_ref, dh / self.h2_ref
         if self.hinf_max is not None:
-            hv = np.full(N, math.inf)
-            hj = np.zeros((N, free.size))
-            for i, (pl, Bw, Dv) in enumerate(zip(self.models, self._noise()[0], self._noise()[1], strict=True)):
-                val, gL = hinf_terms(pl.A, pl.C, L, Bw, Dv, pl.dt)
+            Bws, Dvs = self._noise()
+            hv, hj = np.full(N, math.inf), np.zeros((N, free.size))
+            for i, pl in enumerate(self.models):
+                val, gL = hinf_terms(pl.A, pl.C, L, Bws[i], Dvs[i], pl.dt)
                 hv[i], hj[i] = val, gL.ravel(order="F")[free]
             out["hi"], out["dhi"] = hv, hj
-        out.update(c=c, dc=dc, reg_v=reg_v, reg_j=reg_j, soft=soft, dsoft=dsoft)
-        if self.kappa2_max is not None:
-            if self.objective == "kappa2":
-                out["kv"], out["kj"] = c, dc
-            else:
-                kv = np.empty(N)
-                kj = np.empty((N, free.size))
-                for i, pl in enumerate(self.models):
-                    sp = spectrum(pl.A - L @ pl.C, pl.C)
-                    v, gX = log_kappa_bound(sp, self.order)
-                    kv[i], kj[i] = v, (-(gX @ pl.C.T)).ravel(order="F")[free]
-                out["kv"], out["kj"] = kv, kj
         return out
 
     def _finite(self, terms: dict[str, Any]) -> bool:
@@ -435,8 +442,14 @@ class RobustNLP:
         f_ = self.free.size
         nx = self.n_x
         if terms["bad"] or not self._finite(terms):
-            val = {"f": math.inf, "df": np.zeros(nx), "g": np.full(self.n_g, math.inf),
-                   "dg": np.zeros((self.n_g, nx)), "L": L, "terms": terms}
+            val = {
+                "f": math.inf,
+                "df": np.zeros(nx),
+                "g": np.full(self.n_g, math.inf),
+                "dg": np.zeros((self.n_g, nx)),
+                "L": L,
+                "terms": terms,
+            }
             self._cache.update(key=key, val=val)
             return val
         s = self.gain_scale
@@ -507,8 +520,6 @@ class RobustNLP:
         independent check beyond rounding: for the region rows the LMIs' default strictness
         (:func:`~optdesign.formulate.robust_lmi.default_margin`, so that a common Lyapunov certificate
         can exist for the result), relative ``1e-9`` for the normalized bounds, 0 for the epigraph rows."""
-        from .robust_lmi import default_margin
-
         N, n = len(self.models), self.models.n
         eps = default_margin(self.models)
         parts = [np.zeros(N if self.epigraph else 0)]
@@ -555,13 +566,11 @@ class RobustNLP:
     def nlpsol_problem(self) -> tuple[dict[str, Any], dict[str, Any], list[Any]]:
         """``(problem, plugin options, keep-alive list)`` for :func:`solve_nlpsol`: f and g with
         their gradient / Jacobian as numpy callbacks, a limited-memory Hessian."""
-        from ..solvers.casadi_backend import import_casadi
-
         ca = import_casadi()
         nx, ng = self.n_x, self.n_g
         nlp = self
 
-        class _Fun(ca.Callback):
+        class _Fun(ca.Callback):  # type: ignore[name-defined, misc]
             def __init__(self, name: str, kind: str):
                 ca.Callback.__init__(self)
                 self.kind = kind
@@ -574,12 +583,19 @@ class RobustNLP:
                 return 1
 
             def get_sparsity_in(self, i):
-                return ca.Sparsity.dense(nx, 1) if i == 0 else ca.Sparsity.dense(
-                    1 if self.kind == "jac_f" else ng, 1)
+                return (
+                    ca.Sparsity.dense(nx, 1)
+                    if i == 0
+                    else ca.Sparsity.dense(1 if self.kind == "jac_f" else ng, 1)
+                )
 
             def get_sparsity_out(self, i):
-                return {"f": ca.Sparsity.dense(1, 1), "g": ca.Sparsity.dense(ng, 1),
-                        "jac_f": ca.Sparsity.dense(1, nx), "jac_g": ca.Sparsity.dense(ng, nx)}[self.kind]
+                return {
+                    "f": ca.Sparsity.dense(1, 1),
+                    "g": ca.Sparsity.dense(ng, 1),
+                    "jac_f": ca.Sparsity.dense(1, nx),
+                    "jac_g": ca.Sparsity.dense(ng, nx),
+                }[self.kind]
 
             def eval(self, arg):
                 x = np.asarray(arg[0], dtype=float).ravel()
@@ -611,11 +627,22 @@ class RobustNLP:
         return problem, plugin, keep
 
 
-def build_robust_nlp(models: ModelSet, *, regions: Sequence[Region | None], soft_regions: Sequence[Region | None],
-                     objective: str = "kappa2", aggregate: str = "max", gain_mask: NDArray | None = None,
-                     kappa2_max: float | None = None, h2_max: float | None = None, hinf_max: float | None = None,
-                     max_gain: float | None = None, soft_weight: float = 1.0, gain_scale: float = 1.0,
-                     h2_ref: float = 1.0) -> RobustNLP:
+def build_robust_nlp(
+    models: ModelSet,
+    *,
+    regions: Sequence[Region | None],
+    soft_regions: Sequence[Region | None],
+    objective: str = "kappa2",
+    aggregate: str = "max",
+    gain_mask: NDArray | None = None,
+    kappa2_max: float | None = None,
+    h2_max: float | None = None,
+    hinf_max: float | None = None,
+    max_gain: float | None = None,
+    soft_weight: float = 1.0,
+    gain_scale: float = 1.0,
+    h2_ref: float = 1.0,
+) -> RobustNLP:
     """The robust NLP (module docstring) for ``models``.
 
     Parameters
@@ -651,8 +678,24 @@ def build_robust_nlp(models: ModelSet, *, regions: Sequence[Region | None], soft
     if len(regions) != len(models) or len(soft_regions) != len(models):
         raise ValidationError("regions and soft_regions must give one entry (or None) per model")
     if (objective == "h2" or h2_max is not None or hinf_max is not None) and not models.has_noise_model:
-        raise ValidationError("the H2 objective, h2_max and hinf_max need a noise model (Q and R) in every model")
-    mask = np.ones((models.n, models.p), dtype=bool) if gain_mask is None else np.asarray(gain_mask, dtype=bool)
-    return RobustNLP(models, regions, soft_regions, objective, aggregate, mask, float(gain_scale),
-                     kappa2_max=kappa2_max, h2_max=h2_max, max_gain=max_gain, soft_weight=float(soft_weight),
-                     h2_ref=float(h2_ref), hinf_max=hinf_max)
+        raise ValidationError(
+            "the H2 objective, h2_max and hinf_max need a noise model (Q and R) in every model"
+        )
+    mask = (
+        np.ones((models.n, models.p), dtype=bool) if gain_mask is None else np.asarray(gain_mask, dtype=bool)
+    )
+    return RobustNLP(
+        models,
+        regions,
+        soft_regions,
+        objective,
+        aggregate,
+        mask,
+        float(gain_scale),
+        kappa2_max=kappa2_max,
+        h2_max=h2_max,
+        max_gain=max_gain,
+        soft_weight=float(soft_weight),
+        h2_ref=float(h2_ref),
+        hinf_max=hinf_max,
+    )

@@ -50,6 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_int, as_positive_float
 from ..errors import DimensionError, ValidationError
+from .coerce import as_plant
 from .plant import Plant
 
 __all__ = ["ModelSet", "as_model_set", "psd_sqrt", "MODEL_SET_KINDS"]
@@ -87,13 +88,26 @@ def _check_plants(plants: Any) -> tuple[Plant, ...]:
         ) from None
     if not items:
         raise ValidationError("models must contain at least one Plant; found none")
+    converted = []
     for k, pl in enumerate(items):
-        if not isinstance(pl, Plant):
-            raise ValidationError(f"models[{k}] must be an optdesign.Plant; found {type(pl).__name__}")
+        if isinstance(pl, Plant):
+            converted.append(pl)
+            continue
+        try:  # python-control / scipy state-space systems: the one conversion point
+            converted.append(as_plant(pl))
+        except ValidationError as exc:
+            raise ValidationError(
+                f"models[{k}] must be an optdesign.Plant or a state-space system; found "
+                f"{type(pl).__name__} ({exc})"
+            ) from None
+    items = tuple(converted)
     first = items[0]
     for k, pl in enumerate(items[1:], start=1):
-        for what, a, b in (("n (states)", pl.n, first.n), ("p (outputs)", pl.p, first.p),
-                           ("m (noise inputs, columns of G)", pl.m, first.m)):
+        for what, a, b in (
+            ("n (states)", pl.n, first.n),
+            ("p (outputs)", pl.p, first.p),
+            ("m (noise inputs, columns of G)", pl.m, first.m),
+        ):
             if a != b:
                 raise DimensionError(
                     f"every model must have the same {what}: models[0] has {b}, models[{k}] has {a}"
@@ -119,10 +133,14 @@ def _check_weights(weights: Any, N: int) -> NDArray[np.float64]:
     if w is None or w.ndim != 1:
         raise ValidationError(f"weights must be a 1-D sequence of {N} positive numbers; found {weights!r}")
     if w.shape[0] != N:
-        raise DimensionError(f"weights has the wrong length: expected {N} (one per model), found {w.shape[0]}")
+        raise DimensionError(
+            f"weights has the wrong length: expected {N} (one per model), found {w.shape[0]}"
+        )
     bad = np.flatnonzero(~(np.isfinite(w) & (w > 0)))
     if bad.size:
-        raise ValidationError(f"weights must be finite and > 0; found {w[bad[0]]!r} at index {int(bad[0])}")
+        raise ValidationError(
+            f"weights must be finite and > 0; found {float(w[bad[0]])!r} at index {int(bad[0])}"
+        )
     return w / float(np.sum(w))
 
 
@@ -150,7 +168,9 @@ def _check_ranges(ranges: Any) -> tuple[tuple[str, ...], NDArray[np.float64]]:
         except (TypeError, ValueError, IndexError):
             raise ValidationError(f"ranges[{names[k]!r}] must be a pair (lo, hi); found {pr!r}") from None
         if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
-            raise ValidationError(f"ranges[{names[k]!r}] must satisfy finite lo <= hi; found ({lo!r}, {hi!r})")
+            raise ValidationError(
+                f"ranges[{names[k]!r}] must satisfy finite lo <= hi; found ({lo!r}, {hi!r})"
+            )
         box[k] = (lo, hi)
     return names, box
 
@@ -161,7 +181,7 @@ class ModelSet:
 
     Parameters
     ----------
-    plants : sequence of Plant
+    plants : sequence of Plant (or python-control / scipy state-space systems, via ``as_plant``)
         ``N >= 1`` models with the same ``n``, ``p``, ``m`` and ``dt``; either all or none with a
         noise model (``Q`` and ``R``).
     weights : (N,) array_like, optional
@@ -197,8 +217,8 @@ class ModelSet:
     (3, 'polytope')
     """
 
-    plants: tuple[Plant, ...]
-    weights: NDArray[np.float64] | None = None
+    plants: Sequence[Plant]
+    weights: ArrayLike | None = None
     kind: str = "list"
     nominal: int | None = None
     name: str | None = None
@@ -227,8 +247,14 @@ class ModelSet:
 
     # ------------------------------------------------------------------ constructors
     @classmethod
-    def polytope(cls, vertices: Sequence[Plant], weights: ArrayLike | None = None, *,
-                 nominal: int | None = None, name: str | None = None) -> ModelSet:
+    def polytope(
+        cls,
+        vertices: Sequence[Plant],
+        weights: ArrayLike | None = None,
+        *,
+        nominal: int | None = None,
+        name: str | None = None,
+    ) -> ModelSet:
         """The polytope of plants spanned by ``vertices`` (every convex combination is a model).
 
         Parameters
@@ -248,8 +274,16 @@ class ModelSet:
         return cls(tuple(vertices), weights, "polytope", nominal, name)
 
     @classmethod
-    def vary(cls, plant: Plant, entries: Sequence[tuple[int, int]], size: float, *, matrix: str = "A",
-             include_nominal: bool = True, name: str | None = None) -> ModelSet:
+    def vary(
+        cls,
+        plant: Plant,
+        entries: Sequence[tuple[int, int]],
+        size: float,
+        *,
+        matrix: str = "A",
+        include_nominal: bool = True,
+        name: str | None = None,
+    ) -> ModelSet:
         """Entries of one matrix of ``plant`` varied independently by ``+-size`` (relative).
 
         Each listed entry ``X[i, j]`` ranges over ``X[i, j] (1 + delta)``, ``|delta| <= size``; the
@@ -290,7 +324,9 @@ class ModelSet:
         try:
             idx = [(int(i), int(j)) for i, j in entries]
         except (TypeError, ValueError):
-            raise ValidationError(f"entries must be a sequence of (row, column) pairs; found {entries!r}") from None
+            raise ValidationError(
+                f"entries must be a sequence of (row, column) pairs; found {entries!r}"
+            ) from None
         if not idx:
             raise ValidationError("entries must list at least one (row, column) pair; found none")
         if len(set(idx)) != len(idx):
@@ -309,14 +345,34 @@ class ModelSet:
 
         plants = tuple(make(d) for d in deltas)
         names = tuple(f"{matrix}[{i},{j}]" for i, j in idx)
-        label = name if name is not None else f"{plant.name or 'plant'} +-{100 * size:g}% on {', '.join(names)}"
-        return cls(plants, None, "polytope", len(plants) - 1 if include_nominal else None, label,
-                   deltas, names, np.column_stack([np.full(len(idx), -size), np.full(len(idx), size)]), make)
+        label = (
+            name if name is not None else f"{plant.name or 'plant'} +-{100 * size:g}% on {', '.join(names)}"
+        )
+        return cls(
+            plants,
+            None,
+            "polytope",
+            len(plants) - 1 if include_nominal else None,
+            label,
+            deltas,
+            names,
+            np.column_stack([np.full(len(idx), -size), np.full(len(idx), size)]),
+            make,
+        )
 
     @classmethod
-    def sample(cls, function: Callable[[NDArray[np.float64]], Plant], ranges: Mapping[str, tuple[float, float]]
-               | Sequence[tuple[float, float]], *, grid: int | None = 2, samples: int = 0, seed: int = 0,
-               include_nominal: bool = True, affine: bool = False, name: str | None = None) -> ModelSet:
+    def sample(
+        cls,
+        function: Callable[[NDArray[np.float64]], Plant],
+        ranges: Mapping[str, tuple[float, float]] | Sequence[tuple[float, float]],
+        *,
+        grid: int | None = 2,
+        samples: int = 0,
+        seed: int = 0,
+        include_nominal: bool = True,
+        affine: bool = False,
+        name: str | None = None,
+    ) -> ModelSet:
         """Models of an uncertain plant ``function(theta)``, ``theta`` in a box, on a grid and/or at random.
 
         Parameters
@@ -355,7 +411,9 @@ class ModelSet:
             function that is not affine (the message gives the mismatch).
         """
         if not callable(function):
-            raise ValidationError(f"function must be callable (theta -> Plant); found {type(function).__name__}")
+            raise ValidationError(
+                f"function must be callable (theta -> Plant); found {type(function).__name__}"
+            )
         names, box = _check_ranges(ranges)
         samples = as_int("samples", samples, 0)
         seed = as_int("seed", seed, 0)
@@ -375,11 +433,22 @@ class ModelSet:
         kind = "sampled"
         if affine:
             if grid != 2:
-                raise ValidationError(f"affine=True needs grid=2 (the corners are the vertices); found grid={grid!r}")
+                raise ValidationError(
+                    f"affine=True needs grid=2 (the corners are the vertices); found grid={grid!r}"
+                )
             _check_affine(function, box, theta[: 2 ** len(names)], plants[: 2 ** len(names)], rng)
             kind = "polytope"
-        return cls(plants, None, kind, len(plants) - 1 if include_nominal else None, name, theta, names, box,
-                   function)
+        return cls(
+            plants,
+            None,
+            kind,
+            len(plants) - 1 if include_nominal else None,
+            name,
+            theta,
+            names,
+            box,
+            function,
+        )
 
     # ------------------------------------------------------------------ shape
     @property
@@ -429,7 +498,9 @@ class ModelSet:
         """A short name of model ``k`` (its plant name, or ``model k``)."""
         tag = " (nominal)" if k == self.nominal else ""
         if self.parameters is not None and self.parameter_names:
-            vals = ", ".join(f"{nm}={v:.4g}" for nm, v in zip(self.parameter_names, self.parameters[k], strict=True))
+            vals = ", ".join(
+                f"{nm}={v:.4g}" for nm, v in zip(self.parameter_names, self.parameters[k], strict=True)
+            )
             return f"model {k} [{vals}]{tag}"
         return f"model {k}{tag}"
 
@@ -445,8 +516,8 @@ class ModelSet:
         """
         out = {"A": np.stack([pl.A for pl in self.plants]), "C": np.stack([pl.C for pl in self.plants])}
         if self.has_noise_model:
-            out["Bw"] = np.stack([pl.G @ psd_sqrt(pl.Q) for pl in self.plants])
-            out["Dv"] = np.stack([psd_sqrt(pl.R) for pl in self.plants])
+            out["Bw"] = np.stack([_given(pl.G) @ psd_sqrt(_given(pl.Q)) for pl in self.plants])
+            out["Dv"] = np.stack([psd_sqrt(_given(pl.R)) for pl in self.plants])
         return out
 
     def combination(self, theta: ArrayLike) -> Plant:
@@ -520,6 +591,13 @@ class ModelSet:
         return f"ModelSet({label}{len(self)} models, kind={self.kind}, n={self.n}, p={self.p}, {time})"
 
 
+def _given(X: NDArray[np.float64] | None) -> NDArray[np.float64]:
+    """``X`` (G, or Q / R of a noise model checked before) known to be given; raises if it is not."""
+    if X is None:
+        raise ValidationError("a model has no noise model (Q and R)")
+    return X
+
+
 def _call(function: Callable, theta: NDArray) -> Plant:
     pl = function(np.array(theta, dtype=float))
     if not isinstance(pl, Plant):
@@ -528,14 +606,15 @@ def _call(function: Callable, theta: NDArray) -> Plant:
 
 
 def _plant_vector(pl: Plant) -> NDArray[np.float64]:
-    parts = [pl.A.ravel(), pl.C.ravel(), pl.G.ravel()]
+    parts = [pl.A.ravel(), pl.C.ravel(), _given(pl.G).ravel()]
     if pl.has_noise_model:
-        parts += [pl.Q.ravel(), pl.R.ravel()]
+        parts += [_given(pl.Q).ravel(), _given(pl.R).ravel()]
     return np.concatenate(parts)
 
 
-def _check_affine(function: Callable, box: NDArray, corners: NDArray, plants: Sequence[Plant],
-                  rng: np.random.Generator) -> None:
+def _check_affine(
+    function: Callable, box: NDArray, corners: NDArray, plants: Sequence[Plant], rng: np.random.Generator
+) -> None:
     """Raise unless ``function`` equals the multilinear interpolation of its corners at random points."""
     k = box.shape[0]
     vals = np.stack([_plant_vector(p) for p in plants])
@@ -544,15 +623,22 @@ def _check_affine(function: Callable, box: NDArray, corners: NDArray, plants: Se
     for _ in range(4):
         t = rng.uniform(box[:, 0], box[:, 1])
         u = (t - box[:, 0]) / span
-        wts = np.array([np.prod([u[j] if c[j] > box[j, 0] or box[j, 1] == box[j, 0] else 1.0 - u[j]
-                                 for j in range(k)]) for c in corners])
+        wts = np.array(
+            [
+                np.prod(
+                    [u[j] if c[j] > box[j, 0] or box[j, 1] == box[j, 0] else 1.0 - u[j] for j in range(k)]
+                )
+                for c in corners
+            ]
+        )
         expect = wts @ vals
         got = _plant_vector(_call(function, t))
         err = float(np.max(np.abs(got - expect))) / scale
         if err > 1e-9:
             raise ValidationError(
-                f"affine=True but function is not affine in theta: at theta={t.tolist()} the plant differs from "
-                f"the interpolation of the box corners by {err:.3g} (relative); drop affine=True (the set is then "
+                f"affine=True but function is not affine in theta: at theta={t.tolist()} the plant differs "
+                f"from the interpolation of the box corners by {err:.3g} (relative); drop affine=True (the "
+                "set is then "
                 "covered at its samples only)"
             )
 
@@ -568,6 +654,15 @@ def as_model_set(models: Any, weights: ArrayLike | None = None) -> ModelSet:
     if isinstance(models, ModelSet):
         if weights is None:
             return models
-        return ModelSet(models.plants, weights, models.kind, models.nominal, models.name, models.parameters,
-                        models.parameter_names, models.ranges, models.function)
+        return ModelSet(
+            models.plants,
+            weights,
+            models.kind,
+            models.nominal,
+            models.name,
+            models.parameters,
+            models.parameter_names,
+            models.ranges,
+            models.function,
+        )
     return ModelSet(models, weights)
