@@ -51,6 +51,15 @@ _LAZY: dict[str, str] = {
     "as_system": "optdesign.model.coerce",
     "estimator_system": "optdesign.design.estimator",
     "EstimatorArrays": "optdesign.design.estimator",
+    # robust design for many plant models (issue 15)
+    "robust_observer": "optdesign.design.robust",
+    "per_model_designs": "optdesign.design.robust",
+    "evaluate_gain": "optdesign.design.robust",
+    "robust_lmi_observer": "optdesign.design.robust_lmi",
+    "RobustObserverDesign": "optdesign.design.robust_result",
+    "ModelSet": "optdesign.model.model_set",
+    "h2_norm": "optdesign.analysis.norms",
+    "hinf_norm": "optdesign.analysis.norms",
     # state feedback by duality
     "place": "optdesign.design.feedback",
     "PlacementResult": "optdesign.design.feedback",

@@ -85,6 +85,9 @@ CHECK_NAMES = frozenset({
     "structure", "gain_relation_asymmetry", "gain_relation_min_eig", "gain_relation_residual", "margin",
     "circle_condition", "feedback_pole_error", "feedback_region_margin", "feedback_stability_margin",
     "nonfinite", "error_estimate",
+    # robust designs (several models)
+    "region_margin", "gain_bound", "kappa2_bound", "h2_bound", "hinf_bound", "mask", "lmi_P_min_eig",
+    "lmi_region", "lmi_h2_bound", "lmi_hinf_bound", "dense_region", "farkas_radius", "found",
 })
 
 #: relative residual of the filter Riccati equation accepted (the residual is scale-free)
