@@ -1,0 +1,68 @@
+"""Sphinx configuration of the optdesign site.
+
+Build (from the repository root; the ``docs`` extra installs what it needs)::
+
+    python -m sphinx -W --keep-going -b html docs docs/_build/html
+
+The API reference, the gallery, the problem table and the command-line help are generated from the
+package at each build by ``docs/_ext/optdesign_docs.py``; the rest is written by hand.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import optdesign
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE / "_ext"))
+
+project = "optdesign"
+author = "optdesign developers"
+copyright = "optdesign developers, BSD-3-Clause"
+release = optdesign.__version__
+version = ".".join(release.split(".")[:2])
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.mathjax",
+    "numpydoc",
+    "optdesign_docs",
+]
+
+exclude_patterns = ["_build", "TODO.md", "README.md", "**/_generated"]
+templates_path: list[str] = []
+root_doc = "index"
+optdesign_examples_dir = "../examples"
+
+# -- cross-references -----------------------------------------------------------------------------------
+# Every reference into optdesign must resolve (a dangling one is a broken link): optdesign_docs resolves
+# any public path of an object to where it is documented and silences only references to other packages
+# (numpy, scipy, builtins), which have no inventory offline.
+nitpicky = True
+
+# -- autodoc / autosummary / numpydoc -----------------------------------------------------------------
+autosummary_generate = False          # the module pages are written by optdesign_docs, not by autosummary
+autodoc_typehints = "none"            # the numpydoc Parameters sections carry the types and shapes
+autodoc_member_order = "bysource"
+autodoc_default_options: dict[str, object] = {}
+autodoc_inherit_docstrings = False    # a method without a docstring of its own shows none (not the stdlib's)
+numpydoc_show_class_members = False   # members are documented by autodoc (:members:), not listed twice
+numpydoc_class_members_toctree = False
+numpydoc_xref_param_type = False
+numpydoc_validation_checks: set[str] = set()
+
+# -- HTML ---------------------------------------------------------------------------------------------
+html_theme = "pydata_sphinx_theme"
+html_title = f"optdesign {release}"
+html_static_path: list[str] = []
+html_show_sourcelink = False
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "header_links_before_dropdown": 6,
+    "secondary_sidebar_items": ["page-toc"],
+}
+html_context = {"default_mode": "light"}
