@@ -19,7 +19,7 @@ from .._validate import as_int, as_matrix, as_positive_float, as_vector
 from ..errors import ValidationError
 from ..model.plant import Plant
 
-__all__ = ["as_gain", "frequency_points", "frequency_grid", "nudge_off_poles", "adaptive_minimize"]
+__all__ = ["as_gain", "frequency_points", "frequency_grid", "nudge_off_poles", "adaptive_minimize", "CHUNK"]
 
 #: frequencies evaluated per vectorized call while a time budget runs (checked between chunks)
 CHUNK = 128

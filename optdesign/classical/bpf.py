@@ -37,7 +37,7 @@ uses the operational matrix of integration (2.6).  Correct forms of the misprint
   inverse in (4.12) and ``phi_{2ik}`` for ``phi_{21k}``.
 
 What the recursion is numerically (proved in ``tests/test_bpf.py`` to rounding error)
------------------------------------------------------------------------------------
+-------------------------------------------------------------------------------------
 Let ``C = (I - h M/2)(I + h M/2)^-1`` -- the Cayley transform, i.e. the Pade(1,1) /
 trapezoidal / **Crank-Nicolson** propagator of ``d/dt Phi = -Phi M`` over one block.  Since
 ``(I + h M/2)^-1 = (I + C)/2``,
@@ -220,7 +220,7 @@ def bpf_coefficients(f: Callable[[float], ArrayLike], t_final: float, m: int,
 
     Returns
     -------
-    (m, *shape) ndarray
+    ndarray of shape ``(m, *shape)``
 
     Raises
     ------

@@ -158,7 +158,7 @@ class KalmanFilter(DesignResult):
 
     @property
     def M(self) -> NDArray[np.float64] | None:
-        """The innovation gain (MATLAB's ``M``): :attr:`Kf`."""
+        """The innovation gain (MATLAB's ``M``): the field ``Kf``."""
         return self.Kf
 
     def estimator(self, form: str | None = None, *, output: str = "auto") -> Any:

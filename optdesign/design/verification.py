@@ -61,6 +61,7 @@ from ..results import Check
 
 __all__ = [
     "CHECK_NAMES",
+    "ESTIMATE_FACTOR",
     "RESIDUAL_TOL",
     "FORWARD_ERROR_TOL",
     "POLE_FLOOR_CAP",

@@ -12,14 +12,14 @@ a_0 q^{-r}``): multiplying by ``q^r`` gives the same coefficient list, so
 ``coefficients = [1, a_{r-1}, ..., a_0]`` (highest power first, the :func:`numpy.roots`
 convention) reads the same in both notations.
 
-================================  =========================  =======================
-model                             ``P(q)``                   modes (roots)
-================================  =========================  =======================
-``Step()``                        ``q - 1``                  ``1``
-``Sinusoid(f, dt)``               ``q^2 - 2 cos(w dt) q + 1`` ``exp(+-j w dt)``, ``w = 2 pi f``
-``Polynomial(c)``                 ``c / c[0]``               ``roots(c)``
-``Step() + Sinusoid(f, dt)``      least common multiple      union of the modes
-================================  =========================  =======================
+================================  ===========================  =======================
+model                             ``P(q)``                     modes (roots)
+================================  ===========================  =======================
+``Step()``                        ``q - 1``                    ``1``
+``Sinusoid(f, dt)``               ``q^2 - 2 cos(w dt) q + 1``  ``exp(+-j w dt)``, ``w = 2 pi f``
+``Polynomial(c)``                 ``c / c[0]``                 ``roots(c)``
+``Step() + Sinusoid(f, dt)``      least common multiple        union of the modes
+================================  ===========================  =======================
 
 Each model gives the realization used by the generalized observer of seed 003, eq (14),
 for ``p`` output channels (one copy of the model per channel, state ordered by lag,

@@ -270,7 +270,7 @@ class Plant:
         return self.unobservable_modes(tol).size == 0
 
     def is_detectable(self, tol: float | None = None) -> bool:
-        """True when every unobservable mode is stable (Re < 0, or |z| < 1 in discrete time)."""
+        """True when every unobservable mode is stable (``Re < 0``, or ``|z| < 1`` in discrete time)."""
         modes = self.unobservable_modes(tol)
         return bool(np.all(np.abs(modes) < 1.0) if self.is_discrete else np.all(modes.real < 0.0))
 

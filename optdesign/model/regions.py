@@ -12,17 +12,17 @@ picklable, and combine by intersection with ``&``::
 
 Shapes
 ------
-=========================  ===================================================  ==========================
-class                      set                                                  real-axis interior
-=========================  ===================================================  ==========================
-``HalfPlane(alpha)``       ``Re s <= -alpha`` (decay rate ``alpha``, any sign)  ``(-inf, -alpha)``
-``Disk(center, radius)``   ``|s - center| <= radius``, ``center`` real           ``(c - r, c + r)``
-``Sector(half_angle)``     ``|Im s| <= tan(theta) (apex - Re s)``               ``(-inf, apex)``
-``VerticalStrip(lo, hi)``  ``lo <= Re s <= hi``                                 ``(lo, hi)``
-``HorizontalStrip(omega)`` ``|Im s| <= omega``                                  ``(-inf, inf)``
-``Ellipse(center, a, b)``  ``((Re s - c)/a)^2 + (Im s / b)^2 <= 1``             ``(c - a, c + a)``
-``A & B & ...``            :class:`Intersection` (flattened)                    intersection of the above
-=========================  ===================================================  ==========================
+==========================  ===================================================  ==========================
+class                       set                                                  real-axis interior
+==========================  ===================================================  ==========================
+``HalfPlane(alpha)``        ``Re s <= -alpha`` (decay rate ``alpha``, any sign)  ``(-inf, -alpha)``
+``Disk(center, radius)``    ``|s - center| <= radius``, ``center`` real           ``(c - r, c + r)``
+``Sector(half_angle)``      ``|Im s| <= tan(theta) (apex - Re s)``               ``(-inf, apex)``
+``VerticalStrip(lo, hi)``   ``lo <= Re s <= hi``                                 ``(lo, hi)``
+``HorizontalStrip(omega)``  ``|Im s| <= omega``                                  ``(-inf, inf)``
+``Ellipse(center, a, b)``   ``((Re s - c)/a)^2 + (Im s / b)^2 <= 1``             ``(c - a, c + a)``
+``A & B & ...``             :class:`Intersection` (flattened)                    intersection of the above
+==========================  ===================================================  ==========================
 
 ``Sector.from_damping(zeta)`` is the set of poles with damping ratio ``>= zeta``
 (``theta = arccos zeta``).  For discrete-time designs pass a disk inside the unit disk,

@@ -14,7 +14,8 @@ from ..results import SolverStats
 from .report import SolverReport
 from .status import map_status
 
-__all__ = ["import_cvxpy", "available_sdp_solvers", "default_sdp_solver", "solve_cvxpy", "SDP_SOLVERS"]
+__all__ = ["import_cvxpy", "available_sdp_solvers", "default_sdp_solver", "solve_cvxpy", "SDP_SOLVERS",
+           "DEFAULT_OPTIONS"]
 
 #: SDP-capable conic solvers we support, in order of preference (Clarabel is the more
 #: accurate interior-point method; SCS is a first-order fallback).

@@ -36,16 +36,16 @@ Format
 
 Study verbs (``design``) and their grid axes:
 
-========================== ========================================== =====================================
-design                     designer (:mod:`optdesign.studies.designers`) axes
-========================== ========================================== =====================================
-``well_conditioned``       :class:`RegionSweepDesigner`               alpha, zeta, radius, max_gain,
-                           (build once, re-solve)                     kappa2_max, eta_max
-``kalman``                 :class:`KalmanNoiseDesigner` (q/r)          q, r
-``inverse``                :class:`PoleTargetDesigner`, inverse        scale, shift
-``place``                  :class:`PoleTargetDesigner`, place          scale, shift
-``well_conditioned_poles`` :class:`PoleTargetDesigner`, fixed poles    scale, shift
-========================== ========================================== =====================================
+========================== ============================================== =====================================
+design                     designer (:mod:`optdesign.studies.designers`)  axes
+========================== ============================================== =====================================
+``well_conditioned``       :class:`RegionSweepDesigner`                   alpha, zeta, radius, max_gain,
+                           (build once, re-solve)                         kappa2_max, eta_max
+``kalman``                 :class:`KalmanNoiseDesigner` (q/r)             q, r
+``inverse``                :class:`PoleTargetDesigner`, inverse           scale, shift
+``place``                  :class:`PoleTargetDesigner`, place             scale, shift
+``well_conditioned_poles`` :class:`PoleTargetDesigner`, fixed poles       scale, shift
+========================== ============================================== =====================================
 
 Results: ``<output>/<name>.csv`` (one row per point: inputs, status, success, metrics, time,
 error), ``<output>/<name>.json`` and the figure(s).  Only successful (solved and verified)

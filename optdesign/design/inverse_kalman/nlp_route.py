@@ -1,5 +1,5 @@
 """``method="nlp"``: IPOPT from a few starts, then the answers that do not depend on IPOPT
-converging (see :class:`NLPRoute`)."""
+converging (see ``NLPRoute`` (below))."""
 
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ RESCUE_STARTS = 4
 
 
 def run_nlp(plant, target, common, Qn, solver, tol, seed, dl, settings=None):
-    """``method="nlp"`` (and the L of ``method="sdp"`` with several outputs): :class:`NLPRoute`."""
+    """``method="nlp"`` (and the L of ``method="sdp"`` with several outputs): ``NLPRoute`` (below)."""
     return NLPRoute(plant, target, common, Qn, solver, tol, seed, dl, settings).run()
 
 

@@ -44,13 +44,13 @@ class InfeasibilityCertificate(Certificate):
     circle : CircleConditionResult or None
         The full frequency scan (:func:`optdesign.analysis.robustness.circle_condition`).
     closest_poles : (n,) ndarray of complex or None
-        Closest achievable poles (smallest :func:`pole_error` found) and the corresponding
+        Closest achievable poles (smallest :func:`~optdesign.classical.placement.pole_error` found) and the corresponding
         design: the best of a scaled nominal noise, the closest-poles NLP (which keeps the
         target's real/complex pattern) and a multi-start Nelder-Mead search on the pole error
         over the noise parameters (where there are at most 10 of them).  The pattern may differ
         from the target's.  A local search: evidence, not proof.
     closest_pole_error : float or None
-        :func:`pole_error` of ``closest_poles`` against the target.
+        :func:`~optdesign.classical.placement.pole_error` of ``closest_poles`` against the target.
     closest_L, closest_Q, closest_Qw : ndarray or None
     """
 
@@ -167,7 +167,7 @@ class InverseKalmanResult(DesignResult):
 
     @property
     def pole_error(self) -> float:
-        """:func:`pole_error` of the achieved poles (inf without a design)."""
+        """:func:`~optdesign.classical.placement.pole_error` of the achieved poles (inf without a design)."""
         return self.verification["pole_error"].value if "pole_error" in self.verification else float("inf")
 
     def summary(self) -> str:
