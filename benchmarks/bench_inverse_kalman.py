@@ -1,23 +1,30 @@
-"""Benchmark: Kalman filter with prescribed poles (issue 3) -- time per design and accuracy vs n.
+"""Benchmark: Kalman filter with prescribed poles -- the engine without an NLP vs the current verb vs
+hand-written minimal SDPs, side by side in one process (issue 14).
 
-For each n (2..40), a few random feasible targets (the poles of the Kalman filter of a random
-plant with a random Q >= 0, continuous time) are solved by every method / backend that applies:
+For each size (n, p) a few random feasible targets (the poles of the Kalman filter of a random
+plant with a random Q >= 0, continuous time; three per size) are solved by
 
-* ``sdp/clarabel``, ``sdp/scs``  -- one output (L fixed by the poles), SDP + face polish;
-* ``nlp/ipopt``                  -- the spectral-identity NLP, with 1, 2 and max(2, n // 5) outputs;
-* ``sequential``                 -- Solheim's method (one output); it succeeds only when every step
-                                    keeps Q >= 0, so its success rate is part of the result.
+* ``engine``      -- :func:`optdesign.solvers.inverse_kalman_engine.solve_inverse_kalman` (SQP and
+                     Newton on the null-vector parametrization of the gains with the target poles,
+                     the fixed-gain SDP on Clarabel as certificate; one output: that SDP alone);
+* ``nlp``         -- ``kalman_for_poles(method="nlp")`` (the spectral NLP on IPOPT, 3 starts);
+* ``sdp``         -- ``kalman_for_poles(method="sdp")`` (one output: the fixed-gain SDP with polish;
+                     several outputs: the NLP first, for L, then the SDP at it);
+* ``min-SDP``     -- the minimal SDP of the issue, hand-written in cvxpy (P symmetric, Q >= 0,
+                     P C' = L R, Q = L R L' - A P - P A', min trace Q) at the engine's gain, solved
+                     with Clarabel, rebuilt per solve and with its gain as cvxpy Parameters re-used
+                     (the second solve after re-binding them: the steady state of a sweep).
 
-Reported per (method, p, n): median wall time per design (validation, solve, polish and the
-independent verification included), successes, and the median / worst pole error of an
-independent Riccati solve with the returned Q (``are_resolve_poles``), next to the rounding floor
-of the target poles themselves (single-output pole placement is exponentially ill-conditioned in
-n, so no method can be checked below that floor).
+Every design is checked by the same independent test: scipy's Riccati solver with the returned Q
+must give the target poles to their rounding floor (``eigenvalue_rounding_floor``, at least 1e-8)
+and the returned L to 1e-6 relative; "verified" counts those.  Times are CPU seconds
+(``time.process_time``) per design, medians over the targets; the ratios are of the medians.  At
+(40, 8) the verb (533 s per design in the README's run) is run only with ``--slow``.
 
-Run:  python benchmarks/bench_inverse_kalman.py [--quick] [--reps 3] [--sizes 2,5,10,20,30]
-Writes the markdown table to benchmarks/results/inverse_kalman.md (not with --quick).  The
-targets are drawn in sequence from one generator over all sizes 2..40, so a --sizes subset
-gets the same targets as the full run.
+Run:  python benchmarks/bench_inverse_kalman.py [--reps 3] [--sizes 2x1,10x4] [--slow] [--profile]
+Writes benchmarks/results/inverse_kalman.md, .csv and .json; ``--profile`` writes
+benchmarks/results/inverse_kalman_profile.md (cProfile of the engine at (20, 4) and (40, 8), time
+per stage).
 """
 
 from __future__ import annotations
@@ -27,133 +34,270 @@ from _common import random_observable_plant  # first: single-threaded BLAS befor
 # isort: on
 
 import argparse  # noqa: E402
+import cProfile  # noqa: E402
+import csv  # noqa: E402
+import json  # noqa: E402
 import platform  # noqa: E402
+import pstats  # noqa: E402
 import statistics  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+import scipy.linalg as sl  # noqa: E402
 
 from optdesign import Plant, kalman_for_poles  # noqa: E402
+from optdesign.analysis.metrics import eigenvalue_rounding_floor  # noqa: E402
+from optdesign.classical.placement import pole_error  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
 from optdesign.errors import OptDesignError  # noqa: E402
-from optdesign.metrics import eigenvalue_rounding_floor  # noqa: E402
+from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
 
-RESULTS = Path(__file__).resolve().parent / "results" / "inverse_kalman.md"
+OUT = Path(__file__).resolve().parent / "results"
+SIZES = [(2, 1), (10, 1), (20, 1), (5, 2), (10, 4), (20, 2), (20, 4), (40, 8)]
 
 
 def random_target(rng: np.random.Generator, n: int, p: int, tries: int = 50):
-    """A random observable plant (spectral radius ~1) and the poles of a random Kalman filter,
-    or None when no draw gives a Riccati equation scipy can solve (single-output plants of
-    order 30-40 are numerically unobservable: their filter ARE has no accurate solution)."""
+    """A random observable plant (spectral radius ~1, R = I) and the poles of the Kalman filter of
+    ``Q = F F' / n``, or None when no draw gives a Riccati equation scipy can solve."""
     for _ in range(tries):
         plant = random_observable_plant(rng, n, p, noise=True)
         F = rng.standard_normal((n, n)) / np.sqrt(n)
         try:
-            are = filter_are(plant.replace(Q=F @ F.T), residual_tol=1e-6)
+            return plant, filter_are(plant.replace(Q=F @ F.T), residual_tol=1e-6)
         except OptDesignError:
             continue
-        return plant, are
     return None
 
 
-def run(method: str, solver: str | None, plant: Plant, poles) -> dict:
-    t0 = time.perf_counter()
-    res = kalman_for_poles(plant, poles, method=method, solver=solver)
-    elapsed = time.perf_counter() - t0
-    err = res.verification["are_resolve_poles"].value if "are_resolve_poles" in res.verification else np.inf
-    return {"time": elapsed, "success": res.success, "err": err, "status": res.status.value}
+def independent_check(plant: Plant, target, L, Q) -> bool:
+    """scipy's continuous Riccati solver with Q reproduces the targets (to their rounding floor) and
+    L (to 1e-6 relative)."""
+    if L is None or Q is None:
+        return False
+    try:
+        P = sl.solve_continuous_are(plant.A.T, plant.C.T, 0.5 * (Q + Q.T), plant.R)
+    except (np.linalg.LinAlgError, ValueError):
+        return False
+    La = P @ plant.C.T @ np.linalg.inv(plant.R)
+    F = plant.A - La @ plant.C
+    ok_poles = pole_error(np.linalg.eigvals(F), target) <= max(1e-8, eigenvalue_rounding_floor(F))
+    return bool(ok_poles and np.linalg.norm(La - L) <= 1e-6 * max(1.0, np.linalg.norm(L)))
 
 
-def main() -> str:
+def timed(fn):
+    t0 = time.process_time()
+    out = fn()
+    return out, time.process_time() - t0
+
+
+def minimal_sdp(plant: Plant, L, reuse: bool) -> tuple[float, float]:
+    """The issue's minimal SDP at the gain L: ``(trace Q, CPU seconds of the timed solve)``.
+    ``reuse``: L R and L R L' are cvxpy Parameters, solved once (compilation), re-bound and the
+    second solve timed; else built and solved once, all timed."""
+    import cvxpy as cp
+
+    A, C, R = plant.A, plant.C, plant.R
+    n, p = A.shape[0], C.shape[0]
+
+    def build(LR, LRL):
+        P = cp.Variable((n, n), symmetric=True)
+        Q = cp.Variable((n, n), PSD=True)
+        return cp.Problem(cp.Minimize(cp.trace(Q)), [P @ C.T == LR, Q == LRL - A @ P - P @ A.T]), Q
+
+    LRv, LRLv = L @ R, L @ R @ L.T
+    LRLv = 0.5 * (LRLv + LRLv.T)
+    if not reuse:
+        t0 = time.process_time()
+        prob, Q = build(LRv, LRLv)
+        prob.solve(solver="CLARABEL")
+        return float(np.trace(Q.value)) if Q.value is not None else float("nan"), time.process_time() - t0
+    LR, LRL = cp.Parameter((n, p)), cp.Parameter((n, n), symmetric=True)
+    prob, Q = build(LR, LRL)
+    LR.value, LRL.value = LRv, LRLv
+    prob.solve(solver="CLARABEL")
+    LR.value, LRL.value = LRv.copy(), LRLv.copy()
+    t0 = time.process_time()
+    prob.solve(solver="CLARABEL")
+    return float(np.trace(Q.value)) if Q.value is not None else float("nan"), time.process_time() - t0
+
+
+def run_size(n: int, p: int, targets, slow: bool) -> dict:
+    rows = []
+    verb = slow or n < 40
+    for plant, are in targets:
+        target = are.poles
+        row = {"floor": eigenvalue_rounding_floor(plant.A - are.L @ plant.C)}
+        res, row["engine_t"] = timed(
+            lambda pl=plant, tg=target: solve_inverse_kalman(prepare_inverse_kalman(pl), tg))
+        row["engine_ok"] = bool(res.success and independent_check(plant, target, res.L, res.Q))
+        row["engine_obj"] = res.objective_value
+        row["engine_status"] = res.status.value
+        if res.L is not None:
+            row["min_obj"], row["min_t"] = minimal_sdp(plant, res.L, reuse=False)
+            _, row["min_reuse_t"] = minimal_sdp(plant, res.L, reuse=True)
+        for method in ("nlp", "sdp") if verb else ():
+            if method == "nlp" and p == 1 and n >= 20:
+                continue  # (the NLP of one output: the SDP's job; not run at the large sizes)
+            r, t = timed(lambda m=method, pl=plant, tg=target: kalman_for_poles(pl, tg, method=m))
+            row[f"{method}_t"], row[f"{method}_obj"] = t, r.objective_value
+            row[f"{method}_ok"] = bool(r.success and independent_check(plant, target, r.L, r.Q))
+        rows.append(row)
+        line = (f"  n={n} p={p}: engine {row['engine_t']:.2f}s ok={row['engine_ok']} "
+                f"obj {row['engine_obj']:.6g}")
+        line += "".join(f" | {m} {row[m + '_t']:.2f}s ok={row[m + '_ok']} obj {row[m + '_obj']:.6g}"
+                        for m in ("nlp", "sdp") if m + "_t" in row)
+        if "min_t" in row:
+            line += f" | min-SDP {row['min_t']:.3f}s / re-used {row['min_reuse_t']:.3f}s"
+        print(line + f" | floor {row['floor']:.1e}", flush=True)
+    return {"n": n, "p": p, "rows": rows}
+
+
+def median(rows, key):
+    vals = [r[key] for r in rows if key in r and np.isfinite(r[key])]
+    return statistics.median(vals) if vals else float("nan")
+
+
+def summarize(res: dict) -> dict:
+    rows = res["rows"]
+    out = {"n": res["n"], "p": res["p"], "targets": len(rows)}
+    for m in ("engine", "nlp", "sdp", "min", "min_reuse"):
+        out[f"{m}_t"] = median(rows, f"{m}_t")
+    for m in ("engine", "nlp", "sdp"):
+        have = [r for r in rows if f"{m}_ok" in r]
+        out[f"{m}_ok"] = f"{sum(r[f'{m}_ok'] for r in have)}/{len(have)}" if have else "-"
+    rel = [(r["engine_obj"] - r["nlp_obj"]) / abs(r["nlp_obj"]) for r in rows
+           if r.get("nlp_ok") and r.get("engine_ok")]
+    out["vs_nlp"] = (f"{sum(v < -1e-7 for v in rel)} lower / {sum(abs(v) <= 1e-7 for v in rel)} equal / "
+                     f"{sum(v > 1e-7 for v in rel)} higher" if rel else "-")
+    out["floors"] = [r["floor"] for r in rows]
+    return out
+
+
+def fmt_t(v):
+    return "-" if not np.isfinite(v) else (f"{v:.3f}" if v < 10 else f"{v:.1f}")
+
+
+def ratio(a, b):
+    return "-" if not (np.isfinite(a) and np.isfinite(b) and b > 0) else f"{a / b:.1f}x"
+
+
+def table(summaries: list[dict]) -> str:
+    head = ("| n, p | engine (s) | verified | `nlp` (s) | verified | `sdp` (s) | verified "
+            "| min-SDP rebuilt (s) | min-SDP re-used (s) | nlp / engine | sdp / engine "
+            "| engine / min-SDP re-used | engine vs nlp objective | rounding floor of the targets |\n|"
+            + "---|" * 14)
+    lines = []
+    for s in summaries:
+        floors = ", ".join(f"{f:.0e}" for f in s["floors"])
+        lines.append(
+            f"| {s['n']}, {s['p']} | {fmt_t(s['engine_t'])} | {s['engine_ok']} | {fmt_t(s['nlp_t'])} "
+            f"| {s['nlp_ok']} | {fmt_t(s['sdp_t'])} | {s['sdp_ok']} | {fmt_t(s['min_t'])} "
+            f"| {fmt_t(s['min_reuse_t'])} "
+            f"| {ratio(s['nlp_t'], s['engine_t'])} | {ratio(s['sdp_t'], s['engine_t'])} "
+            f"| {ratio(s['engine_t'], s['min_reuse_t'])} | {s['vs_nlp']} | {floors} |")
+    return head + "\n" + "\n".join(lines)
+
+
+STAGES = [("starts (scale scan, placement)", "_starts"), ("SQP", "sqp"),
+          ("Gauss-Newton restoration", "find_feasible"), ("Newton on the manifold", "newton"),
+          ("certificate SDP (Clarabel)", "_certify"), ("verification (independent re-solve)", "_verify")]
+
+
+def profile(sizes, rng_seed: int) -> str:
+    """cProfile of the engine on one target per size: cumulative CPU time per stage and the top
+    functions by own time."""
+    out = ["# Profile of the inverse Kalman engine (cProfile, CPU time)\n"]
+    for n, p in sizes:
+        plant, are = random_target(np.random.default_rng(rng_seed + 1000 * n + p), n, p)
+        setup = prepare_inverse_kalman(plant)
+        prof = cProfile.Profile(timer=time.process_time)
+        prof.enable()
+        res = solve_inverse_kalman(setup, are.poles)
+        prof.disable()
+        st = pstats.Stats(prof)
+        total = sum(v[2] for v in st.stats.values())  # own times
+        cum = {}
+        for (file, _line, name), v in st.stats.items():
+            for label, fn in STAGES:
+                if name == fn and ("inverse_kalman_engine" in file or "spectral_newton" in file):
+                    cum[label] = cum.get(label, 0.0) + v[3]
+        own = sorted(((v[2], f"{Path(k[0]).name}:{k[2]}") for k, v in st.stats.items()), reverse=True)[:10]
+        out.append(f"## n = {n}, p = {p}: {res.status.value}, verified {res.success}, {total:.1f} s CPU "
+                   f"in total\n")
+        out.append("| stage (cumulative, nested stages overlap) | CPU s | share |\n|---|---|---|")
+        out += [f"| {label} | {cum.get(label, 0.0):.2f} | {100 * cum.get(label, 0.0) / total:.0f} % |"
+                for label, _ in STAGES]
+        out.append("\n| function (own time) | CPU s | share |\n|---|---|---|")
+        out += [f"| `{name}` | {t:.2f} | {100 * t / total:.0f} % |" for t, name in own]
+        starts = res.details.get("starts", [])
+        out.append("\nper start: " + "; ".join(
+            f"{r['kind']}: SQP {r.get('sqp_iterations', 0)} it ({r.get('sqp', '')}), restoration "
+            f"{r.get('restoration_iterations', 0)} it, Newton "
+            f"{sum(h['iterations'] for h in r.get('newton', []))} it, {r['cpu_time']:.1f} s"
+            for r in starts) + "\n")
+        print("\n".join(out[-3:]), flush=True)
+    return "\n".join(out)
+
+
+def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="n up to 10, one repetition")
-    ap.add_argument("--reps", type=int, default=3, help="targets per (p, n)")
+    ap.add_argument("--reps", type=int, default=3, help="targets per size")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--sizes", type=str, default=None,
-                    help="comma-separated subset of 2,5,10,20,30,40 to run (same targets as the full run)")
+                    help="subset, e.g. 10x4,20x4 (same targets as the full run)")
+    ap.add_argument("--slow", action="store_true", help="also run the verb at (40, 8)")
+    ap.add_argument("--profile", action="store_true",
+                    help="only the cProfile of the engine at (20, 4), (40, 8)")
     args = ap.parse_args()
-    all_sizes = [2, 5, 10] if args.quick else [2, 5, 10, 20, 30, 40]
-    sizes = all_sizes if args.sizes is None else sorted({int(v) for v in args.sizes.split(",")})
-    if not set(sizes) <= set(all_sizes):
-        ap.error(f"--sizes must be a subset of {all_sizes}")
-    reps = 1 if args.quick else args.reps
-    rng = np.random.default_rng(args.seed)
-    # (method, solver, outputs as a function of n, largest n)
-    configs = [("sdp", "CLARABEL", lambda n: 1, 40), ("sdp", "SCS", lambda n: 1, 20),
-               ("sequential", None, lambda n: 1, 40), ("nlp", None, lambda n: 1, 40),
-               ("nlp", None, lambda n: 2, 40), ("nlp", None, lambda n: max(2, n // 5), 40)]
-    rows = []
     warnings.simplefilter("ignore")
-    warm_plant, warm = random_target(np.random.default_rng(99), 2, 1)  # imports and JIT out of the timing
-    for method in ("sdp", "nlp", "sequential"):
-        run(method, None, warm_plant, warm.poles)
-    for n in all_sizes:
-        if n not in sizes:  # draw (and discard) this size's targets: later sizes get the same ones
-            for p in dict.fromkeys(pf(n) for _, _, pf, _ in configs):
-                for _ in range(reps):
-                    random_target(rng, n, p)
+    warm = random_target(np.random.default_rng(99), 3, 2)   # imports and first calls out of the timing
+    solve_inverse_kalman(prepare_inverse_kalman(warm[0]), warm[1].poles)
+    kalman_for_poles(warm[0], warm[1].poles, method="nlp")
+    if args.profile:
+        text = profile([(20, 4), (40, 8)], args.seed)
+        (OUT / "inverse_kalman_profile.md").write_text(text + "\n", encoding="utf-8")
+        return
+    wanted = SIZES if args.sizes is None else [tuple(int(v) for v in s.split("x"))
+                                                for s in args.sizes.split(",")]
+    rng = np.random.default_rng(args.seed)
+    summaries, raw = [], []
+    for n, p in SIZES:   # every size's targets are drawn, so that a subset gets the full run's targets
+        targets = [t for t in (random_target(rng, n, p) for _ in range(args.reps)) if t is not None]
+        if (n, p) not in wanted:
             continue
-        targets = {}
-        done = set()
-        for method, solver, pfun, nmax in configs:
-            p = pfun(n)
-            label = method if solver is None else f"{method}/{solver.lower()}"
-            if method == "nlp":
-                label += "/ipopt"
-            if n > nmax or (label, p) in done:
-                continue
-            done.add((label, p))
-            if p not in targets:
-                targets[p] = [t for t in (random_target(rng, n, p) for _ in range(reps)) if t is not None]
-            if not targets[p]:
-                rows.append({"method": label, "p": p, "n": n, "time": float("nan"), "ok": "-",
-                             "err_med": float("nan"), "err_max": float("nan"), "floor": float("nan"),
-                             "status": "no target: the filter ARE of a random plant is not solvable"})
-                print(f"n={n:2d} p={p} {label:18s} no solvable random target", flush=True)
-                continue
-            floor = [eigenvalue_rounding_floor(plant.A - are.L @ plant.C) for plant, are in targets[p]]
-            if statistics.median(floor) > 1e-3:
-                rows.append({"method": label, "p": p, "n": n, "time": float("nan"), "ok": "-",
-                             "err_med": float("nan"), "err_max": float("nan"),
-                             "floor": statistics.median(floor),
-                             "status": "not run: the target poles themselves are not computable"})
-                print(f"n={n:2d} p={p} {label:18s} not run (floor {floor[0]:.1e}, ...)", flush=True)
-                continue
-            out = [run(method, solver, plant, are.poles) for plant, are in targets[p]]
-            errs = [o["err"] for o in out]
-            rows.append({
-                "method": label, "p": p, "n": n,
-                "time": statistics.median(o["time"] for o in out),
-                "ok": f"{sum(o['success'] for o in out)}/{len(out)}",
-                "err_med": statistics.median(errs), "err_max": max(errs),
-                "floor": statistics.median(floor),
-                "status": ",".join(sorted({o["status"] for o in out})),
-            })
-            r = rows[-1]
-            print(f"n={n:2d} p={p} {label:18s} {r['time']:8.3f}s  ok {r['ok']}  pole err {r['err_med']:.1e} "
-                  f"(max {r['err_max']:.1e}, floor {r['floor']:.1e})", flush=True)
-    head = ("| method | p | n | time/design (s) | verified | pole error (median) | pole error (max) | "
-            "rounding floor | statuses |\n|---|---|---|---|---|---|---|---|---|")
-    body = "\n".join(
-        f"| {r['method']} | {r['p']} | {r['n']} | {r['time']:.3f} | {r['ok']} | {r['err_med']:.1e} | "
-        f"{r['err_max']:.1e} | {r['floor']:.1e} | {r['status']} |" for r in rows)
-    note = (f"\n\nRandom continuous-time plants (A ~ N(0, 1/n), C ~ N(0, 1), R = I), targets = poles of "
-            f"the Kalman filter of Q = F F' / n; {reps} target(s) per (p, n), seed {args.seed}.  Pole error: "
-            f"optdesign.classical.placement.pole_error of an independent Riccati solve with the returned Q; "
-            f"rounding floor: 10 eps max_i kappa_i ||A - LC|| / |lambda_i| of the target filter (the "
-            f"accuracy to which its poles can be computed at all).  'verified' counts designs passing every "
-            f"check (pole tolerance max(1e-8, floor), floor capped at 1e-6).  Sizes run: "
-            f"{', '.join(map(str, sizes))}.  Machine: {platform.machine()}, "
-            f"Python {platform.python_version()}, single-threaded BLAS, shared with other jobs.\n")
-    table = "# kalman_for_poles: time and accuracy vs n\n\n" + head + "\n" + body + note
-    print("\n" + table)
-    if not args.quick:
-        RESULTS.parent.mkdir(parents=True, exist_ok=True)
-        RESULTS.write_text(table, encoding="utf-8")
-        print(f"written to {RESULTS}")
-    return table
+        res = run_size(n, p, targets, args.slow)
+        raw.append(res)
+        summaries.append(summarize(res))
+    text = ("# kalman_for_poles: the engine without an NLP vs the current verb vs minimal SDPs\n\n"
+            f"`python benchmarks/bench_inverse_kalman.py` -- {platform.machine()}, Python "
+            f"{platform.python_version()}, single-threaded BLAS, CPU seconds per design (medians of "
+            f"{args.reps} targets, seed {args.seed}), the machine shared with other jobs.\n\n"
+            + table(summaries) + "\n\n"
+            "Random continuous plants (A ~ N(0, 1/n), C ~ N(0, 1), R = I), targets = poles of the Kalman "
+            "filter of Q = F F' / n.  'verified': scipy's Riccati solver with the returned Q reproduces the "
+            "targets to their rounding floor (at least 1e-8) and L to 1e-6.  'min-SDP': the issue's "
+            "hand-written minimal cvxpy SDP at the engine's L (a reference for the cost of one SDP at a "
+            "known gain, not a design: its point is not polished).  'engine vs nlp objective': trace Q of "
+            "the engine vs the NLP's (both local optima over L; 1e-7 relative is 'equal').  With one output "
+            "the poles fix L: the engine is the fixed-gain SDP on Clarabel in its smallest form "
+            "(P = P0 + N X N').  '-': not run (the verb at (40, 8) took 533 s per design in the README's "
+            "run; `--slow` runs it).\n")
+    print("\n" + text)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "inverse_kalman.md").write_text(text, encoding="utf-8")
+    with open(OUT / "inverse_kalman.csv", "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        keys = ["engine_t", "engine_ok", "engine_obj", "engine_status", "nlp_t", "nlp_ok", "nlp_obj", "sdp_t",
+                "sdp_ok", "sdp_obj", "min_t", "min_reuse_t", "min_obj", "floor"]
+        w.writerow(["n", "p", "target"] + keys)
+        for res in raw:
+            for i, row in enumerate(res["rows"]):
+                w.writerow([res["n"], res["p"], i] + [row.get(k, "") for k in keys])
+    (OUT / "inverse_kalman.json").write_text(json.dumps({"summaries": summaries, "raw": raw}, indent=1,
+                                                        default=float), encoding="utf-8")
+    print(f"written to {OUT}/inverse_kalman.{{md,csv,json}}")
 
 
 if __name__ == "__main__":

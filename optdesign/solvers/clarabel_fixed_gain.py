@@ -45,6 +45,8 @@ from ..results import Status
 __all__ = [
     "CLARABEL_STATUS",
     "CLARABEL_OPTIONS",
+    "CLARABEL_RETRIES",
+    "GAIN_RELATION_RTOL",
     "FamilyMap",
     "family_map",
     "FixedGainFamily",
@@ -75,6 +77,15 @@ CLARABEL_STATUS: dict[str, Status] = {
 CLARABEL_OPTIONS: dict[str, Any] = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
                                     "max_iter": 400}
 
+#: settings tried in turn after a numerical failure (InsufficientProgress, NumericalError): stronger
+#: static regularization, then no equilibration (measured: each rescues single-output cases)
+CLARABEL_RETRIES: tuple[dict[str, Any], ...] = ({}, {"static_regularization_constant": 1e-7},
+                                                 {"equilibrate_enable": False})
+
+#: ``C K`` must be symmetric for a symmetric P with ``P C' = K`` to exist; beyond this relative
+#: asymmetry (half the digits) the gain is not a Kalman gain and the family is empty
+GAIN_RELATION_RTOL = float(np.sqrt(np.finfo(float).eps))
+
 _SQRT2 = float(np.sqrt(2.0))
 
 
@@ -82,7 +93,8 @@ def _import_clarabel():
     try:
         import clarabel
     except ImportError as exc:  # pragma: no cover - clarabel is a dependency of the SDP extra
-        raise BackendUnavailableError("the inverse Kalman engine needs Clarabel: pip install clarabel") from exc
+        raise BackendUnavailableError("the fixed-gain SDP on Clarabel needs Clarabel: pip install clarabel") \
+            from exc
     return clarabel
 
 
@@ -184,7 +196,7 @@ class FixedGainFamily:
     T: NDArray[np.float64]
     scale: float
     gain_residual: float
-    LRL: NDArray[np.float64] = field(repr=False, default=None)
+    LRL: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
 
     def P_of(self, x: NDArray) -> NDArray[np.float64]:
         N = self.map.N
@@ -202,7 +214,8 @@ class FixedGainFamily:
         return 0.5 * (Q + Q.T)
 
 
-def fixed_gain_family(fmap: FamilyMap, L: NDArray, R: NDArray, Q_nominal: NDArray | None = None) -> FixedGainFamily:
+def fixed_gain_family(fmap: FamilyMap, L: NDArray, R: NDArray,
+                      Q_nominal: NDArray | None = None) -> FixedGainFamily:
     """The family of ``(P, Q)`` for the gain ``L`` ((n, p)) and measurement noise ``R``."""
     A, C = fmap.A, fmap.C
     L = np.asarray(L, dtype=float)
@@ -222,7 +235,7 @@ def fixed_gain_family(fmap: FamilyMap, L: NDArray, R: NDArray, Q_nominal: NDArra
     P0 = K @ Cp.T + Cp @ K.T - Cp @ S @ Cp.T
     P0 = 0.5 * (P0 + P0.T)
     LRLs = 0.5 * (LRL + LRL.T) / s
-    if fmap.dt is None:
+    if fmap.T is not None:   # continuous time: the plant's own map
         Q0 = LRLs - A @ P0 - P0 @ A.T
         T = fmap.T
     else:
@@ -248,8 +261,9 @@ class FixedGainSolution:
     t : float or None
         The margin (objective ``"feasibility"``).
     iterations : int
+        Over all attempts (:data:`CLARABEL_RETRIES`).
     solve_time : float
-        Clarabel's own time (seconds).
+        Clarabel's own time (seconds), over all attempts.
     """
 
     status: Status
@@ -319,7 +333,7 @@ def _svec_rows(n: int) -> NDArray[np.float64]:
     return S
 
 
-def _cone_data(clarabel, family: FixedGainFamily, structure: str, G: NDArray | None, feas: bool):
+def _cone_data(clarabel, family: FixedGainFamily, structure: str, G: NDArray, feas: bool):
     """``(A blocks, b blocks, cones, Mw, nw)`` of the constraints; ``Mw`` maps ``svec(Q)`` to the
     decision (None for "full"), ``nw`` counts extra variables (w-form for a G of dependent
     columns)."""
@@ -379,6 +393,12 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
     deadline : Deadline, optional
         Its remaining time becomes Clarabel's ``time_limit``.
 
+    Returns
+    -------
+    FixedGainSolution
+        Status ``infeasible`` without calling Clarabel when ``C K`` is not symmetric (beyond
+        :data:`GAIN_RELATION_RTOL`): no symmetric P satisfies ``P C' = K`` -- a proof.
+
     Raises
     ------
     ValidationError
@@ -390,19 +410,24 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
     if structure not in ("full", "input", "diagonal"):
         raise ValidationError(f"structure must be 'full', 'input' or 'diagonal'; found {structure!r}")
     if objective not in ("min_trace", "nearest", "feasibility"):
-        raise ValidationError(f"objective must be 'min_trace', 'nearest' or 'feasibility'; found {objective!r}")
+        raise ValidationError(f"objective must be 'min_trace', 'nearest' or 'feasibility'; "
+                              f"found {objective!r}")
     if structure != "full" and G is None:
         raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
     if objective == "nearest" and Q_nominal is None:
         raise ValidationError("objective='nearest' needs Q_nominal")
     G = None if G is None else np.asarray(G, dtype=float)
+    if family.gain_residual > GAIN_RELATION_RTOL:   # no symmetric P has P C' = K: a proof
+        return FixedGainSolution(Status.INFEASIBLE, f"gain relation: ||C K - (C K)'|| / max(1, ||C K||) = "
+                                 f"{family.gain_residual:.3g}", None, None, None, None, 0, 0.0)
     s = family.scale
     n = family.Q0.shape[0]
     T = family.T
     nx = T.shape[1]
     b0 = svec(family.Q0)
     feas = objective == "feasibility"
-    A_rows, b, cones, Mw, nw = _cone_data(clarabel, family, structure, G, feas)
+    Gm = np.eye(n) if G is None else G
+    A_rows, b, cones, Mw, nw = _cone_data(clarabel, family, structure, Gm, feas)
     nz = nx + nw + (1 if feas else 0)
     q = np.zeros(nz)
     Pm = sp.csc_matrix((nz, nz))
@@ -422,15 +447,22 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
             q[:nx] = Mq.T @ (off - tgt)
         else:
             tgt = svec(Qn) if structure == "input" else np.diag(Qn).copy()
-            Pm = sp.csc_matrix((np.ones(nw), (np.arange(nx, nx + nw), np.arange(nx, nx + nw))), shape=(nz, nz))
+            iw = np.arange(nx, nx + nw)
+            Pm = sp.csc_matrix((np.ones(nw), (iw, iw)), shape=(nz, nz))
             q[nx:nx + nw] = -tgt
     Am = sp.csc_matrix(np.vstack(A_rows))
-    solver = clarabel.DefaultSolver(Pm, q, Am, np.concatenate(b), cones, _settings(clarabel, options, deadline))
-    sol = solver.solve()
-    native = str(sol.status)
-    status = CLARABEL_STATUS.get(native, Status.SOLVER_ERROR)
-    it = int(getattr(sol, "iterations", 0) or 0)
-    stime = float(getattr(sol, "solve_time", 0.0) or 0.0)
+    bv = np.concatenate(b)
+    it, stime = 0, 0.0
+    for retry in CLARABEL_RETRIES:   # a numerical failure (not a verdict) is retried
+        sol = clarabel.DefaultSolver(Pm, q, Am, bv, cones,
+                                     _settings(clarabel, {**(options or {}), **retry}, deadline)).solve()
+        native = str(sol.status)
+        status = CLARABEL_STATUS.get(native, Status.SOLVER_ERROR)
+        it += int(getattr(sol, "iterations", 0) or 0)
+        stime += float(getattr(sol, "solve_time", 0.0) or 0.0)
+        if status not in (Status.NUMERICAL_ERROR, Status.SOLVER_ERROR) or (
+                deadline is not None and deadline.expired):
+            break
     if not status.is_solved:
         return FixedGainSolution(status, native, None, None, None, None, it, stime)
     zv = np.asarray(sol.x, dtype=float)
@@ -440,9 +472,9 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
         Wdec = Q
     elif Mw is not None:
         wv = Mw @ (b0 + T @ zv[:nx])
-        Wdec = s * (smat(wv, G.shape[1]) if structure == "input" else wv)
+        Wdec = s * (smat(wv, Gm.shape[1]) if structure == "input" else wv)
     elif structure == "input":
-        Wdec = s * smat(zv[nx:nx + nw], G.shape[1])
+        Wdec = s * smat(zv[nx:nx + nw], Gm.shape[1])
     else:
         Wdec = s * zv[nx:nx + nw]
     t = s * float(zv[-1]) if feas else None
