@@ -71,6 +71,7 @@ _LAZY: dict[str, str] = {
     # inverse Kalman (seed 000)
     "kalman_for_poles": "optdesign.design.inverse_kalman",
     "InverseKalmanResult": "optdesign.design.inverse_kalman",
+    "InverseKalmanProblem": "optdesign.design.inverse_kalman",
     "is_kalman_optimal": "optdesign.design.inverse_kalman",
     "KalmanOptimalityResult": "optdesign.design.inverse_kalman",
     # well-conditioned observers (seed 001)

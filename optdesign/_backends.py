@@ -11,7 +11,7 @@ from typing import Any
 
 from .errors import BackendUnavailableError
 
-__all__ = ["import_casadi", "import_cvxpy", "import_control"]
+__all__ = ["import_casadi", "import_cvxpy", "import_clarabel", "import_control"]
 
 
 def import_casadi() -> Any:
@@ -45,3 +45,14 @@ def import_control(purpose: str = "this") -> Any:
     except ImportError as exc:
         raise BackendUnavailableError(f"{purpose} needs python-control: pip install control") from exc
     return control
+
+
+def import_clarabel() -> Any:
+    """Import Clarabel (used directly for the fixed-gain SDP) or raise
+    :class:`BackendUnavailableError` naming the package to install."""
+    try:
+        import clarabel
+    except ImportError as exc:  # pragma: no cover - clarabel is a hard dependency
+        raise BackendUnavailableError("the fixed-gain SDP on Clarabel needs Clarabel: "
+                                      "pip install clarabel") from exc
+    return clarabel

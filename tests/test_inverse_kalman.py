@@ -146,7 +146,10 @@ def test_example2_every_method_reaches_minus8_minus5():
     for res in results.values():
         _assert_valid(res, plant, target)
         assert pole_error(_are(plant, res.Q).poles, target) < 1e-8
-    assert results["auto"].method == "nlp"
+    # auto = the engine (issue 14: several outputs without an NLP detour), reported as "sdp"
+    assert results["auto"].method == "sdp"
+    assert results["auto"].details["L_source"] == "the inverse Kalman engine"
+    assert results["auto"].objective_value <= np.trace(results["sequential"].Q) + 1e-9
     # the min-trace NLP does not do worse than the sequential member
     assert results["nlp"].objective_value <= np.trace(results["sequential"].Q) + 1e-9
     # the paper's printed Q' is not a valid answer: its ARE poles are far from -8, -5
@@ -170,12 +173,14 @@ def _scipy_are_poles(plant, Q):
 
 @pytest.mark.parametrize("objective", ["min_trace", "feasibility"])
 def test_example2_sdp_with_two_outputs_reaches_minus8_minus5(objective):
-    """method='sdp' with p = 2: L from the NLP, Q from the fixed-gain SDP at that L (the
-    objective's optimum over the gain's family -- never worse than the NLP's own Q)."""
+    """method='sdp' with p = 2: L from the inverse Kalman engine (it used to come from the NLP:
+    issue 14), Q from the fixed-gain SDP at that L (the objective's optimum over the gain's family
+    -- never worse than the NLP's own Q)."""
     prob = problems.load("chang_lee_1984_ex2")
     plant, target = prob.plant, prob.targets["poles"]
     res = kalman_for_poles(plant, target, method="sdp", objective=objective)
-    assert res.method == "sdp" and res.status.is_solved and res.details["L_source"] == "the NLP"
+    assert res.method == "sdp" and res.status.is_solved
+    assert res.details["L_source"] == "the inverse Kalman engine"
     _assert_valid(res, plant, target)
     L, poles = _scipy_are_poles(plant, res.Q)
     assert pole_error(poles, [-8.0, -5.0]) < 1e-8
@@ -185,7 +190,7 @@ def test_example2_sdp_with_two_outputs_reaches_minus8_minus5(objective):
         assert res.objective_value <= nlp.objective_value * (1 + 1e-9)
     else:
         assert res.objective_value >= nlp.objective_value * (1 - 1e-9)
-    assert "fixed-gain SDP" in res.message and "from the NLP" in res.message
+    assert "fixed-gain SDP" in res.message and "inverse Kalman engine" in res.message
 
 
 # ---------------------------------------------------------- double integrator (issue 3)
@@ -542,9 +547,13 @@ def test_target_at_an_eigenvalue_of_A_uses_the_state_space_nlp():
                   R=np.eye(2))
     target = filter_are(plant.replace(Q=np.diag([0.0, 1.0, 2.0]))).poles
     assert np.min(np.abs(target + 1.0)) < 1e-9  # -1 is unexcited, so it stays
-    res = kalman_for_poles(plant, target)
+    res = kalman_for_poles(plant, target, method="nlp")
     _assert_valid(res, plant, target)
     assert res.details["formulation"] == "state-space"
+    # the default route: the engine does not apply there, the SDP route (L from that NLP) answers
+    auto = kalman_for_poles(plant, target)
+    _assert_valid(auto, plant, target)
+    assert auto.details["L_source"] == "the NLP"
 
 
 # ------------------------------------------------------------------- structured Q

@@ -38,9 +38,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .._backends import import_clarabel
 from .._deadline import Deadline
-from ..errors import BackendUnavailableError, ValidationError
+from ..errors import ValidationError
 from ..results import Status
+from .status import CLARABEL_STATUS
 
 __all__ = [
     "CLARABEL_STATUS",
@@ -58,20 +60,6 @@ __all__ = [
 ]
 
 #: Clarabel's native statuses (``str(solution.status)``) in the one status set
-CLARABEL_STATUS: dict[str, Status] = {
-    "Solved": Status.OPTIMAL,
-    "AlmostSolved": Status.OPTIMAL_INACCURATE,
-    "PrimalInfeasible": Status.INFEASIBLE,
-    "AlmostPrimalInfeasible": Status.INFEASIBLE_INACCURATE,
-    "DualInfeasible": Status.UNBOUNDED,
-    "AlmostDualInfeasible": Status.UNBOUNDED,
-    "MaxIterations": Status.ITERATION_LIMIT,
-    "MaxTime": Status.TIME_LIMIT,
-    "NumericalError": Status.NUMERICAL_ERROR,
-    "InsufficientProgress": Status.NUMERICAL_ERROR,
-    "CallbackTerminated": Status.SOLVER_ERROR,
-    "Unsolved": Status.SOLVER_ERROR,
-}
 
 #: tight defaults (as :data:`optdesign.solvers.cvxpy_backend.DEFAULT_OPTIONS` for Clarabel)
 CLARABEL_OPTIONS: dict[str, Any] = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
@@ -87,15 +75,6 @@ CLARABEL_RETRIES: tuple[dict[str, Any], ...] = ({}, {"static_regularization_cons
 GAIN_RELATION_RTOL = float(np.sqrt(np.finfo(float).eps))
 
 _SQRT2 = float(np.sqrt(2.0))
-
-
-def _import_clarabel():
-    try:
-        import clarabel
-    except ImportError as exc:  # pragma: no cover - clarabel is a dependency of the SDP extra
-        raise BackendUnavailableError("the fixed-gain SDP on Clarabel needs Clarabel: pip install clarabel") \
-            from exc
-    return clarabel
 
 
 def _svec_index(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
@@ -406,7 +385,7 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
     """
     import scipy.sparse as sp
 
-    clarabel = _import_clarabel()
+    clarabel = import_clarabel()
     if structure not in ("full", "input", "diagonal"):
         raise ValidationError(f"structure must be 'full', 'input' or 'diagonal'; found {structure!r}")
     if objective not in ("min_trace", "nearest", "feasibility"):

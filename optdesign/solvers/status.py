@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from ..results import Status
 
-__all__ = ["IPOPT_STATUS", "CVXPY_STATUS", "map_status"]
+__all__ = ["IPOPT_STATUS", "CVXPY_STATUS", "CLARABEL_STATUS", "map_status"]
 
 #: IPOPT ``return_status`` strings (as reported by CasADi's ``stats()``).
 IPOPT_STATUS: dict[str, Status] = {
@@ -46,6 +46,23 @@ CVXPY_STATUS: dict[str, Status] = {
     "unbounded_inaccurate": Status.UNBOUNDED,
     "user_limit": Status.ITERATION_LIMIT,
     "solver_error": Status.SOLVER_ERROR,
+}
+
+#: Clarabel's own ``SolverStatus`` names (the fixed-gain SDP solved on Clarabel directly,
+#: :mod:`optdesign.solvers.clarabel_fixed_gain`)
+CLARABEL_STATUS: dict[str, Status] = {
+    "Solved": Status.OPTIMAL,
+    "AlmostSolved": Status.OPTIMAL_INACCURATE,
+    "PrimalInfeasible": Status.INFEASIBLE,
+    "AlmostPrimalInfeasible": Status.INFEASIBLE_INACCURATE,
+    "DualInfeasible": Status.UNBOUNDED,
+    "AlmostDualInfeasible": Status.UNBOUNDED,
+    "MaxIterations": Status.ITERATION_LIMIT,
+    "MaxTime": Status.TIME_LIMIT,
+    "NumericalError": Status.NUMERICAL_ERROR,
+    "InsufficientProgress": Status.NUMERICAL_ERROR,
+    "CallbackTerminated": Status.SOLVER_ERROR,
+    "Unsolved": Status.SOLVER_ERROR,
 }
 
 _TABLES = {"ipopt": IPOPT_STATUS, "cvxpy": CVXPY_STATUS}

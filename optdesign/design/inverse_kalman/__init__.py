@@ -81,7 +81,7 @@ from .common import METHODS
 from .optimality import is_kalman_optimal
 from .results import InfeasibilityCertificate, InverseKalmanResult, KalmanOptimalityResult
 from .sdp_stage import sdp_reuse
-from .verb import kalman_for_poles
+from .verb import InverseKalmanProblem, kalman_for_poles
 
 __all__ = [
     "METHODS",
@@ -90,6 +90,7 @@ __all__ = [
     "InfeasibilityCertificate",
     "InverseKalmanResult",
     "kalman_for_poles",
+    "InverseKalmanProblem",
     "KalmanOptimalityResult",
     "is_kalman_optimal",
     "sdp_reuse",

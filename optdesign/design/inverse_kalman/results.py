@@ -44,10 +44,10 @@ class InfeasibilityCertificate(Certificate):
     circle : CircleConditionResult or None
         The full frequency scan (:func:`optdesign.analysis.robustness.circle_condition`).
     closest_poles : (n,) ndarray of complex or None
-        Closest achievable poles (smallest :func:`~optdesign.classical.placement.pole_error` found) and the corresponding
-        design: the best of a scaled nominal noise, the closest-poles NLP (which keeps the
-        target's real/complex pattern) and a multi-start Nelder-Mead search on the pole error
-        over the noise parameters (where there are at most 10 of them).  The pattern may differ
+        Closest achievable poles (smallest :func:`~optdesign.classical.placement.pole_error`
+        found) and the corresponding design: the best of a scaled nominal noise, the closest-poles
+        NLP (which keeps the target's real/complex pattern) and a multi-start Nelder-Mead search on
+        the pole error over the noise parameters (where there are at most 10 of them).  The pattern may differ
         from the target's.  A local search: evidence, not proof.
     closest_pole_error : float or None
         :func:`~optdesign.classical.placement.pole_error` of ``closest_poles`` against the target.

@@ -23,12 +23,15 @@ from ...formulate.inverse_kalman import (
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Status
+from ...solvers.inverse_kalman_engine import EngineSetup
 from ..verification import pole_tolerance
 from .certificates import identity_certificate
 from .common import METHODS, empty_result, make_stats, nominal_noise, quiet, stable_poles, verify_design
+from .engine_route import engine_setup, engine_warm_start, run_engine
 from .nlp_route import run_nlp
 from .results import InfeasibilityCertificate, InverseKalmanResult
 from .sdp_route import fixed_gain_design, run_sdp
+from .sdp_stage import sdp_solvers
 
 
 def kalman_for_poles(
@@ -65,12 +68,17 @@ def kalman_for_poles(
     poles : (n,) array_like of complex
         Target error poles, closed under conjugation.
     method : {"auto", "sdp", "nlp", "sequential"}
-        ``"sdp"``: one output -- L is fixed by the poles, the fixed-gain SDP (cvxpy, then
-        polished) gives Q; several outputs -- L from the NLP (else the sequential method),
-        then the fixed-gain SDP at that L gives the objective's optimum over its family of Q;
+        ``"sdp"`` (= ``"auto"``): the inverse Kalman engine
+        (:mod:`optdesign.solvers.inverse_kalman_engine`) -- one output: L is fixed by the poles and
+        the fixed-gain SDP (on Clarabel, polished) gives Q, globally; several outputs: L and Q
+        together (the eigenvector parametrization of the gains with the target poles, Newton on
+        the feasible set), certified by the fixed-gain SDP at the final L.  Where the engine does
+        not apply (a target at an eigenvalue of A or of its mirror image), another SDP solver is
+        asked for, or its design does not verify: the cvxpy fixed-gain SDP (one output) or L from
+        the NLP then that SDP (several);
         ``"nlp"``: CasADi/IPOPT over ``(L, P, Q = F F')`` (any number of outputs; local);
         ``"sequential"``: Solheim's method (:func:`optdesign.classical.solheim`; structure
-        ``"full"``, objective ignored); ``"auto"``: ``"sdp"`` for one output, else ``"nlp"``.
+        ``"full"``, objective ignored).
     objective : {"min_trace", "nearest", "feasibility"}
     Q_nominal : array_like, optional
         For ``"nearest"``: (n, n) for ``"full"``, (m, m) (compared with Qw) otherwise.
@@ -131,50 +139,137 @@ def kalman_for_poles(
     >>> res.success, res.L.ravel().round(9).tolist()
     (True, [8.0, -6.0])
     """
-    dl = Deadline(time_limit)
-    nlp = _nlp_settings(nlp_options)
     structure = renamed("q_structure", q_structure, "structure", structure, "full")
     solver = renamed("sdp_solver", sdp_solver, "solver", solver, None)
-    plant = as_plant(plant, R=R, G=G)
-    check_choice("method", method, METHODS)
-    check_choice("objective", objective, OBJECTIVES)
-    check_choice("structure", structure, STRUCTURES)
-    tol = as_positive_float("tol", tol)
-    seed = as_int("seed", seed, 0)
-    if plant.R is None:
-        raise ValidationError("kalman_for_poles needs the measurement-noise covariance R: the plant has no R")
-    target = as_poles("poles", poles, plant.n)
-    Qn = nominal_noise(plant, structure, objective, Q_nominal)
-    plant.require_observable(what="placing every filter pole")
-    p = plant.p
-    if method == "auto":
-        method = "sdp" if p == 1 else "nlp"
-    if method == "sequential" and structure != "full":
-        raise ValidationError("method='sequential' (Solheim) gives a full Q; use structure='full'")
-    common = dict(target_poles=target, method=method, objective=objective, structure=structure, plant=plant)
+    problem = InverseKalmanProblem(plant, q_structure=structure, objective=objective, Q_nominal=Q_nominal,
+                                   sdp_solver=solver, R=R, G=G, tol=tol, nlp_options=nlp_options)
+    return problem.solve(poles, method=method, seed=seed, time_limit=time_limit)
 
-    disc = plant.is_discrete
-    if not np.all(stable_poles(target, disc)):
-        bad = target[~stable_poles(target, disc)]
-        where = "inside the unit circle" if disc else "in the open left half-plane"
-        cert = InfeasibilityCertificate(
-            kind="unstable_target",
-            reason=f"target pole(s) {', '.join(_fmt(z) for z in bad)} not {where}: every steady-state "
-                   f"Kalman filter is stable")
-        return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
-                      make_stats("none", t=dl.elapsed))
-    cert = identity_certificate(plant, target)
-    if cert is not None:
-        return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
-                      make_stats("analytic", t=dl.elapsed))
-    if objective == "min_trace" and open_loop_target(plant, target, tol):
-        return zero_noise_design(plant, target, common, tol, dl)
 
-    with quiet():
+class InverseKalmanProblem:
+    """The inverse Kalman question for one plant, held by the caller and solved for many targets.
+
+    Built once from the plant and the fixed choices (structure and objective of Q, nominal, solver,
+    tolerances); :meth:`solve` answers for target poles, as :func:`kalman_for_poles` does (which is
+    ``InverseKalmanProblem(plant, ...).solve(poles, ...)``).  What does not depend on the target is
+    validated and built once: the plant's observability, the engine's per-plant state (the family
+    map of the fixed-gain SDP).  A sweep over targets holds one problem and passes the previous
+    answer as ``warm_start``.
+
+    Parameters
+    ----------
+    plant : Plant, python-control StateSpace or scipy StateSpace / lti / dlti
+    q_structure, objective, Q_nominal, sdp_solver, R, G, tol, nlp_options
+        As for :func:`kalman_for_poles`.
+
+    Examples
+    --------
+    >>> from optdesign import Plant
+    >>> prob = InverseKalmanProblem(Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]]))
+    >>> [round(float(prob.solve([-5 * s, -8 * s]).objective_value), 4) for s in (1, 2)]
+    [92.3341, 4870.4279]
+    """
+
+    def __init__(self, plant: Plant | Any, *, q_structure: str = "full", objective: str = "min_trace",
+                 Q_nominal: ArrayLike | None = None, sdp_solver: str | None = None,
+                 R: ArrayLike | None = None, G: ArrayLike | None = None, tol: float = 1e-8,
+                 nlp_options: dict[str, Any] | None = None):
+        plant = as_plant(plant, R=R, G=G)
+        check_choice("objective", objective, OBJECTIVES)
+        check_choice("q_structure", q_structure, STRUCTURES)
+        self.tol = as_positive_float("tol", tol)
+        if plant.R is None:
+            raise ValidationError("kalman_for_poles needs the measurement-noise covariance R: the plant has "
+                                  "no R")
+        self.nlp = _nlp_settings(nlp_options)
+        self.plant, self.structure, self.objective, self.solver = plant, q_structure, objective, sdp_solver
+        self.Qn = nominal_noise(plant, q_structure, objective, Q_nominal)
+        plant.require_observable(what="placing every filter pole")
+        self._engine: EngineSetup | None = None
+
+    def engine(self) -> EngineSetup:
+        """The inverse Kalman engine's per-plant state (built on first use)."""
+        if self._engine is None:
+            self._engine = engine_setup(self.plant, self.structure, self.objective)
+        return self._engine
+
+    def solve(self, poles: ArrayLike, *, method: str = "auto", seed: int = 0,
+              time_limit: float | None = None, warm_start: Any = None) -> InverseKalmanResult:
+        """Process noise ``Q >= 0`` whose steady-state Kalman filter has these poles.
+
+        Parameters
+        ----------
+        poles : (n,) array_like of complex
+        method : {"auto", "sdp", "nlp", "sequential"}
+            As for :func:`kalman_for_poles`.
+        seed : int
+        time_limit : float, optional
+        warm_start : InverseKalmanResult or array_like, optional
+            A previous answer (or its decision covariance) for a nearby target: the engine starts
+            from it.
+
+        Returns
+        -------
+        InverseKalmanResult
+        """
+        dl = Deadline(time_limit)
+        plant, structure, objective, tol = self.plant, self.structure, self.objective, self.tol
+        check_choice("method", method, METHODS)
+        seed = as_int("seed", seed, 0)
+        target = as_poles("poles", poles, plant.n)
+        if method == "sequential" and structure != "full":
+            raise ValidationError("method='sequential' (Solheim) gives a full Q; use q_structure='full'")
+        common = dict(target_poles=target, method="sdp" if method == "auto" else method, objective=objective,
+                      structure=structure, plant=plant)
+        early = self._early_answer(target, common, dl)
+        if early is not None:
+            return early
+        with quiet():
+            if method in ("auto", "sdp") and self._engine_usable():
+                warm = (engine_warm_start(warm_start) if isinstance(warm_start, InverseKalmanResult)
+                        else warm_start)
+                res = run_engine(self.engine(), target, common, self.Qn, tol, seed, dl, warm)
+                if res is not None:
+                    return res
+            return self._route(method, target, common, seed, dl)
+
+    def _engine_usable(self) -> bool:
+        """The engine certifies with Clarabel: used unless another SDP solver was asked for or
+        Clarabel is not installed (then the SDP route runs, and says what to install)."""
+        return (self.solver is None or str(self.solver).upper() == "CLARABEL") and "CLARABEL" in sdp_solvers()
+
+    def _early_answer(self, target, common, dl) -> InverseKalmanResult | None:
+        """The answers that need no solver: an unstable target, an identity every Kalman filter
+        satisfies, the open-loop poles (Q = 0)."""
+        plant = self.plant
+        disc = plant.is_discrete
+        if not np.all(stable_poles(target, disc)):
+            bad = target[~stable_poles(target, disc)]
+            where = "inside the unit circle" if disc else "in the open left half-plane"
+            cert = InfeasibilityCertificate(
+                kind="unstable_target",
+                reason=f"target pole(s) {', '.join(_fmt(z) for z in bad)} not {where}: every steady-state "
+                       f"Kalman filter is stable")
+            return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+                                make_stats("none", t=dl.elapsed))
+        cert = identity_certificate(plant, target)
+        if cert is not None:
+            return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+                                make_stats("analytic", t=dl.elapsed))
+        if self.objective == "min_trace" and open_loop_target(plant, target, self.tol):
+            return zero_noise_design(plant, target, common, self.tol, dl)
+        return None
+
+    def _route(self, method, target, common, seed, dl) -> InverseKalmanResult:
+        """The SDP / NLP / sequential routes (where the engine does not apply or did not verify)."""
+        plant, Qn, solver, tol, nlp = self.plant, self.Qn, self.solver, self.tol, self.nlp
+        if method == "auto":
+            method = "sdp"
+        common = {**common, "method": method}
         if method == "sequential":
             return run_sequential(plant, target, common, tol, dl)
         if method == "sdp":
-            if p > 1:
+            if plant.p > 1:
                 return run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl, nlp)
             return run_sdp(plant, target, common, Qn, solver, tol, seed, dl)
         return run_nlp(plant, target, common, Qn, solver, tol, seed, dl, nlp)

@@ -1,0 +1,78 @@
+"""The inverse Kalman engine as the first route of :func:`kalman_for_poles` (``method="sdp"`` /
+``"auto"``): :mod:`optdesign.solvers.inverse_kalman_engine` finds L and Q together (one output: the
+fixed-gain SDP at the gain the poles fix; several outputs: the eigenvector parametrization of the
+gains with the target poles and a Newton method on the feasible set, certified by the fixed-gain SDP
+at the final gain).  Its answer is verified here like every design; a target it does not apply to,
+or an answer that does not verify, falls back to the SDP / NLP routes."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..._deadline import Deadline
+from ...errors import RiccatiError
+from ...model.plant import Plant
+from ...results import Status
+from ...solvers.inverse_kalman_engine import (
+    EngineSetup,
+    engine_applies,
+    prepare_inverse_kalman,
+    solve_inverse_kalman,
+)
+from .common import empty_result, make_stats, objective_of, verify_design
+from .results import InverseKalmanResult
+
+__all__ = ["engine_setup", "run_engine"]
+
+
+def engine_setup(plant: Plant, structure: str, objective: str) -> EngineSetup:
+    """The engine's per-plant state (built once by a problem object, or per call)."""
+    return prepare_inverse_kalman(plant, q_structure=structure, objective=objective)
+
+
+def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: NDArray | None, tol: float,
+               seed: int, dl: Deadline, warm_start: NDArray | None = None) -> InverseKalmanResult | None:
+    """The engine's design, verified independently, or None (fall back to the other routes): the
+    engine does not apply (a target at an eigenvalue of A or of its mirror image), found nothing,
+    or its design fails a check.  A time limit that runs out inside the engine is returned as
+    such (nothing is lost: the other routes would have no time either)."""
+    if not engine_applies(setup, target):
+        return None
+    plant, structure, objective = setup.plant, common["structure"], common["objective"]
+    try:
+        er = solve_inverse_kalman(setup, target, Q_nominal=Qn, seed=seed, time_limit=dl, tol=tol,
+                                  warm_start=warm_start)
+    except (np.linalg.LinAlgError, RiccatiError):  # e.g. a repeated one-output target: the SDP route
+        return None                                 # (Ackermann's gain) answers it
+    extra: dict[str, Any] = {"engine": er.details, "engine_message": er.message}
+    if plant.p > 1:
+        extra["L_source"] = "the inverse Kalman engine"
+    if er.L is not None and (er.status.is_solved or er.status == Status.TIME_LIMIT):
+        ver, poles = verify_design(plant, target, er.L, er.P, er.Q, er.Qw, structure, tol)
+        if ver.passed:
+            Wdec = er.Q if structure == "full" else er.Qw
+            st = er.solver_stats
+            return InverseKalmanResult(
+                L=er.L, Q=er.Q, Qw=er.Qw, P=er.P, poles=poles, status=er.status,
+                message=f"inverse Kalman engine: {er.message}",
+                solver_stats=make_stats(st.backend or "engine", st.native_status, dl.elapsed, er.iterations,
+                                        rank=er.rank),
+                verification=ver, certificate=None,
+                objective_value=objective_of(objective, er.Q, Wdec if Wdec is not None else er.Q, Qn),
+                extra=extra, **common)
+    if er.status == Status.TIME_LIMIT or dl.expired:
+        return empty_result(common, Status.TIME_LIMIT, f"time limit reached in the inverse Kalman engine "
+                            f"({dl}): {er.message}", None, make_stats("engine", "time_limit", dl.elapsed),
+                            details=extra)
+    return None
+
+
+def engine_warm_start(result: InverseKalmanResult) -> NDArray | None:
+    """The decision covariance of a verified design, as a warm start for a nearby target."""
+    if not result.success:
+        return None
+    W = result.Q if result.structure == "full" else result.Qw
+    return None if W is None else np.array(W, dtype=float)
