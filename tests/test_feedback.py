@@ -56,6 +56,7 @@ def test_place_is_the_dual_of_the_observer_and_a_place_poles_drop_in(name):
 
 
 def test_place_against_python_control():
+    pytest.importorskip("slycot", reason="python-control's place_varga needs slycot (the test extra has it)")
     A, B, poles, _ = _AB("pp_knv1985_ex1")
     res = place(A, B, poles, starts=2)
     for K in (control.place(A, B, poles), control.place_varga(A, B, poles)):

@@ -185,7 +185,14 @@ def test_infeasible_bound_answers_with_a_verified_farkas_certificate():
     # no gain has a smaller H2 on a model than that model's Kalman filter: the bound is truly infeasible
     kalman = max(h2_by_lyapunov(pl, filter_are(pl).L) for pl in ms)
     res = robust_lmi_observer(ms, region=REGION, h2_max=0.5 * kalman, dense_points=0)
-    assert res.status == Status.INFEASIBLE and not res.success
+    assert not res.success
+    if "returned no dual certificate" in res.message:
+        # older backends (cvxpy 1.4 with Clarabel 0.6) report "infeasible" without the dual ray: no
+        # certificate to check, so the honest answer is "not found", never "infeasible"
+        assert res.status == Status.NOT_FOUND and res.certificate is None or \
+            res.certificate.kind != "lmi_farkas"
+        return
+    assert res.status == Status.INFEASIBLE
     cert = res.certificate
     assert cert.kind == "lmi_farkas" and cert.verified
     assert cert.c0 < 0 and cert.radius > 1e8 * cert.scale
