@@ -130,6 +130,23 @@ def test_history_and_record(pp_results):
     assert d.gain_norm == pytest.approx(np.linalg.norm(d.L, 2))
 
 
+def test_starts_stop_at_the_lower_bound_of_kappa2():
+    """kappa2 >= 1 always: a verified design at 1 is a global optimum, the remaining starts cannot do
+    better and are not run (COMPleib AC1 in its suggested region: 25 s -> 3 s of CPU with starts=8)."""
+    plant = Plant([[0.0, 1.0, 0.0], [-2.0, -3.0, 1.0], [0.0, 0.0, -1.0]], np.eye(3))  # C = I: normal
+    d = well_conditioned_observer(plant, poles=[-1.0, -2.0, -3.0])
+    assert d.success and len(d.starts) == 1 and d.kappa2 <= 1 + kappa2_agreement_tol(1.0)
+    assert "stopped after 1 of 8 starts: kappa2 = 1 is its lower bound" in d.message
+    assert d.solver_stats.extra["planned_starts"] == 8
+    ac4 = problems.load("compleib_ac4").plant
+    d = well_conditioned_observer(ac4, region=suggested_region(ac4))
+    assert d.success and len(d.starts) < 8 and d.kappa2 == pytest.approx(1.0, abs=1e-6)
+    assert "is its lower bound (a global optimum)" in d.message
+    # a bound the design does not reach: every start runs
+    pr = problems.load("pp_byers3")
+    assert len(well_conditioned_observer(pr.plant, poles=pr.targets["poles"], starts=3).starts) == 3
+
+
 def test_multiplicity_above_rank_is_infeasible_with_certificate():
     pr = problems.load("pp_chowkokotovic")  # single output, pole -1 twice
     d = well_conditioned_observer(pr.plant, poles=pr.targets["poles"], starts=1)
@@ -264,7 +281,9 @@ def test_trade_off_eta_with_kappa2_bound():
     Issue 11: on another CPU (or with OPENBLAS_CORETYPE=Prescott) the bounded design ended at the
     iteration limit from both starts: the bound through the order-4096 surrogate (nearly the nonsmooth
     max of the singular values) in badly scaled coordinates made IPOPT's path depend on the last digits
-    of the start.  Now each of the verb's own starts converges, alone, to the same optimum.
+    of the start.  Now each of the verb's own starts converges, alone, to a verified design.  (Which of
+    the two local optima, eta 34.54 or 35.05, a start reaches still depends on those digits: measured
+    with 1e-12 perturbations of the starts; both are asserted only through the bounds.)
     """
     pr = problems.load("pp_byers3")
     plant, P = pr.plant, pr.targets["poles"]
@@ -276,8 +295,7 @@ def test_trade_off_eta_with_kappa2_bound():
     assert e_bnd.kappa2 <= bound * (1 + 1e-6)
     assert e_bnd.eta >= e_only.eta * (1 - 1e-6)  # the bound costs some eta
     assert e_bnd.n_converged == 2, [(r.origin, r.status, r.kappa2) for r in e_bnd.starts]
-    etas = [r.eta for r in e_bnd.starts]
-    assert max(etas) == pytest.approx(min(etas), rel=1e-6)  # the same optimum from YT and from KNV0
+    assert all(r.kappa2 <= bound * (1 + 1e-6) and r.eta >= e_only.eta * (1 - 1e-6) for r in e_bnd.starts)
     k_bnd = well_conditioned_observer(plant, poles=P, objective="kappa2", eta_max=1.1 * e_only.eta, starts=2)
     assert k_bnd.success and k_bnd.eta <= 1.1 * e_only.eta * (1 + 1e-6)
 
@@ -674,6 +692,29 @@ def test_region_builder_parametric_decay():
         assert np.max(np.linalg.eigvals(plant.A - L @ plant.C).real) <= -decay + 1e-7
 
 
+def test_eigenvector_coordinates():
+    """The rescaled null-space basis spans the same space, its eigenvector part is orthonormal, the
+    coordinates map exactly; a direction without eigenvector part (rank C < p) keeps unit scale."""
+    from scipy.linalg import null_space
+
+    from optdesign.formulate.well_conditioned import eigenvector_coordinates
+
+    rng = np.random.default_rng(8)
+    plant = random_observable_plant(rng, 5, 2, noise=False)
+    cases = ((100.0 * plant.C, -1.5), (plant.C, -1.0 + 2.0j), (np.vstack([plant.C[0], plant.C[0]]), -2.0))
+    for C, lam in cases:
+        N = null_space(np.vstack([plant.A - lam * np.eye(5), C]).T)
+        Nw, Tinv = eigenvector_coordinates(N, 5)
+        assert np.linalg.matrix_rank(np.hstack([N, Nw]), tol=1e-8) == N.shape[1]  # the same span
+        c = rng.standard_normal(N.shape[1])
+        np.testing.assert_allclose(Nw @ (Tinv @ c), N @ c, atol=1e-12)
+        s = np.linalg.svd(Nw[:5], compute_uv=False)
+        if np.linalg.matrix_rank(C) == C.shape[0]:
+            np.testing.assert_allclose(s, 1.0, rtol=1e-12)
+        else:  # g C = 0 has a solution: one direction has no eigenvector part, and keeps norm 1
+            assert s[-1] < 1e-12 and np.all(np.isfinite(Nw)) and s[0] == pytest.approx(1.0, rel=1e-12)
+
+
 def test_real_modal_basis_and_random_assignment():
     rng = np.random.default_rng(3)
     plant = random_observable_plant(rng, 5, 2, noise=False)
@@ -786,6 +827,8 @@ def test_argument_errors_are_typed():
         well_conditioned_observer(plant, poles=P, structure=[[True, False], [True]])
     with pytest.raises(ValidationError, match=r"objective must be one of .*; found array"):
         well_conditioned_observer(plant, poles=P, objective=np.array(["kappa2", "eta"]))
+    with pytest.raises(ValidationError, match=r"solver must be 'ipopt' .*; found array"):
+        well_conditioned_observer(plant, poles=P, solver=np.array(["ipopt", "snopt"]))
     for bad in (("1", "2"), (1.0, 2.0, 3.0), (1.0, float("nan"))):
         with pytest.raises(ValidationError, match=r"q_range must be a pair \(lo, hi\) of numbers"):
             well_conditioned_kalman(plant, q_range=bad)

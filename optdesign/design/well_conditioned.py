@@ -81,6 +81,7 @@ __all__ = [
     "solve_nlp",
     "pick_best",
     "design_outcome",
+    "objective_lower_bound",
 ]
 
 #: continuation stages of the free-pole NLP (the fixed-pole polish at its poles runs them all):
@@ -283,7 +284,7 @@ def _check_mask(structure: Any, n: int, p: int) -> NDArray[np.bool_] | None:
 
 
 def _check_solver(solver: Any) -> None:
-    if solver != "ipopt":
+    if not isinstance(solver, str) or solver != "ipopt":
         raise ValidationError(f"solver must be 'ipopt' (CasADi/IPOPT is the NLP backend); found {solver!r}")
 
 
@@ -584,13 +585,13 @@ def solve_nlp(nlp, options: dict[str, Any], deadline: Deadline):
     configure = not nlp.solver_ready
     opts = options
     cap = getattr(nlp, "solver_wall_time", None)
-    if deadline.limited:
+    if deadline.limit is not None:
         rem = deadline.remaining()
         wall = deadline.ipopt_options()["ipopt.max_wall_time"]
         user = options.get("ipopt.max_wall_time")
         if user is not None:
             wall = min(wall, float(user))
-        if configure or cap is None or cap > rem + max(0.1 * float(deadline.limit), 0.05):
+        if configure or cap is None or cap > rem + max(0.1 * deadline.limit, 0.05):
             configure, cap = True, wall
         opts = {**options, "ipopt.max_wall_time": cap}
     elif cap is not None:  # configured under an earlier budget: lift it
@@ -698,13 +699,28 @@ def _rank_key(obj: float, v: Verification, c: Candidate, idx: int = 0) -> tuple[
     return (rank, obj if math.isfinite(obj) else float("inf"), idx)
 
 
-def _solve_starts(starts_list, runner, objective, evaluate, deadline: Deadline):
+def objective_lower_bound(objective: str, n: int) -> float | None:
+    """The smallest value the objective can take: kappa2 >= 1, kappa_fro >= n (unit columns:
+    ``||V||_F = sqrt(n) <= ||V^-1||_F``); None for eta (0 only for a normal ``A - LC``, which a
+    relative test cannot confirm)."""
+    return {"kappa2": 1.0, "kappa_fro": float(n)}.get(objective)
+
+
+def _attains(bound: float | None, obj: float, v: Verification, cand: Candidate) -> bool:
+    """A solved, verified design at its objective's lower bound, to the accuracy of a computed kappa2
+    (:func:`kappa2_agreement_tol`): a global optimum, no other start can do better."""
+    return (bound is not None and v.passed and Status(cand.status).is_solved
+            and obj <= bound * (1.0 + kappa2_agreement_tol(bound)))
+
+
+def _solve_starts(starts_list, runner, objective, evaluate, deadline: Deadline, lower_bound=None):
     """Run the starts through ``runner(L0, structure, first)`` (-> candidates); keep each start's best
-    verified candidate.  No start after the first is begun once ``deadline`` has expired."""
+    verified candidate.  No start after the first is begun once ``deadline`` has expired, nor once a
+    design attains ``lower_bound`` (the objective's, :func:`objective_lower_bound`)."""
     records: list[StartRecord] = []
     evaluated: list[tuple[float, int, dict, Verification, Candidate]] = []
     for idx, (origin, L0, structure) in enumerate(starts_list):
-        if idx and deadline.expired:
+        if idx and (deadline.expired or any(_attains(lower_bound, e[0], e[3], e[4]) for e in evaluated)):
             break
         hist = runner(L0, structure, idx == 0)
         if not hist:
@@ -794,6 +810,10 @@ def _result_from(plant, records, evaluated, *, objective, target, region, deadli
                           **(kalman or {}))
     (obj, idx, m, v, cand), status, msg = design_outcome(records, evaluated, objective, deadline=deadline,
                                                          planned=planned)
+    bound = objective_lower_bound(objective, plant.n)
+    if status.is_solved and len(records) < planned and _attains(bound, obj, v, cand):
+        msg += (f"; stopped after {len(records)} of {planned} starts: {objective} = {bound:g} is its lower "
+                "bound (a global optimum)")
     stats = SolverStats(
         backend="ipopt",
         native_status=cand.native,
@@ -956,7 +976,9 @@ def well_conditioned_observer(
         gain for ``Q = I, R = I``, the others YT at poles sampled in the region
         (:meth:`Region.sample_poles`) with the real/complex patterns of :func:`start_real_counts`
         (the ``j``-th sampled start takes ``start_real_count(n, j)``); Kalman gains replace
-        placements when the plant is unobservable.
+        placements when the plant is unobservable.  No further start is run once a solved,
+        verified design attains the objective's lower bound (kappa2 = 1, kappa_fro = n, to the
+        accuracy of a computed kappa2): a global optimum.
     seed : int, default 0
         Seed of every random choice (reproducible).
     solver : {"ipopt"}
@@ -1123,7 +1145,8 @@ def _fixed_design(plant, target, objective, bounds, starts, rng, scaling, opts, 
     def runner(L0, st, first):
         return _run_start(nlp, L0, objective, opts, check, deadline=deadline, force=first)
 
-    records, evaluated = _solve_starts(start_list, runner, objective, evaluate, deadline)
+    records, evaluated = _solve_starts(start_list, runner, objective, evaluate, deadline,
+                                       objective_lower_bound(objective, n))
     return _result_from(plant, records, evaluated, objective=objective, target=target, region=None,
                         deadline=deadline, planned=len(start_list))
 
@@ -1221,7 +1244,8 @@ def _region_design(plant, region, objective, bounds, starts, rng, scaling, opts,
                 hist += fixed_at(Pb, Lyt)
         return hist
 
-    records, evaluated = _solve_starts(start_list, runner, objective, evaluate, deadline)
+    records, evaluated = _solve_starts(start_list, runner, objective, evaluate, deadline,
+                                       objective_lower_bound(objective, n))
     return _result_from(plant, records, evaluated, objective=objective, target=None, region=region,
                         deadline=deadline, planned=len(start_list))
 
@@ -1636,7 +1660,7 @@ def _kalman_starts(base: Plant, q_structure: str, lo: float, hi: float, starts: 
         No start has one.
     """
     m = base.m
-    Q0 = base.Q
+    Q0 = np.asarray(base.Q, dtype=float)
     mults = np.geomspace(lo, hi, starts) if starts > 1 else np.array([math.sqrt(lo * hi)])
     start_list = []
     for k, q in enumerate(mults):

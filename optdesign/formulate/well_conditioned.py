@@ -122,9 +122,10 @@ def check_q_structure(q_structure: Any) -> str:
 KAPPA2_STAGES = (0, 3, 6, 9, 12)
 #: continuation stages of the kappa2 *bound* (``kappa2_max``) when another metric is minimized.
 #: The surrogate of order 4096 is nearly the nonsmooth max of the singular values: on Byers 3
-#: (minimize eta with kappa2 <= 1.2 x its minimum) IPOPT ended at the iteration limit from 1 in 3
-#: starts perturbed by 1e-10 (rounding, another CPU), while the order-64 bound converged from all
-#: 24 such starts (kappa2 0.9999 x the bound); the later stages are polished from there
+#: (minimize eta with kappa2 <= 1.2 x its minimum; YT, KNV0 and kappa2's optimum as starts, each
+#: perturbed by 1e-10 eight times: rounding on another CPU) the order-4096 bound alone ended at the
+#: iteration limit from 6 of 24 starts (13 of 24 in the old, unscaled null-space coordinates), the
+#: order-64 bound from none (kappa2 0.9999 x the bound); the later stages polish from there
 KAPPA2_BOUND_STAGES = (6, 9, 12)
 #: order 2**GAIN_BOUND_STAGE of the trace power bounding ||L||_2
 GAIN_BOUND_STAGE = 10
@@ -519,9 +520,9 @@ class ObserverNLP:
             opti.set_value(self.params["kappa2_max"], float(kappa2_max))
             # phi_k <= log kappa2_max for the stage k = 2**J selected by a one-hot parameter
             # (set_bound_stage; default the last, k = 4096)
-            self._bound_w = opti.parameter(len(KAPPA2_STAGES))
-            opti.set_value(self._bound_w, np.eye(len(KAPPA2_STAGES))[-1])
-            phi = sum((self._bound_w[k] * self.k2_terms[J] for k, J in enumerate(KAPPA2_STAGES)), ca.MX(0))
+            bound_w = self._bound_w = opti.parameter(len(KAPPA2_STAGES))
+            opti.set_value(bound_w, np.eye(len(KAPPA2_STAGES))[-1])
+            phi = sum((bound_w[k] * self.k2_terms[J] for k, J in enumerate(KAPPA2_STAGES)), ca.MX(0))
             opti.subject_to(phi <= ca.log(self.params["kappa2_max"]))
         if eta_max is not None:
             self.params["eta_max"] = opti.parameter()

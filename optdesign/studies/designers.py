@@ -300,14 +300,13 @@ class RegionSweepDesigner:
                                       "eta_max": "eta_max"}
 
     def __post_init__(self) -> None:
-        from ..formulate.well_conditioned import OBJECTIVES
+        from ..formulate.well_conditioned import check_objective
 
-        if self.objective not in OBJECTIVES:
-            raise ValidationError(f"objective must be one of {OBJECTIVES}; found {self.objective!r}")
+        check_objective(self.objective)
         if self.region is not None and not isinstance(self.region, Region):
             raise ValidationError("region must be an optdesign.regions.Region; found "
                                   f"{type(self.region).__name__}")
-        if self.placement not in ("always", "fallback"):
+        if not isinstance(self.placement, str) or self.placement not in ("always", "fallback"):
             raise ValidationError(f"placement must be 'always' or 'fallback'; found {self.placement!r}")
         as_int("starts", self.starts, 1)
         as_int("seed", self.seed, 0)
@@ -745,7 +744,7 @@ def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> Pla
     """
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
-    if method not in ("YT", "KNV0"):
+    if not isinstance(method, str) or method not in ("YT", "KNV0"):
         raise ValidationError(f"method must be 'YT' or 'KNV0'; found {method!r}")
     from ..classical.placement import place_observer
     from ..design.well_conditioned import POLE_TOL, Candidate, evaluate_candidate
@@ -800,7 +799,7 @@ class KalmanNoiseDesigner:
     AXES: ClassVar[dict[str, str]] = {"q": "process-noise multiplier", "r": "measurement-noise multiplier"}
 
     def __post_init__(self) -> None:
-        if self.method not in ("scipy", "hamiltonian"):
+        if not isinstance(self.method, str) or self.method not in ("scipy", "hamiltonian"):
             raise ValidationError(f"method must be 'scipy' or 'hamiltonian'; found {self.method!r}")
         _plant_of(self.problem, self.plant, "KalmanNoiseDesigner").require_noise_model()
 
@@ -875,21 +874,21 @@ class PoleTargetDesigner:
         from ..design.inverse_kalman import OBJECTIVES as INVERSE_OBJECTIVES
         from ..formulate.well_conditioned import OBJECTIVES as WC_OBJECTIVES
 
-        if self.method not in self.METHODS:
+        if not isinstance(self.method, str) or self.method not in self.METHODS:
             raise ValidationError(f"method must be one of {', '.join(self.METHODS)}; found {self.method!r}")
-        if self.inverse_method not in INVERSE_METHODS:
+        if not isinstance(self.inverse_method, str) or self.inverse_method not in INVERSE_METHODS:
             raise ValidationError(f"inverse_method must be one of {', '.join(INVERSE_METHODS)}; found "
                                   f"{self.inverse_method!r}")
         if self.objective is not None:
             allowed = {"inverse": INVERSE_OBJECTIVES, "well_conditioned": WC_OBJECTIVES}.get(self.method, ())
-            if self.objective not in allowed:
+            if not isinstance(self.objective, str) or self.objective not in allowed:
                 raise ValidationError(f"objective must be one of {', '.join(allowed) or '(none)'} for method "
                                       f"{self.method!r}; found {self.objective!r}")
         as_int("starts", self.starts, 1)
         as_int("seed", self.seed, 0)
         as_bool("reuse", self.reuse)
         if self.poles is not None:
-            object.__setattr__(self, "poles", tuple(complex(z) for z in np.asarray(self.poles).ravel()))
+            object.__setattr__(self, "poles", tuple(complex(z) for z in as_poles("poles", self.poles)))
         plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")
         as_poles("poles", self.target(), plant.n)
 
