@@ -121,6 +121,7 @@ from .._deadline import as_time_limit
 from .._validate import as_matrix, as_options, as_poles
 from ..classical.placement import place_observer, pole_error
 from ..errors import DimensionError, NotObservableError, ValidationError
+from ..model.coerce import as_plant
 from ..model.noise import NoiseModel
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
@@ -150,8 +151,7 @@ def _fmt(z: complex) -> str:
 
 
 def _check_plant(plant: Any, what: str) -> Plant:
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    plant = as_plant(plant)
     if not plant.is_discrete:
         raise ValidationError(
             f"{what} needs a discrete-time plant (Plant(..., dt=T)): the noise models are polynomials in "

@@ -58,6 +58,7 @@ from ..formulate.well_conditioned import (
     check_q_structure,
     random_gain_for_poles,
 )
+from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, _golden_argmin, stability_region
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
@@ -254,9 +255,8 @@ def _n_converged(records: tuple[StartRecord, ...] | list[StartRecord]) -> int:
 
 
 def _check_plant(plant: Any) -> Plant:
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
-    return plant
+    """The plant of a Plant or a python-control / scipy system (:func:`optdesign.as_plant`)."""
+    return as_plant(plant)
 
 
 def _check_mask(structure: Any, n: int, p: int) -> NDArray[np.bool_] | None:
