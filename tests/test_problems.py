@@ -154,7 +154,7 @@ def test_tag_and_kind_filters():
     assert len(problems.names(kind="riccati_care")) == 20
     assert len(problems.names(kind="riccati_dare")) == 19
     assert len(problems.names(kind="plant")) == 30
-    assert len(problems.names(kind="pole_placement")) == 11
+    assert len(problems.names(kind="pole_placement")) == 31
     assert len(problems.names(tag="kf")) == 5
     assert problems.names(tag="seed000", kind="riccati_care") == []
     assert problems.names(tag="no-such-tag") == []

@@ -35,7 +35,9 @@ COMPleib (``plant``)
     when ``D21 D21'`` is PD, else ``R = I``; the cross-covariance ``B1 D21'`` is dropped.
 Pole placement (``pole_placement``)
     State feedback ``eig(A - B K) = poles``; the plant is the observer dual ``(A', B')`` so that
-    ``L = K'`` gives ``eig(A' - L B') = poles``.
+    ``L = K'`` gives ``eig(A' - L B') = poles``.  Besides the collection: the Byers-Nash set of 11
+    systems (from harold's tests) and Chu's 2007 set of 9 examples (from ControlToolbox.jl), whose
+    numbers are held in this script (:data:`BYERS_NASH_SET`, :data:`CHU_SET`) with their sources.
 Kalman references (``kalman``, ``kalman_step``)
     Plant ``(A, C, G, Q, R, dt)`` as given; references as published.
 """
@@ -497,6 +499,383 @@ def import_poleplacement(entries: dict) -> list[dict]:
     return out
 
 
+# --------------------------------------------------------------------------- Byers-Nash and Chu sets
+# Copied by hand from the two public collections below (never read at run time); every entry is
+# state feedback eig(A - B K) = poles, imported like the pole-placement collection above.
+HAROLD_SOURCE = (
+    "ilayn/harold@1e8c948c0db34816393df44a29e5d3939c99876f harold/tests/test_static_ctrl_design.py "
+    "(byersnash_A_B_test_pairs, system {ex} of 11)"
+)
+CHU_SOURCE = (
+    "JuliaSystems/ControlToolbox.jl@2fd4e255ecf284e0d844032a90a2a965c20fc19b test/design/place.jl "
+    "(example {ex}; the same data at 44e54ed2943b3501c32e0377850bbbdf72ce7210)"
+)
+BYERS_NASH_CITATION = (
+    'R. Byers and S. G. Nash, "Approaches to robust pole assignment", Int. J. Control 49 (1989) '
+    "97-117: test system {ex} of 11 ({title})"
+)
+CHU_CITATION = (
+    'E. K. Chu, "Pole assignment via the Schur form", Systems & Control Letters 56 (2007) 303-314, '
+    "example {ex} ({title})"
+)
+_POLES_CHOSEN = (
+    "targets.poles are NOT from the paper: the harold collection holds the (A, B) pairs only, and the "
+    "paper's target poles were not available here; -1, ..., -n is this library's choice (the target of "
+    "systems 3, 9 and 11 of the set)"
+)
+
+
+def _cplx(values: list) -> dict:
+    z = np.asarray(values, dtype=complex)
+    return {"re": z.real.tolist(), "im": z.imag.tolist()}
+
+
+_D5, _D51, _D52 = np.diag([1, 10, 0.1, 0.1, 10]), np.diag([1, 0.1, 10, 10, 0.1]), np.diag([1e5, 1e2])
+_A5 = [
+    [-1.29e-1, 0, 3.96e-2, 2.5e-2, 1.91e-2],
+    [3.29e-3, 0, -7.79e-5, 1.22e-4, -6.21e-1],
+    [7.18e-2, 0, -1e-1, 8.87e-4, -3.85],
+    [4.11e-2, 0, 0, -8.22e-2, 0],
+    [3.51e-4, 0, 3.5e-5, 4.26e-5, -7.43e-2],
+]
+_B5 = [[0, 1.39e-3], [0, 3.59e-5], [0, -9.89e-3], [2.49e-5, 0], [0, -5.34e-6]]
+_KNV1_A = [
+    [1.38, -0.2077, 6.715, -5.676],
+    [-0.5814, -4.29, 0, 0.675],
+    [1.067, 4.273, -6.654, 5.893],
+    [0.048, 4.273, 1.343, -2.104],
+]
+_KNV1_B = [[0, 0], [5.679, 0], [1.136, -3.146], [1.136, 0]]
+_CHU1_A = [
+    [1.38, -2.077e-1, 6.715, -5.67],
+    [-5.814e-1, -4.29, 0, 6.77e-1],
+    [1.067, 4.273, -6.654, 5.893],
+    [4.8e-2, 4.273, 1.343, -2.104],
+]
+
+#: (title, A, B, poles, where the poles come from or None when chosen here, notes)
+BYERS_NASH_SET = [
+    (
+        "chemical reactor (Munro 1979)",
+        _KNV1_A,
+        _KNV1_B,
+        [-0.2, -0.5, -5.0566, -8.6659],
+        "Kautsky, Nichols & Van Dooren (1985) example 1 (pp_knv1985_ex1; Chu 2007 example 1)",
+        "Same A, B as pp_knv1985_ex1.",
+    ),
+    (
+        "distillation column (Klein & Moore 1977)",
+        [
+            [-0.1094, 0.0628, 0, 0, 0],
+            [1.306, -2.132, 0.9807, 0, 0],
+            [0, 1.595, -3.149, 1.547, 0],
+            [0, 0.0355, 2.632, -4.257, 1.855],
+            [0, 0.0023, 0, 0.1636, -0.1625],
+        ],
+        [[0, 0], [0.638, 0], [0.0838, -0.1396], [0.1004, -0.206], [0.0063, -0.0128]],
+        [-0.2, -0.5, -1, -1 + 1j, -1 - 1j],
+        "Kautsky, Nichols & Van Dooren (1985) example 2 (Chu 2007 example 2)",
+        "Transcription variant: harold has B[1, 0] = 0.638 where pp_knv1985_ex2 (Modelica) and Chu 2007 have "
+        "0.0638, and A[4, 1] = 0.0023 where Modelica has 0.00227; copied as harold has them.",
+    ),
+    (
+        "nuclear rocket engine (Davison & Chow 1974)",
+        [[-65.0, 65, -19.5, 19.5], [0.1, -0.1, 0, 0], [1, 0, -0.5, -1], [0, 0, 0.4, 0]],
+        [[65.0, 0], [0, 0], [0, 0], [0, 0.4]],
+        [-1, -2, -3, -4],
+        "pp_byers3 (Modelica) and Chu 2007 example 3",
+        "Same A, B as pp_byers3; Chu 2007 has A[0, 3] = 19.4 (transcription variant).",
+    ),
+    (
+        "MIMO system (Atkinson 1985)",
+        [[0, 1, 0], [0, 0, 1], [-6, -11, -6]],
+        [[1, 1], [0, 1], [1, 1]],
+        [-1, -2, -3],
+        "pp_byers4 (Modelica) and Chu 2007 example 4",
+        "Same A, B as pp_byers4.",
+    ),
+    (
+        "drum boiler (Bengtsson 1973)",
+        [
+            [-0.129, 0, 0.396, 0.25, 0.00191],
+            [0.0329, 0, -0.00779, 0.0122, -0.621],
+            [0.00718, 0, -0.1, 0.000887, -0.0385],
+            [0.00411, 0, 0, -0.0822, 0],
+            [0.00351, 0, 0.0035, 0.00426, -0.0743],
+        ],
+        [[0, 0.1390], [0, 0.0359], [0, -0.0989], [0.0249, 0], [0, -0.00534]],
+        [-0.01, -0.02, -0.03, -0.04, -0.05],
+        "pp_byers5 (Modelica) and Chu 2007 example 5",
+        "harold stores the scaled matrices D A0 D1, D B0 D2 (D = diag(1, 10, .1, .1, 10), D1 = "
+        "diag(1, .1, 10, 10, .1), "
+        "D2 = diag(1e4, 100)), as pp_byers5; Chu 2007 scales the first input by 1e5 instead "
+        "(pp_chu2007_ex5).",
+    ),
+    (
+        "Miminis random example 1",
+        [
+            [5.8765, 9.3456, 4.5634, 9.3520],
+            [6.6526, 0.5867, 3.5829, 0.6534],
+            [0, 9.6738, 7.4876, 4.7654],
+            [0, 0, 6.6784, 2.5678],
+        ],
+        [[3.9878, 0.5432], [0, 2.7650], [0, 0], [0, 0]],
+        [-29.4986, -10.0922, 2.5201 + 6.891j, 2.5201 - 6.891j],
+        "pp_byers6 (Modelica) and Chu 2007 example 6",
+        "Same A, B as pp_byers6; two target poles are unstable (a state-feedback benchmark).",
+    ),
+    (
+        "Miminis random example 2 (8 states, 3 inputs)",
+        [
+            [0.5257, 0.8544, 0.5596, 0.5901, 0.0259, 0.6213, 0.7227, 0.5617],
+            [0.9931, 0.0643, 0.1249, 0.3096, 0.5174, 0.3455, 0.8977, 0.4682],
+            [0.6489, 0.8279, 0.7279, 0.2552, 0.3917, 0.7065, 0.2428, 0.7795],
+            [0.9923, 0.9262, 0.2678, 0.6252, 0.2414, 0.5211, 0.4338, 0.9677],
+            [0, 0.5667, 0.5465, 0.1157, 0.5064, 0.2870, 0.7901, 0.9809],
+            [0, 0, 0.8672, 0.6117, 0.4236, 0.6503, 0.5069, 0.8187],
+            [0, 0, 0, 0, 0.2894, 0.0881, 0.5233, 0.4257],
+            [0, 0, 0, 0, 0, 0.4499, 0.5597, 0.2462],
+        ],
+        [
+            [0.9230, 0.3950, 0.8325],
+            [0, 0.0366, 0.6105],
+            [0, 0, 0.1871],
+            [0, 0, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+        ],
+        [-1, -2, -3, -4, -5, -6, -7, -8],
+        None,
+        "",
+    ),
+    (
+        "aircraft control example I (Kautsky & Nichols 1983)",
+        [
+            [0, 1, 0, 0],
+            [1.40e-4, -2.04, -1.95, -1.33e-2],
+            [-2.51e-4, 1, -1.32, -2.38e-2],
+            [-5.61e-1, 0, 0.358, -2.79e-1],
+        ],
+        [[0, 0, 0], [-5.33, 6.45e-3, -2.67e-1], [-1.60e-1, -1.16e-2, -2.51e-1], [0, 1.06e-1, 8.62e-2]],
+        [-1, -2, -3, -4],
+        None,
+        "",
+    ),
+    (
+        "aircraft control example II (Kautsky & Nichols 1983)",
+        [
+            [0, 1, 0, 0],
+            [5.32e-7, -4.18e-1, -0.12, -2.32e-2],
+            [-4.62e-9, 1, -0.752, -2.39e-2],
+            [-5.61e-1, 0, 0.3, -1.74e-2],
+        ],
+        [[0, 0], [-1.72e-1, 7.45e-6], [-2.82e-2, -7.78e-5], [0, 3.69e-3]],
+        [-1, -2, -3, -4],
+        "Chu 2007 example 8",
+        "Chu 2007 has A[1, 3] = +2.32e-2, A[3, 2] = -0.3 and B[2, 0] = -2.38e-2 (transcription "
+        "variants); copied as "
+        "harold has them.",
+    ),
+    (
+        "symmetric example (Kautsky & Nichols 1983)",
+        [
+            [-3.624, 4.9567e-2, -2.4564e-1, 1.3853e-2],
+            [3.3486e-1, -1.8875, -8.1251e-1, -2.8102e-1],
+            [-1.9958e-1, -1.1335, -2.2039, -4.5523e-1],
+            [1.3784e-1, -4.7140e-1, -3.3229e-1, -4.0605],
+        ],
+        np.array(
+            [[2.3122e-1, 3.0761e-1, 3.6164e-1, 3.3217e-1], [8.8339e-1, 2.1460e-1, 5.6642e-1, 5.0153e-1]]
+        ).T.tolist(),
+        [-1, -2, -3, -4],
+        None,
+        "",
+    ),
+    (
+        "ill-conditioned example (Byers & Nash 1989)",
+        [[0, 0, 0, 0], [1, 10, 100, 1000], [0, 1, 10, 100], [0, 0, 1, 10]],
+        [[1, 0], [0, 1], [0, 0], [0, 0]],
+        [-1, -2, -3, -4],
+        "Chu 2007 example 9",
+        "",
+    ),
+]
+
+#: (title, A, B, poles, kappa2 bound, ||F||_F bound of the source's test, notes)
+CHU_SET = [
+    (
+        "chemical reactor (KNV 1985 example 1)",
+        _CHU1_A,
+        _KNV1_B,
+        [-0.2, -0.5, -5.0566, -8.6659],
+        5,
+        5,
+        "Transcription variant of pp_knv1985_ex1: A[0, 3] = -5.67 (KNV: -5.676), A[1, 3] = 0.677 "
+        "(KNV: 0.675).",
+    ),
+    (
+        "distillation column (KNV 1985 example 2)",
+        [
+            [-1.094e-1, 6.28e-2, 0, 0, 0],
+            [1.306, -2.132, 9.87e-1, 0, 0],
+            [0, 1.595, -3.149, 1.547, 0],
+            [0, 3.55e-2, 2.632, -4.257, 1.855],
+            [0, 2.3e-3, 0, 1.636e-1, -1.625e-1],
+        ],
+        [[0, 0], [6.38e-2, 0], [8.38e-2, -1.396e-1], [1.004e-1, -2.06e-1], [6.3e-3, -1.28e-2]],
+        [-0.2, -0.5, -1, -1 + 1j, -1 - 1j],
+        1000,
+        200,
+        "Transcription variant of pp_knv1985_ex2: A[1, 2] = 0.987 (KNV: 0.9807), A[4, 1] = 0.0023 "
+        "(Modelica: 0.00227).",
+    ),
+    (
+        "nuclear rocket engine",
+        [[-65.0, 65, -19.5, 19.4], [0.1, -0.1, 0, 0], [1, 0, -0.5, -1], [0, 0, 0.4, 0]],
+        [[65.0, 0], [0, 0], [0, 0.4], [0, 0]],
+        [-1, -2, -3, -4],
+        50,
+        100,
+        "Differs from pp_byers3 beyond transcription: A[0, 3] = 19.4 (Byers: 19.5) and the second "
+        "input enters the "
+        "third state (B[2, 1] = 0.4) where pp_byers3 has it in the fourth.",
+    ),
+    (
+        "MIMO system (Atkinson 1985)",
+        [[0, 1, 0], [0, 0, 1], [-6, -11, -6]],
+        [[1, 1], [0, 1], [1, 1]],
+        [-1, -2, -3],
+        1000,
+        1,
+        "Same A, B as pp_byers4.",
+    ),
+    (
+        "drum boiler, scaled",
+        (_D5 @ np.array(_A5) @ _D51).tolist(),
+        (_D5 @ np.array(_B5) @ _D52).tolist(),
+        [-0.01, -0.02, -0.03, -0.04, -0.05],
+        1000,
+        5,
+        "A = D A0 D1, B = D B0 D2 with D = diag(1, 10, .1, .1, 10), D1 = diag(1, .1, 10, 10, .1), D2 "
+        "= diag(1e5, 1e2), "
+        "evaluated here from the source's A0, B0 (pp_byers5 uses D2 = diag(1e4, 100): a different "
+        "input scaling).",
+    ),
+    (
+        "Miminis random example 1",
+        [
+            [5.8765, 9.3456, 4.5634, 9.3520],
+            [6.6526, 0.5867, 3.5829, 0.6534],
+            [0, 9.6738, 7.4876, 4.7654],
+            [0, 0, 6.6784, 2.5678],
+        ],
+        [[3.9878, 0.5432], [0, 2.7650], [0, 0], [0, 0]],
+        [-29.4986, -10.0922, 2.5201 + 6.891j, 2.5201 - 6.891j],
+        5,
+        50,
+        "Same A, B as pp_byers6.",
+    ),
+    (
+        "chemical reactor with a repeated complex pair",
+        _CHU1_A,
+        _KNV1_B,
+        [-0.5 + 1j, -0.5 - 1j, -0.5 + 1j, -0.5 - 1j],
+        1e12,
+        5,
+        "The source's comment reads 'pole of multiplicity 4 > rank(B) = 2'; that is not what the "
+        "data ask: each of "
+        "-0.5 +- 1j appears twice, a multiplicity equal to rank(B) = 2, so a diagonalizable (non-defective) "
+        "closed loop exists (its kappa2 bound 1e12 is loose).",
+    ),
+    (
+        "aircraft control example II (Kautsky & Nichols 1983)",
+        [
+            [0, 1, 0, 0],
+            [5.32e-7, -4.18e-1, -0.12, 2.32e-2],
+            [-4.62e-9, 1, -0.752, -2.39e-2],
+            [-5.61e-1, 0, -0.3, -1.74e-2],
+        ],
+        [[0, 0], [-1.72e-1, 7.45e-6], [-2.38e-2, -7.78e-5], [0, 3.69e-3]],
+        [-1, -2, -3, -4],
+        1000,
+        1000,
+        "Transcription variant of Byers & Nash system 9 (pp_byersnash_09): A[1, 3], A[3, 2] and B[2, "
+        "0] differ.",
+    ),
+    (
+        "ill-conditioned example (Byers & Nash 1989)",
+        [[0, 0, 0, 0], [1, 10, 100, 1000], [0, 1, 10, 100], [0, 0, 1, 10]],
+        [[1, 0], [0, 1], [0, 0], [0, 0]],
+        [-1, -2, -3, -4],
+        1e6,
+        10000,
+        "Same A, B as pp_byersnash_11.",
+    ),
+]
+
+
+def _placement_problem(key, title, A, B, poles, source, notes) -> tuple[str, dict]:
+    """A problem in the schema of the pole-placement collection (through :func:`import_poleplacement`),
+    with this script's own ``notes`` appended."""
+    P = np.asarray(poles, dtype=complex)
+    e = {
+        "title": title,
+        "A": np.asarray(A, dtype=float).tolist(),
+        "B": np.asarray(B, dtype=float).tolist(),
+        "poles": _cplx(poles) if np.any(P.imag != 0) else P.real.tolist(),
+        "source": source,
+        "convention": "state feedback u = -K x, eig(A - B K) = poles; observer: use (A.T, C.T)",
+    }
+    ((group, prob),) = import_poleplacement({key: e})
+    prob["notes"] += "  " + notes
+    return group, prob
+
+
+def import_placement_sets() -> list[tuple[str, dict]]:
+    """The Byers-Nash set (11 systems, from harold's tests) and Chu's 2007 set (9 examples, from
+    ControlToolbox.jl), as pole-placement problems ``pp_byersnash_NN`` and ``pp_chu2007_exN``."""
+    out = []
+    for k, (title, A, B, poles, origin, notes) in enumerate(BYERS_NASH_SET, start=1):
+        origin_note = f"Target poles from {origin}." if origin else _POLES_CHOSEN + "."
+        group, prob = _placement_problem(
+            f"PolePlacement_byersnash_{k:02d}",
+            f"Byers & Nash test system {k}: {title}",
+            A,
+            B,
+            poles,
+            HAROLD_SOURCE.format(ex=k),
+            f"{origin_note} {notes}".strip(),
+        )
+        prob["citation"] = BYERS_NASH_CITATION.format(ex=k, title=title)
+        prob["tags"] = ["benchmark", "poleplacement", "byers_nash"]
+        prob["data"]["poles_origin"] = origin or "optdesign's choice (-1, ..., -n), not from the source"
+        out.append((group, prob))
+    for k, (title, A, B, poles, kbound, cbound, notes) in enumerate(CHU_SET, start=1):
+        group, prob = _placement_problem(
+            f"PolePlacement_chu2007_ex{k}",
+            f"Chu 2007 example {k}: {title}",
+            A,
+            B,
+            poles,
+            CHU_SOURCE.format(ex=k),
+            f"Target poles from the source. {notes}",
+        )
+        prob["citation"] = CHU_CITATION.format(ex=k, title=title)
+        prob["tags"] = ["benchmark", "poleplacement", "chu2007"]
+        prob["references"] = {
+            "kappa2_bound_of_source_test": float(kbound),
+            "gain_fro_bound_of_source_test": float(cbound),
+        }
+        prob["notes"] += (
+            "  references: the source's test asserts cond(V) < kappa2_bound_of_source_test and "
+            "||F||_F < gain_fro_bound_of_source_test for its own design (bounds, not results)."
+        )
+        out.append((group, prob))
+    return out
+
+
 # --------------------------------------------------------------------------- Kalman references
 def import_kf(entries: dict) -> list[dict]:
     out = []
@@ -693,6 +1072,7 @@ def main(argv: list[str] | None = None) -> int:
     for fname, fn in importers.items():
         entries = json.loads((args.src / fname).read_text(encoding="utf-8"))
         generated += fn(entries)
+    generated += import_placement_sets()
 
     names = [p["name"] for _, p in generated]
     dup = {n for n in names if names.count(n) > 1}

@@ -38,15 +38,15 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-
 from scipy.linalg import blas
 
 from .._deadline import Deadline
 
 __all__ = ["QNResult", "bfgs_minimize", "bfgs_minimize_batch"]
 
-#: a batched objective: ``X (k, m) -> (f (k,), G (k, m))``; ``f[i] = inf`` outside the domain
-BatchObjective = Callable[[NDArray[np.float64]], tuple[NDArray[np.float64], NDArray[np.float64]]]
+#: a batched objective: ``X (k, m) -> (f (k,), G (k, m))`` (or ``(X, index)`` with ``pass_index``);
+#: ``f[i] = inf`` outside the domain
+BatchObjective = Callable[..., tuple[NDArray[np.float64], NDArray[np.float64]]]
 #: an objective of one point: ``x -> (f, g)``
 Objective = Callable[[NDArray[np.float64]], tuple[float, NDArray[np.float64] | None]]
 
@@ -177,6 +177,7 @@ def bfgs_minimize_batch(
     c1: float = 1e-4,
     c2: float = 0.9,
     xtol: float = 1e-10,
+    pass_index: bool = False,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
     """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.
 
@@ -203,6 +204,9 @@ def bfgs_minimize_batch(
         Wolfe constants, ``0 < c1 < c2 < 1``.
     xtol : float
         A line search gives up when its bracket ``t ||d|| / (1 + ||x||)`` is below ``xtol``.
+    pass_index : bool
+        Call ``fun(X, index)`` with the rows of ``X0`` that ``X`` holds (objectives with state per
+        start, such as the anchored bases of the region mode).
 
     Returns
     -------
@@ -218,11 +222,12 @@ def bfgs_minimize_batch(
         A start without a finite value (a caller bug: starts are checked before).
     """
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
-    f0, G0 = fun(X0)
+    f0, G0 = fun(X0, np.arange(X0.shape[0])) if pass_index else fun(X0)
     if not np.all(np.isfinite(f0)):
         raise ValueError("bfgs_minimize_batch: the objective is not finite at a start")
     H0 = H0 if H0 is not None else [None] * X0.shape[0]
     mem = [_Member(X0[i].copy(), float(f0[i]), G0[i].copy(), H0[i]) for i in range(X0.shape[0])]
+    index = {id(m): i for i, m in enumerate(mem)}
     running = []
     for m in mem:
         if gtol > 0 and float(np.max(np.abs(m.g))) <= gtol:
@@ -237,7 +242,7 @@ def bfgs_minimize_batch(
                 m.reason = "time_limit"
             break
         T = np.stack([m.trial() for m in running])
-        fT, GT = fun(T)
+        fT, GT = fun(T, np.array([index[id(m)] for m in running])) if pass_index else fun(T)
         still = []
         for i, m in enumerate(running):
             what = m.step(T[i].copy(), float(fT[i]), GT[i].copy(), c1, c2, xtol)

@@ -1,0 +1,778 @@
+r"""Region mode of the eigenstructure engine: the poles are variables too (issue 13).
+
+The well-conditioned observer with poles free in a convex region ``D`` (:mod:`optdesign.regions`)
+minimizes kappa2 jointly over the eigenvector coordinates ``c`` and the poles, on the machinery
+of :mod:`optdesign.solvers.eigenstructure`:
+
+* **Moving subspaces.**  The left eigenvector of pole ``lambda`` lies in ``S(lambda)``
+  (``w (A - lambda I) Z = 0``).  When ``lambda`` moves, the basis moves by *parallel transport*:
+  the basis at a trial pole is the orthonormal basis of ``S(lambda)`` closest to the stage's
+  anchor basis (polar factor of ``N(lambda)^H N_anchor``), so the coordinates keep their meaning
+  and BFGS keeps its curvature information.  Its derivative is the minimal-norm tangent
+  ``dw = dlambda (w Z) M^+`` with ``M = (A - lambda I) Z`` (from ``dw M = w Z dlambda``), which
+  gives ``df/dlambda = Re sum_k conj(K_jk) t_jk`` with the same ``K = df/dW`` as for fixed poles
+  (a pair's ``sigma + j omega`` counts twice, through the row and its conjugate).  The anchor is
+  re-set to the current bases at every continuation stage; a step that would rotate a subspace
+  by more than 60 degrees from its anchor is rejected (value inf), so a stage never leaves the
+  chart where the transport is defined.
+* **The region** enters through a log barrier on its smooth constraints
+  (:meth:`Region.constraints`, exact membership tests, unit-gradient scaling): ``-mu sum_k
+  log(-g_k / rho)`` for every free pole (the upper member of a pair, plus ``Im > 0``), with
+  ``mu`` lowered stage by stage with the kappa2 continuation (``rho``: the region's inner
+  radius).  Iterates stay strictly inside, so every candidate is a feasible design; the final
+  poles sit within ``~mu / |df/dlambda|`` of the boundary where it is active.
+  Central differences of the (at most quadratic) constraints are exact up to rounding.
+* **Unobservable modes** of ``(C, A)`` are eigenvalues of every ``A - L C``: they are pinned
+  (not variables), with their larger subspaces.
+
+Every start gives three candidates, each kept if better: its own gain (e.g. scipy YT at the
+caller's naive poles), the fixed-pole optimum at its poles, and the region optimum followed by
+a fixed-pole polish at the final poles -- so the design is never worse than any start.
+
+References
+----------
+Kautsky, Nichols & Van Dooren (1985); Chilali & Gahinet (1996) for the regions; P.-A. Absil,
+R. Mahony and R. Sepulchre, Optimization Algorithms on Matrix Manifolds (Princeton, 2008),
+ch. 4 and 8 (retractions, vector transport).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._deadline import Deadline
+from .._validate import as_int, as_poles
+from ..errors import DimensionError, ValidationError
+from ..model.regions import Region
+from ..results import Status
+from .eigenstructure import (
+    KAPPA2_CONTINUATION,
+    DefectivePolesError,
+    EigenstructureEngine,
+    FixedPoleModel,
+    padded_bases,
+    spectral_objective,
+)
+from .eigenstructure_fixed import PlacementOutcome, StartRecord, peer_start, run_starts
+from .quasi_newton import bfgs_minimize_batch
+
+__all__ = [
+    "RegionModel",
+    "RegionStart",
+    "QuadraticConstraints",
+    "place_region",
+    "REGION_STAGES",
+    "REGION_FIXED_STAGES",
+    "REGION_WARM_STAGES",
+    "interior_of",
+]
+
+#: continuation of the region mode: (order k of the kappa2 bound or None for the exact function,
+#: barrier weight mu) per stage
+REGION_STAGES: tuple[tuple[int | None, float], ...] = (
+    (4, 1e-2), (64, 1e-3), (1024, 1e-4), (16384, 1e-6), (None, 1e-8)
+)
+#: continuation of the fixed-pole optimization at a start's poles (before its poles are freed)
+REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION
+#: the stages of a warm start (RegionStart.warm): the last two of REGION_STAGES
+REGION_WARM_STAGES: tuple[tuple[int | None, float], ...] = REGION_STAGES[-2:]
+#: smallest singular value of ``N(lambda)^H N_anchor`` accepted (cos 60 degrees)
+_MIN_OVERLAP = 0.5
+#: BFGS iterations per stage in region mode
+_REGION_MAX_ITER = 300
+
+
+@dataclass(frozen=True)
+class RegionStart:
+    """A start of :func:`place_region`: poles strictly inside the region and a gain or coordinates.
+
+    Attributes
+    ----------
+    origin : str
+    poles : (n,) ndarray of complex
+    gain : (n, p) ndarray or None
+        A gain whose left eigenvectors (projected on the subspaces of ``poles``) start the search;
+        None: scipy YT at ``poles`` (one sweep), else random coordinates.
+    warm : bool
+        The start is a converged design of a nearby problem (the previous point of a sweep): only
+        the last continuation stages run (:data:`REGION_WARM_STAGES`), from its fixed-pole polish.
+    """
+
+    origin: str
+    poles: NDArray[np.complex128]
+    gain: NDArray[np.float64] | None = None
+    warm: bool = False
+
+
+class RegionModel:
+    """Coordinates and free poles -> objective (with the region barrier) and gradient.
+
+    The variable vector is ``[c, lambda_real, sigma, omega]``: the eigenvector coordinates in the
+    layout of :class:`~optdesign.solvers.eigenstructure.FixedPoleModel` (free real poles, pinned
+    real poles, free pairs, pinned pairs), then the free real poles, the real and the imaginary
+    parts of the free pairs' upper members.
+
+    Parameters
+    ----------
+    engine : EigenstructureEngine
+    n_real, n_pairs : int
+        Free real poles and free conjugate pairs (``n_real + 2 n_pairs + len(pinned) = n``).
+    region : Region
+    pinned : (k,) array_like of complex
+        Conjugate-closed poles that are not variables (the unobservable modes).
+    interior : (float, float), optional
+        ``(x0, rho)`` of :func:`interior_of` when the caller has it (it costs a golden-section search).
+
+    Raises
+    ------
+    DimensionError
+        The counts do not add up to ``n``.
+    """
+
+    def __init__(
+        self,
+        engine: EigenstructureEngine,
+        n_real: int,
+        n_pairs: int,
+        region: Region,
+        pinned: ArrayLike = (),
+        interior: tuple[float, float] | None = None,
+    ) -> None:
+        self.engine = engine
+        self.region = region
+        n, r = engine.n, engine.rank
+        pin = np.asarray(pinned, dtype=complex).ravel()
+        pin_real = np.sort(pin[pin.imag == 0].real)
+        pin_up = pin[pin.imag > 0]
+        if n_real + 2 * n_pairs + pin.size != n:
+            raise DimensionError(
+                f"{n_real} real poles + {n_pairs} pairs + {pin.size} pinned poles != n = {n}"
+            )
+        self.nrf, self.npf = n_real, n_pairs
+        self.pin_real, self.pin_up = pin_real, pin_up
+        Bpr = [engine.basis(complex(v)) for v in pin_real]
+        Bpp = [engine.basis(complex(v)) for v in pin_up]
+        self.r = max([r] + [B.shape[1] for B in Bpr + Bpp])
+        self.nr = n_real + pin_real.size
+        self.np = n_pairs + pin_up.size
+        self.Npr = padded_bases(Bpr, n, self.r, float)
+        self.Npp = padded_bases(Bpp, n, self.r, complex)
+        self.complex = self.np > 0
+        self.ncoord = self.r * (self.nr + 2 * self.np)
+        self.size = self.ncoord + n_real + 2 * n_pairs
+        # inner radius: the barrier's length
+        self.rho = (interior or interior_of(region))[1]
+        self._cons = QuadraticConstraints(region, self.rho)
+        # per-member anchor bases of the free real poles and pairs (set by set_anchor)
+        self.anchor_r: NDArray = np.zeros((0, n_real, n, r))
+        self.anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
+        self._anchored = False
+
+    # ------------------------------------------------------------------ layout
+    def split(self, X: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """``(coords (s, ncoord), lambda_real (s, nrf), sigma (s, npf), omega (s, npf))``."""
+        c = X[:, : self.ncoord]
+        k = self.ncoord
+        lr = X[:, k : k + self.nrf]
+        k += self.nrf
+        return c, lr, X[:, k : k + self.npf], X[:, k + self.npf :]
+
+    def poles(self, x: NDArray) -> NDArray[np.complex128]:
+        """All poles of ``x`` in row order (free reals, pinned reals, free pairs, pinned pairs)."""
+        _, lr, sg, om = self.split(np.asarray(x, dtype=float)[None, :])
+        up = np.concatenate([sg[0] + 1j * om[0], self.pin_up])
+        out = np.empty(self.engine.n, dtype=complex)
+        out[: self.nr] = np.concatenate([lr[0], self.pin_real])
+        out[self.nr :: 2] = up
+        out[self.nr + 1 :: 2] = up.conj()
+        return out
+
+    def pack(self, coords: NDArray, poles: NDArray) -> NDArray[np.float64]:
+        """The variable vector of coordinates (layout of the fixed model at ``poles``) and poles."""
+        P = np.asarray(poles, dtype=complex)
+        lr = P[: self.nrf].real
+        up = P[self.nr :: 2][: self.npf]
+        return np.concatenate([coords, lr, up.real, up.imag])
+
+    # ------------------------------------------------------------------ bases
+    def _raw_bases(self, lam: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """``(N, Q1, R1)`` for a stack of poles (any shape ``(...,)``): orthonormal bases of
+        ``S(lambda)`` (``(..., n, r)``) and the thin QR ``(A - lambda I) Z = Q1 R1``."""
+        eng = self.engine
+        n, r = eng.n, eng.rank
+        lam = np.asarray(lam)
+        M = eng.A @ eng.Z - lam[..., None, None] * eng.Z  # (..., n, n - r)
+        Q, R = np.linalg.qr(M, mode="complete")
+        return Q[..., :, n - r :].conj(), Q[..., :, : n - r], R[..., : n - r, :]
+
+    @property
+    def pinned(self) -> NDArray[np.complex128]:
+        """The pinned poles (conjugate-closed)."""
+        return np.concatenate([self.pin_real + 0j, self.pin_up, self.pin_up.conj()])
+
+    def set_anchor(self, X: NDArray) -> None:
+        """Anchor the bases of the free poles at the members of ``X`` (s, size): their current
+        (aligned) bases, so that the coordinates keep their meaning; the raw bases the first time."""
+        if not self._anchored:
+            _, lr, sg, om = self.split(X)
+            self.anchor_r = self._raw_bases(lr)[0].real if self.nrf else np.zeros((X.shape[0], 0, 1, 1))
+            self.anchor_p = self._raw_bases(sg + 1j * om)[0] if self.npf else np.zeros((X.shape[0], 0, 1, 1))
+            self._anchored = True
+            return
+        m = self._members(X)
+        if self.nrf:
+            self.anchor_r = m["Br"][:, : self.nrf, :, : self.engine.rank].copy()
+        if self.npf:
+            self.anchor_p = m["Bp"][:, : self.npf, :, : self.engine.rank].copy()
+
+    def _aligned(self, N: NDArray, anchor: NDArray) -> tuple[NDArray, NDArray]:
+        """``N U`` with ``U`` the polar factor of ``N^H anchor`` (the closest basis to the anchor), and
+        the smallest singular value of ``N^H anchor`` per member (the subspace overlap)."""
+        P = np.swapaxes(N.conj(), -1, -2) @ anchor
+        u, s, vh = np.linalg.svd(P)
+        return N @ (u @ vh), s.min(axis=-1).min(axis=-1)
+
+    def _members(self, X: NDArray) -> dict[str, NDArray]:
+        """Aligned bases (padded to ``r``), ``W``, the QR factors of the free poles and feasibility."""
+        s = X.shape[0]
+        eng = self.engine
+        n, r, R = eng.n, eng.rank, self.r
+        c, lr, sg, om = self.split(X)
+        ok = np.ones(s, dtype=bool)
+        out: dict[str, NDArray] = {}
+        Br = np.zeros((s, self.nr, n, R))
+        Bp = np.zeros((s, self.np, n, R), dtype=complex)
+        if self.nrf:
+            N, out["Q1r"], out["R1r"] = self._raw_bases(lr)
+            N, ov = self._aligned(N.real, self.anchor_r)
+            Br[:, : self.nrf, :, :r] = N
+            ok &= ov > _MIN_OVERLAP
+        if self.npf:
+            N, out["Q1p"], out["R1p"] = self._raw_bases(sg + 1j * om)
+            N, ov = self._aligned(N, self.anchor_p)
+            Bp[:, : self.npf, :, :r] = N
+            ok &= ov > _MIN_OVERLAP
+        Br[:, self.nrf :] = self.Npr[None]
+        Bp[:, self.npf :] = self.Npp[None]
+        k2 = R * (self.nr + self.np)
+        cr = c[:, : R * self.nr].reshape(s, self.nr, R)
+        cp = (c[:, R * self.nr : k2] + 1j * c[:, k2:]).reshape(s, self.np, R)
+        out.update(Br=Br, Bp=Bp, W=_rows(Br, Bp, cr, cp, self.complex), ok=ok)
+        return out
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate_batch(
+        self, X: NDArray, objective: str, k: int | None, mu: float, members: NDArray | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Objective + barrier and the gradient for a stack ``X`` (s, size) of members (``members``:
+        their indices in the anchors, default all)."""
+        s = X.shape[0]
+        if members is not None:
+            keep = self.anchor_r, self.anchor_p
+            self.anchor_r, self.anchor_p = keep[0][members], keep[1][members]
+            try:
+                return self.evaluate_batch(X, objective, k, mu)
+            finally:
+                self.anchor_r, self.anchor_p = keep
+        R = self.r
+        _, lr, sg, om = self.split(X)
+        f = np.full(s, math.inf)
+        G = np.zeros_like(X)
+        bar, gbar, ok = self._barrier(lr, sg, om, mu)
+        if not ok.any():
+            return f, G
+        m = self._members(X)
+        ok &= m["ok"]
+        idx = np.flatnonzero(ok)
+        if not idx.size:
+            return f, G
+        W, Br, Bp = m["W"][idx], m["Br"][idx], m["Bp"][idx]
+        try:
+            fs, Kg, _ = spectral_objective(W, objective, k)
+        except np.linalg.LinAlgError:
+            fs, Kg = self._each(W, np.arange(idx.size), objective, k)
+        assert Kg is not None  # a gradient was asked for
+        K = Kg
+        f[idx] = fs + bar[idx]
+        # coordinates: the fixed-pole gradient with the members' own bases
+        k2 = R * (self.nr + self.np)
+        gr = np.einsum("sjkr,sjk->sjr", Br, K[:, : self.nr].real)
+        zp = 2.0 * np.einsum("sjkr,sjk->sjr", Bp.conj(), K[:, self.nr :: 2])
+        G[idx, : R * self.nr] = gr.reshape(idx.size, -1)
+        G[idx, R * self.nr : k2] = zp.real.reshape(idx.size, -1)
+        G[idx, k2 : self.ncoord] = zp.imag.reshape(idx.size, -1)
+        # poles: the derivative of the anchored bases N(lambda) = transport + rotation within S
+        k0 = self.ncoord
+        r = self.engine.rank
+        if self.nrf:
+            N, Na = Br[:, : self.nrf, :, :r], self.anchor_r[idx]
+            cj = X[idx, : R * self.nr].reshape(idx.size, self.nr, R)[:, : self.nrf, :r]
+            (d1,) = self._pole_derivative(N, Na, m["Q1r"][idx].real, m["R1r"][idx].real,
+                                          K[:, : self.nrf], cj, (1.0,))
+            G[idx, k0 : k0 + self.nrf] = d1
+        if self.npf:
+            rows = slice(self.nr, self.nr + 2 * self.npf, 2)
+            N, Na = Bp[:, : self.npf, :, :r], self.anchor_p[idx]
+            cc = X[idx, R * self.nr : k2] + 1j * X[idx, k2 : self.ncoord]
+            cj = cc.reshape(idx.size, self.np, R)[:, : self.npf, :r]
+            ds, dw = self._pole_derivative(N, Na, m["Q1p"][idx], m["R1p"][idx], K[:, rows], cj, (1.0, 1j))
+            G[idx, k0 + self.nrf : k0 + self.nrf + self.npf] = 2.0 * ds
+            G[idx, k0 + self.nrf + self.npf :] = 2.0 * dw
+        G[idx, k0:] += gbar[idx]
+        G[~np.isfinite(f)] = 0.0
+        return f, G
+
+    def _each(self, W, idx, objective, k):
+        fs = np.full(idx.size, math.inf)
+        K = np.zeros((idx.size,) + W.shape[1:], dtype=W.dtype)
+        for i, j in enumerate(idx):
+            try:
+                fi, Ki, _ = spectral_objective(W[j : j + 1], objective, k)
+            except np.linalg.LinAlgError:
+                continue
+            fs[i], K[i] = fi[0], Ki[0]
+        return fs, K
+
+    def _pole_derivative(self, N, Na, Q1, R1, Kj, c, directions) -> list[NDArray]:
+        """``Re sum_k conj(K_jk) dw_jk`` per unit change of each pole along ``directions`` (1: the real
+        part, 1j: the imaginary part), stacked over members and slots.
+
+        The anchored basis ``N(lambda)`` (polar-aligned to ``Na``) moves by ``dN = T + N Omega``:
+        the transport ``T = (M^+)^T Z^T N dlambda`` (``M = (A - lambda I) Z = Q1 R1``, the part
+        normal to the subspace, basis-independent) and a rotation within the subspace fixed by the
+        alignment condition ``N^H Na`` Hermitian: ``S Omega + Omega S = T^H Na - Na^H T``,
+        ``S = N^H Na`` (a Lyapunov equation, solved in the eigenbasis of ``S``).
+        """
+        Z = self.engine.Z
+        Y = np.einsum("nk,smnr->smkr", Z, N)  # Z^T N
+        T1 = Q1.conj() @ np.linalg.solve(np.swapaxes(R1, -1, -2), Y)  # (M^+)^T Z^T N
+        Nh = np.swapaxes(N.conj(), -1, -2)
+        S = Nh @ Na
+        S = 0.5 * (S + np.swapaxes(S.conj(), -1, -2))
+        e, E = np.linalg.eigh(S)
+        Eh = np.swapaxes(E.conj(), -1, -2)
+        z = np.einsum("smnr,smn->smr", N.conj(), Kj)  # N^H K_j^T
+        Nah = np.swapaxes(Na.conj(), -1, -2)
+        out = []
+        for tau in directions:
+            T = tau * T1
+            B = np.swapaxes(T.conj(), -1, -2) @ Na - Nah @ T
+            Om = E @ ((Eh @ B @ E) / (e[..., :, None] + e[..., None, :])) @ Eh
+            h = np.einsum("smn,smn->sm", Kj.conj(), np.einsum("smnr,smr->smn", T, c))
+            v = np.einsum("smr,smr->sm", z.conj(), np.einsum("smab,smb->sma", Om, c))
+            out.append(np.real(h + v))
+        return out
+
+    def _barrier(self, lr: NDArray, sg: NDArray, om: NDArray, mu: float) -> tuple[NDArray, NDArray, NDArray]:
+        """``(barrier (s,), gradient w.r.t. the pole variables (s, nrf + 2 npf), strictly inside (s,))``."""
+        s = lr.shape[0]
+        rho = self.rho
+        val = np.zeros(s)
+        grad = np.zeros((s, self.nrf + 2 * self.npf))
+        inside = np.ones(s, dtype=bool)
+        for part, (re, im) in enumerate(((lr, np.zeros_like(lr)), (sg, om))):
+            if re.shape[1] == 0:
+                continue
+            g, gre, gim = self._cons.values(re, im)  # (s, m, k) each
+            if part == 1:  # Im > 0 for a pair
+                g = np.concatenate([g, -im[..., None]], axis=-1)
+                gre = np.concatenate([gre, np.zeros_like(im)[..., None]], axis=-1)
+                gim = np.concatenate([gim, -np.ones_like(im)[..., None]], axis=-1)
+            neg = g < 0
+            inside &= neg.all(axis=(1, 2))
+            gs = np.where(neg, g, -rho)
+            val -= mu * np.log(-gs / rho).sum(axis=(1, 2))
+            w = -mu / gs  # d(-mu log(-g)) / dg
+            if part == 0:
+                grad[:, : self.nrf] = (w * gre).sum(-1)
+            else:
+                grad[:, self.nrf : self.nrf + self.npf] = (w * gre).sum(-1)
+                grad[:, self.nrf + self.npf :] = (w * gim).sum(-1)
+        return np.where(inside, val, math.inf), grad, inside
+
+    def fixed(self, x: NDArray, member: int = 0) -> tuple[FixedPoleModel, NDArray[np.float64]]:
+        """The fixed-pole model at the poles of ``x`` (anchored as member ``member``) and ``x``'s
+        coordinates in it (the left eigenvectors projected on its bases: exact, they lie in the
+        subspaces)."""
+        keep = self.anchor_r, self.anchor_p
+        self.anchor_r, self.anchor_p = (a[member : member + 1] for a in keep)
+        try:
+            W = self._members(np.asarray(x, dtype=float)[None, :])["W"][0]
+        finally:
+            self.anchor_r, self.anchor_p = keep
+        P = self.poles(x)
+        model = FixedPoleModel(self.engine, P, tol=0.0)  # a pair near the real axis stays a pair
+        return model, model.coords_from_rows(_reorder(W, P, model.poles))
+
+    def coords_of(self, fixed: FixedPoleModel, X: NDArray) -> NDArray[np.float64]:
+        """The variable vectors (s, size), each anchored at its poles, of a fixed-pole model's
+        coordinate vectors ``X`` (s, m)."""
+        out, ar, ap = [], [], []
+        for x in np.atleast_2d(X):
+            out.append(self._coords_of(fixed, x))
+            ar.append(self.anchor_r)
+            ap.append(self.anchor_p)
+        self.anchor_r, self.anchor_p = np.concatenate(ar), np.concatenate(ap)
+        self._anchored = True
+        return np.stack(out)
+
+    def _coords_of(self, fixed: FixedPoleModel, x: NDArray) -> NDArray[np.float64]:
+        target = _region_order(self, fixed.poles)
+        Wr = _reorder(fixed.W(x), fixed.poles, target)
+        self._anchored = False
+        X = self.pack(np.zeros(self.ncoord), target)[None, :]
+        self.set_anchor(X)
+        r, R = self.engine.rank, self.r
+        cr = np.zeros((self.nr, R))
+        if self.nrf:
+            cr[: self.nrf, :r] = np.einsum("jkr,jk->jr", self.anchor_r[0], Wr[: self.nrf].real)
+        if self.nr > self.nrf:
+            cr[self.nrf :] = np.einsum("jkr,jk->jr", self.Npr, Wr[self.nrf : self.nr].real)
+        up = Wr[self.nr :: 2]
+        cp = np.zeros((self.np, R), dtype=complex)
+        if self.npf:
+            cp[: self.npf, :r] = np.einsum("jkr,jk->jr", self.anchor_p[0].conj(), up[: self.npf])
+        if self.np > self.npf:
+            cp[self.npf :] = np.einsum("jkr,jk->jr", self.Npp.conj(), up[self.npf :])
+        return self.pack(np.concatenate([cr.ravel(), cp.real.ravel(), cp.imag.ravel()]), target)
+
+
+class QuadraticConstraints:
+    """A region's smooth constraints as explicit quadratics ``g_k = a + b x + c y + d x^2 + e x y + f y^2``.
+
+    The contract of :meth:`Region.constraints` is plain arithmetic of degree <= 2 (module
+    docstring of :mod:`optdesign.model.regions`), so six values per constraint determine it: the
+    coefficients are fitted once from a 3 x 3 stencil of width ``scale`` and checked at random
+    points (values and exact gradients then cost a few vector operations instead of calling the
+    region per evaluation -- measured: the barrier took 42 % of a region evaluation on COMPleib
+    DIS2 before).
+
+    Parameters
+    ----------
+    region : Region
+    scale : float
+        Length scale of the stencil (the region's inner radius).
+
+    Raises
+    ------
+    ValidationError
+        A constraint is not reproduced by its quadratic (a region breaking the contract).
+    """
+
+    def __init__(self, region: Region, scale: float) -> None:
+        h = max(float(scale), 1e-6)
+        t = np.array([-h, 0.0, h])
+        x, y = (a.ravel() for a in np.meshgrid(t, t))
+        V = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+        G = np.column_stack([np.asarray(v, dtype=float) * np.ones_like(x) for v in region.constraints(x, y)])
+        self.coef = np.linalg.lstsq(V, G, rcond=None)[0]  # (6, k)
+        rng = np.random.default_rng(0)
+        xt, yt = rng.uniform(-10 * h, 10 * h, (2, 16))
+        Gt = np.column_stack([np.asarray(v, dtype=float) * np.ones_like(xt)
+                              for v in region.constraints(xt, yt)])
+        Vt = np.column_stack([np.ones_like(xt), xt, yt, xt * xt, xt * yt, yt * yt])
+        err = np.max(np.abs(Vt @ self.coef - Gt)) / max(1.0, float(np.max(np.abs(Gt))))
+        if not err <= 1e-9:
+            raise ValidationError(
+                f"the constraints of {region!r} are not quadratic polynomials (relative misfit {err:.2e}): "
+                "Region.constraints must be plain arithmetic of degree <= 2"
+            )
+
+    def values(self, x: NDArray, y: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+        """``(g, dg/dx, dg/dy)`` at points ``x + j y`` (any shape), each with a trailing axis of
+        constraints."""
+        a, b, c, d, e, f = self.coef
+        X, Y = x[..., None], y[..., None]
+        g = a + b * X + c * Y + d * X * X + e * X * Y + f * Y * Y
+        return g, b + 2 * d * X + e * Y, c + e * X + 2 * f * Y
+
+
+def _rows(Br: NDArray, Bp: NDArray, cr: NDArray, cp: NDArray, cplx: bool) -> NDArray:
+    """Stacked ``W`` from per-member bases and coordinates (reals, then pairs ``w, conj w``)."""
+    Wr = np.einsum("sjkr,sjr->sjk", Br, cr)
+    if not cplx:
+        return Wr
+    s, nr = Wr.shape[:2]
+    n = Wr.shape[2]
+    Wp = np.einsum("sjkr,sjr->sjk", Bp, cp)
+    W = np.empty((s, n, n), dtype=complex)
+    W[:, :nr] = Wr
+    W[:, nr::2] = Wp
+    W[:, nr + 1 :: 2] = Wp.conj()
+    return W
+
+
+def _reorder(W: NDArray, poles_from: NDArray, poles_to: NDArray) -> NDArray:
+    """Rows of ``W`` (for ``poles_from``) permuted to the order of ``poles_to`` (same multiset)."""
+    from scipy.optimize import linear_sum_assignment
+
+    cost = np.abs(np.asarray(poles_to)[:, None] - np.asarray(poles_from)[None, :])
+    rows, cols = linear_sum_assignment(cost)
+    out = np.empty_like(W)
+    out[rows] = W[cols]
+    return out
+
+
+# --------------------------------------------------------------------------- the solver
+
+
+def interior_of(region: Region) -> tuple[float, float]:
+    """``(x0, rho)``: the region's deepest real point and its clearance (a disk of radius ``rho``
+    around ``x0`` is inside)."""
+    x0 = float(region.interior_point())
+    return x0, max(-float(region.distance([x0])[0]), 1e-12)
+
+
+def _inside(
+    region: Region, poles: NDArray, pinned: NDArray, interior: tuple[float, float]
+) -> NDArray[np.complex128]:
+    """``poles`` moved strictly inside ``region`` (projected, then 5 % toward the interior point
+    ``x0``), real poles kept real; pinned poles are kept as they are."""
+    x0, rho = interior
+    P = np.asarray(poles, dtype=complex).copy()
+    free = np.ones(P.size, dtype=bool)
+    for mu in pinned:
+        j = int(np.argmin(np.where(free, np.abs(P - mu), np.inf)))
+        free[j] = False
+    z = region.project(P[free])
+    z = z + 0.05 * (x0 - z)
+    bad = region.distance(z) > -1e-3 * rho
+    z[bad] = x0 + 0.5 * (z[bad] - x0)
+    P[free] = np.where(np.abs(P[free].imag) == 0, z.real + 0j, z)
+    return P
+
+
+def _structure(poles: NDArray, pinned: NDArray) -> tuple[int, int]:
+    free = list(np.asarray(poles, dtype=complex))
+    for mu in pinned:
+        free.pop(int(np.argmin([abs(z - mu) for z in free])))
+    fr = np.asarray(free)
+    nr = int(np.sum(fr.imag == 0))
+    return nr, (fr.size - nr) // 2
+
+
+def place_region(
+    A: ArrayLike,
+    C: ArrayLike,
+    region: Region,
+    *,
+    objective: str = "kappa2",
+    starts: Sequence[RegionStart] | None = None,
+    n_samples: int = 2,
+    seed: int = 0,
+    deadline: Deadline | float | None = None,
+    engine: EigenstructureEngine | None = None,
+) -> PlacementOutcome:
+    """Observer gain minimizing kappa2 (or kappa_fro) of ``A - L C`` with its poles free in ``region``.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    C : (p, n) array_like
+    region : Region
+        Convex, symmetric about the real axis, nonempty interior; it must contain every
+        unobservable mode of ``(C, A)``.
+    objective : {"kappa2", "kappa_fro"}
+    starts : sequence of RegionStart, optional
+        The caller's starts (e.g. scipy YT at the open-loop poles moved into the region, a Kalman
+        gain).  Poles outside the region are moved inside (projection, then 5 % toward its
+        interior point).
+    n_samples : int, default 2
+        Further starts at poles sampled in the region (``Region.sample_poles``; all real, then
+        as many pairs as possible, alternately), with scipy YT there.
+    seed : int, default 0
+    deadline : Deadline or float, optional
+        No new stage starts after it expires; the best verified-to-be-finite design so far is
+        returned with status ``time_limit``.
+    engine : EigenstructureEngine, optional
+        Re-use an engine built for ``(A, C)`` (``A`` and ``C`` are then ignored).
+
+    Returns
+    -------
+    PlacementOutcome
+        ``extra["region_margin"]`` is ``region.margin(poles)`` (``< 0``: strictly inside).
+
+    Raises
+    ------
+    ValidationError
+        ``region`` not a Region; objective not supported in region mode; no start at all; an
+        unobservable mode outside the region.
+    """
+    t0 = time.process_time()
+    if not isinstance(region, Region):
+        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    if objective not in ("kappa2", "kappa_fro"):
+        raise ValidationError(
+            f"objective must be 'kappa2' or 'kappa_fro' in region mode (eta's pole gap is not smooth); "
+            f"found {objective!r}"
+        )
+    n_samples = as_int("n_samples", n_samples, 0)
+    seed = as_int("seed", seed, 0)
+    dl = Deadline.of(deadline)
+    eng = engine if engine is not None else EigenstructureEngine(A, C)
+    pinned = eng.unobservable_modes()
+    if pinned.size:
+        pinned = as_poles("unobservable modes", pinned)
+        d = region.distance(pinned)
+        if np.any(d > 0):
+            raise ValidationError(
+                f"the unobservable mode {pinned[int(np.argmax(d))]:.6g} of (C, A) is an eigenvalue of A - LC "
+                f"for every L and lies outside the region (distance {float(np.max(d)):.3g})"
+            )
+    rng = np.random.default_rng(seed)
+    all_starts = list(starts or [])
+    nfree = eng.n - pinned.size
+    for k in range(n_samples):
+        frac = (1.0, 0.0, 0.5)[k % 3]
+        P = np.concatenate([region.sample_poles(nfree, rng, real_fraction=frac), pinned])
+        all_starts.append(RegionStart("region sample", as_poles("poles", P)))
+    if not all_starts:
+        raise ValidationError("place_region needs at least one start (starts or n_samples > 0)")
+    cands: list[tuple[float, NDArray, NDArray, NDArray, str]] = []  # (value, L, V, poles, stage)
+    records: list[StartRecord] = []
+    timed_out = False
+    for st in all_starts:
+        if dl.expired:
+            timed_out = True
+            break
+        rec, best, to = _one_start(eng, region, st, pinned, objective, rng, dl)
+        timed_out |= to
+        records.append(rec)
+        if best is not None:
+            cands.append(best)
+    if not cands:
+        nan = math.nan
+        return PlacementOutcome(
+            np.full((eng.n, eng.p), nan), np.full((eng.n, eng.n), nan + 0j), np.full(eng.n, nan + 0j),
+            math.inf, math.inf, objective, math.inf, Status.TIME_LIMIT if timed_out else Status.NOT_FOUND,
+            "no start gave a finite design inside the region", 0, 0, tuple(records),
+            time=time.process_time() - t0,
+        )
+    val, L, V, P, stage = min(cands, key=lambda t: t[0])
+    sv = np.linalg.svd(V, compute_uv=False)
+    k2 = float(sv[0] / sv[-1])
+    kf = float(np.linalg.norm(V) * np.linalg.norm(np.linalg.inv(V)))
+    status = Status.TIME_LIMIT if timed_out else Status.OPTIMAL
+    ib = min(range(len(records)), key=lambda i: records[i].objective_value)
+    msg = (
+        f"best of {len(records)} region starts (start {ib}, {records[ib].origin}, {stage}): "
+        f"{objective} = {val:.6g}" + (" (time limit reached: best so far)" if timed_out else "")
+    )
+    return PlacementOutcome(
+        L, V, P, k2, kf, objective, val, status, msg,
+        sum(r.iterations for r in records), sum(r.evaluations for r in records), tuple(records),
+        time=time.process_time() - t0, extra={"region_margin": float(region.margin(P))},
+    )
+
+
+def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
+    """Candidates of one start: its gain, the fixed-pole optimum at its poles, and the region
+    optimum from the start and from that fixed-pole optimum (two members of one batch), each
+    polished at its final poles.  ``(record, best candidate or None, timed_out)``."""
+    ts = time.process_time()
+    interior = interior_of(region)
+    P0 = as_poles("start poles", _inside(region, as_poles("start poles", st.poles, eng.n), pinned, interior))
+    its = evs = 0
+    best: tuple | None = None
+    timed_out = False
+    try:
+        fixed = FixedPoleModel(eng, P0)
+    except DefectivePolesError:
+        return StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 0, "defective start", 0.0), None, False
+    L0 = st.gain if st.gain is not None else peer_start(eng.A, eng.C, fixed.poles, "YT")
+    x0 = fixed.coords_from_gain(L0) if L0 is not None else None
+    if x0 is None or not math.isfinite(fixed.metric(x0, objective)):
+        x0 = fixed.random_coords(rng)
+    v0 = fixed.metric(x0, objective)
+
+    def consider(model, x, stage):
+        nonlocal best
+        try:
+            L, V, _, _ = model.design(x)
+        except np.linalg.LinAlgError:
+            return
+        v = model.metric(x, objective)
+        if not (math.isfinite(v) and (best is None or v < best[0])):
+            return
+        # verify, do not trust: the poles of the computed gain (not the model's) must be inside
+        ev = np.linalg.eigvals(eng.A - L @ eng.C)
+        if np.all(np.isfinite(ev)) and region.margin(ev) <= 1e-7 * max(1.0, float(np.max(np.abs(ev)))):
+            best = (v, L, V, model.poles.copy(), stage)
+
+    if st.gain is not None:
+        try:  # the start's own gain, unoptimized (never worse than the caller's start)
+            gm = FixedPoleModel(eng, np.linalg.eigvals(eng.A - st.gain @ eng.C))
+            xg = gm.coords_from_gain(st.gain)
+            if xg is not None:
+                consider(gm, xg, "start gain")
+        except (ValidationError, DefectivePolesError):
+            pass
+    if not math.isfinite(v0):
+        return StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 1, "singular start", 0.0), best, False
+    consider(fixed, x0, "start")
+    # (A) fixed poles
+    fstages = REGION_FIXED_STAGES if objective == "kappa2" and not st.warm else (None,)
+    ((xa, ia, ea, ra),) = run_starts(fixed, x0[None, :], objective, dl, 400, fstages)
+    its, evs = its + ia, evs + ea
+    consider(fixed, xa, "fixed poles")
+    timed_out |= ra == "time_limit"
+    # (B) free poles, from the start and from (A) (a warm start: from (A) only)
+    nrf, npf = _structure(fixed.poles, pinned)
+    model = RegionModel(eng, nrf, npf, region, pinned, interior)
+    X = model.coords_of(fixed, xa[None, :] if st.warm else np.stack([x0, xa]))
+    reasons = ["converged"] * X.shape[0]
+    stages = REGION_WARM_STAGES if st.warm else REGION_STAGES
+    for k, mu in stages if objective == "kappa2" else ((None, REGION_STAGES[-1][1]),):
+        if dl.expired:
+            timed_out, reasons = True, ["time_limit"] * X.shape[0]
+            break
+        model.set_anchor(X)
+
+        def fun(Z, members, _k=k, _mu=mu):
+            return model.evaluate_batch(Z, objective, _k, _mu, members)
+
+        if not np.all(np.isfinite(fun(X, None)[0])):  # the barrier needs strictly feasible starts
+            reasons = ["infeasible start"] * X.shape[0]
+            break
+        res, _ = bfgs_minimize_batch(fun, X, max_iter=_REGION_MAX_ITER, ftol=1e-9 if k is None else 1e-7,
+                                     deadline=dl, pass_index=True)
+        X = np.stack([r.x for r in res])
+        reasons = [r.reason for r in res]
+        its, evs = its + sum(r.iterations for r in res), evs + sum(r.evaluations for r in res)
+    if "infeasible start" not in reasons:
+        for i in range(X.shape[0]):
+            fm, xc = model.fixed(X[i], i)
+            consider(fm, xc, "free poles")
+            ((xp, ip, ep, rp),) = run_starts(fm, xc[None, :], objective, dl, 400, (None,))
+            its, evs = its + ip, evs + ep
+            consider(fm, xp, "free poles, polished")
+            timed_out |= rp == "time_limit"
+    val = best[0] if best is not None else math.inf
+    k2 = math.inf
+    if best is not None:
+        sv = np.linalg.svd(best[2], compute_uv=False)
+        k2 = float(sv[0] / sv[-1])
+    reason = min(reasons, key=lambda r: r != "converged")
+    return StartRecord(st.origin, k2, val, v0, its, evs, reason, time.process_time() - ts), best, timed_out
+
+
+def _region_order(model: RegionModel, poles: NDArray) -> NDArray[np.complex128]:
+    """Poles in the region model's row order: free reals, pinned reals, free pairs, pinned pairs."""
+    P = list(np.asarray(poles, dtype=complex))
+    for mu in model.pinned:
+        P.pop(int(np.argmin([abs(z - mu) for z in P])))
+    fr = np.asarray(P, dtype=complex)
+    re = np.sort(fr[fr.imag == 0].real)
+    up = fr[fr.imag > 0]
+    out = np.empty(model.engine.n, dtype=complex)
+    allup = np.concatenate([up, model.pin_up])
+    out[: model.nr] = np.concatenate([re, model.pin_real])
+    out[model.nr :: 2] = allup
+    out[model.nr + 1 :: 2] = allup.conj()
+    return out

@@ -1,0 +1,241 @@
+"""Region mode of the eigenstructure engine (issue 13) and its quasi-Newton method.
+
+Designs are checked independently: the eigenvalues of the returned ``A - L C`` (numpy) must lie
+in the region (``Region.contains`` / ``margin``), the design must be no worse than the caller's
+start (scipy YT at the naive poles), gradients match finite differences on and off the anchor.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from optdesign import metrics, problems
+from optdesign._deadline import Deadline
+from optdesign._validate import as_poles
+from optdesign.design.well_conditioned import naive_poles, suggested_region
+from optdesign.errors import DimensionError, ValidationError
+from optdesign.regions import Disk, Ellipse, HalfPlane, HorizontalStrip, Sector, VerticalStrip
+from optdesign.results import Status
+from optdesign.solvers.eigenstructure import EigenstructureEngine, FixedPoleModel
+from optdesign.solvers.eigenstructure_fixed import peer_start
+from optdesign.solvers.eigenstructure_region import (
+    QuadraticConstraints,
+    RegionModel,
+    RegionStart,
+    place_region,
+)
+from optdesign.solvers.quasi_newton import bfgs_minimize, bfgs_minimize_batch
+
+
+def region_model(name, frac, seed=0):
+    plant = problems.load(name).plant
+    region = suggested_region(plant)
+    eng = EigenstructureEngine(plant.A, plant.C)
+    pin = eng.unobservable_modes()
+    rng = np.random.default_rng(seed)
+    P = as_poles("p", np.concatenate([region.sample_poles(plant.n - pin.size, rng, real_fraction=frac), pin]))
+    fixed = FixedPoleModel(eng, P)
+    nr = int(np.sum(P.imag == 0)) - pin.size
+    model = RegionModel(eng, nr, (plant.n - pin.size - nr) // 2, region, pin)
+    return model, fixed, fixed.random_coords(rng), rng
+
+
+@pytest.mark.parametrize(
+    "name,frac",
+    [("compleib_dis2", 1.0), ("compleib_dis2", 0.0), ("compleib_ac6", 0.5), ("compleib_ac4", 1.0)],
+)
+@pytest.mark.parametrize("mu", [0.0, 1e-2])
+def test_region_gradient_on_and_off_the_anchor(name, frac, mu):
+    model, fixed, xf, rng = region_model(name, frac)
+    x = model.coords_of(fixed, xf)[0]
+    assert model.evaluate_batch(x[None], "kappa2", 8, 0.0)[0][0] == pytest.approx(
+        fixed.evaluate(xf, "kappa2", 8)[0], rel=1e-12
+    )  # the same design at the anchor
+    off = x.copy()
+    off[model.ncoord :] += 0.02 * model.rho * rng.standard_normal(x.size - model.ncoord)
+    for z in (x, off):
+        f, g = model.evaluate_batch(z[None], "kappa2", 8, mu)
+        assert np.isfinite(f[0])
+        h, E = 1e-7 * max(1.0, model.rho), np.eye(z.size)
+        fd = np.array(
+            [
+                (
+                    model.evaluate_batch((z + h * E[i])[None], "kappa2", 8, mu)[0][0]
+                    - model.evaluate_batch((z - h * E[i])[None], "kappa2", 8, mu)[0][0]
+                )
+                / (2 * h)
+                for i in range(z.size)
+            ]
+        )
+        assert np.max(np.abs(fd - g[0])) <= 1e-5 * max(1.0, np.max(np.abs(g[0])))
+
+
+def test_outside_the_region_is_infinite():
+    model, fixed, xf, _ = region_model("compleib_dis2", 1.0)
+    x = model.coords_of(fixed, xf)[0]
+    x[model.ncoord] = 1.0  # a real pole at +1: outside HalfPlane(alpha)
+    f, g = model.evaluate_batch(x[None], "kappa2", None, 1e-3)
+    assert math.isinf(f[0]) and not np.any(g)
+
+
+@pytest.mark.parametrize("name", ["compleib_dis2", "compleib_ac17", "compleib_he1", "compleib_ac4"])
+def test_region_designs_inside_and_never_worse_than_the_naive_start(name):
+    plant = problems.load(name).plant
+    region = suggested_region(plant)
+    start = RegionStart("naive poles + YT", naive_poles(plant, region))
+    out = place_region(plant.A, plant.C, region, starts=[start], n_samples=1)
+    assert out.status is Status.OPTIMAL
+    X = plant.A - out.L @ plant.C
+    ev = np.linalg.eigvals(X)
+    assert region.contains(ev, tol=1e-7 * max(1.0, float(np.max(np.abs(ev)))))
+    assert out.extra["region_margin"] <= 0.0
+    k2 = metrics.kappa2(X)
+    assert out.kappa2 == pytest.approx(k2, rel=1e-6) or math.isinf(k2)
+    if plant.is_observable():
+        L_yt = peer_start(plant.A, plant.C, as_poles("p", start.poles), "YT")
+        assert out.kappa2 <= metrics.kappa2(plant.A - L_yt @ plant.C) * (1 + 1e-9)
+    else:  # AC4: the unobservable mode -0.05 is kept
+        assert np.min(np.abs(ev + 0.05)) <= 1e-9
+
+
+def test_region_never_worse_than_a_given_gain():
+    plant = problems.load("compleib_ac17").plant
+    region = suggested_region(plant)
+    first = place_region(
+        plant.A, plant.C, region, starts=[RegionStart("n", naive_poles(plant, region))], n_samples=0
+    )
+    warm = place_region(
+        plant.A, plant.C, region, starts=[RegionStart("previous", first.poles, first.L)], n_samples=0
+    )
+    assert warm.kappa2 <= first.kappa2 * (1 + 1e-9)
+
+
+def test_other_region_shapes_and_kappa_fro():
+    plant = problems.load("compleib_dis2").plant
+    for region in (
+        Ellipse(-4.0, 3.0, 2.0) & HorizontalStrip(1.5),
+        VerticalStrip(-6.0, -2.0) & Disk(-4.0, 3.0),
+    ):
+        for objective in ("kappa2", "kappa_fro"):
+            out = place_region(plant.A, plant.C, region, objective=objective, n_samples=2, seed=3)
+            ev = np.linalg.eigvals(plant.A - out.L @ plant.C)
+            assert region.contains(ev, tol=1e-7 * max(1.0, float(np.max(np.abs(ev)))))
+            X = plant.A - out.L @ plant.C
+            got = metrics.kappa2(X) if objective == "kappa2" else metrics.kappa_fro(X)
+            assert got == pytest.approx(out.objective_value, rel=1e-6)
+
+
+def test_unreachable_region_is_not_found():
+    """REA4 (eight unstable modes, one output): no computable gain puts the poles in the region."""
+    plant = problems.load("compleib_rea4").plant
+    region = suggested_region(plant)
+    out = place_region(
+        plant.A, plant.C, region, starts=[RegionStart("n", naive_poles(plant, region))], n_samples=1
+    )
+    assert out.status is Status.NOT_FOUND and not np.any(np.isfinite(out.L))
+
+
+def test_region_time_limit():
+    plant = problems.load("compleib_ac6").plant
+    region = suggested_region(plant)
+    dl = Deadline(1e-6)
+    while not dl.expired:
+        pass
+    out = place_region(
+        plant.A,
+        plant.C,
+        region,
+        starts=[RegionStart("n", naive_poles(plant, region))],
+        n_samples=0,
+        deadline=dl,
+    )
+    assert out.status is Status.TIME_LIMIT
+
+
+def test_quadratic_constraints_reproduce_the_region():
+    rng = np.random.default_rng(0)
+    x, y = rng.uniform(-8, 2, 40), rng.uniform(0, 4, 40)
+    for region in (
+        HalfPlane(1.0) & Sector.from_damping(0.5) & Disk(0, 6),
+        Ellipse(-3, 2, 1) & HorizontalStrip(0.5),
+    ):
+        qc = QuadraticConstraints(region, 1.0)
+        g, gx, gy = qc.values(x, y)
+        ref = np.column_stack([np.asarray(v) * np.ones_like(x) for v in region.constraints(x, y)])
+        np.testing.assert_allclose(g, ref, atol=1e-12 * max(1.0, np.max(np.abs(ref))))
+        h = 1e-5
+        gx_fd = (qc.values(x + h, y)[0] - qc.values(x - h, y)[0]) / (2 * h)
+        np.testing.assert_allclose(gx, gx_fd, atol=1e-7)
+
+
+def test_region_errors():
+    plant = problems.load("compleib_dis2").plant
+    region = suggested_region(plant)
+    with pytest.raises(ValidationError, match="region must be an optdesign.regions.Region"):
+        place_region(plant.A, plant.C, "disk")
+    with pytest.raises(ValidationError, match="objective must be 'kappa2' or 'kappa_fro' in region mode"):
+        place_region(plant.A, plant.C, region, objective="eta")
+    with pytest.raises(ValidationError, match="needs at least one start"):
+        place_region(plant.A, plant.C, region, n_samples=0)
+    ac4 = problems.load("compleib_ac4").plant  # unobservable mode -0.05
+    with pytest.raises(ValidationError, match=r"unobservable mode -0\.05.* lies outside the region"):
+        place_region(ac4.A, ac4.C, HalfPlane(1.0) & Disk(0, 10), n_samples=1)
+    eng = EigenstructureEngine(plant.A, plant.C)
+    with pytest.raises(DimensionError, match=r"2 real poles \+ 1 pairs \+ 0 pinned poles != n = 3"):
+        RegionModel(eng, 2, 1, region)
+
+    class Cubic(HalfPlane):  # breaks the degree <= 2 contract of Region.constraints
+        def constraints(self, re, im):
+            return [re * re * re + 1.0]
+
+    with pytest.raises(ValidationError, match="are not quadratic polynomials"):
+        QuadraticConstraints(Cubic(1.0), 1.0)
+
+
+# ----------------------------------------------------------------------------- quasi-Newton
+
+
+def rosenbrock(x):
+    f = (1 - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2
+    return f, np.array([-2 * (1 - x[0]) - 400 * x[0] * (x[1] - x[0] ** 2), 200 * (x[1] - x[0] ** 2)])
+
+
+def test_bfgs_smooth_and_nonsmooth():
+    r, _ = bfgs_minimize(rosenbrock, np.array([-1.2, 1.0]), ftol=1e-16, gtol=1e-10)
+    assert r.reason == "converged" and np.allclose(r.x, 1.0, atol=1e-6)
+
+    def nonsmooth(x):  # max of two smooth pieces, minimizer (0, 0) on the kink, f = 0
+        a, b = x[0] ** 2 + 2 * abs(x[1]), 2 * x[0] ** 2 + abs(x[1] - 0.0)
+        g = np.array([2 * x[0], 2 * np.sign(x[1])]) if a >= b else np.array([4 * x[0], np.sign(x[1])])
+        return max(a, b), g
+
+    r, _ = bfgs_minimize(nonsmooth, np.array([1.0, 0.7]), max_iter=500)
+    assert r.f <= 1e-6 and r.reason in ("line search", "converged")
+
+
+def test_bfgs_batch_members_are_independent_and_never_worse():
+    X0 = np.array([[-1.2, 1.0], [0.5, -0.5], [2.0, 2.0]])
+
+    def batch(X):
+        out = [rosenbrock(x) for x in X]
+        return np.array([o[0] for o in out]), np.stack([o[1] for o in out])
+
+    res, H = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10)
+    for r, x0 in zip(res, X0, strict=True):
+        single, _ = bfgs_minimize(rosenbrock, x0, ftol=1e-16, gtol=1e-10)
+        assert r.iterations == single.iterations and np.allclose(r.x, single.x, rtol=0, atol=1e-12)
+        assert r.f <= rosenbrock(x0)[0]
+    assert len(H) == 3 and H[0].shape == (2, 2)
+
+
+def test_bfgs_deadline_and_bad_start():
+    dl = Deadline(1e-6)
+    while not dl.expired:
+        pass
+    r, _ = bfgs_minimize(rosenbrock, np.array([-1.2, 1.0]), deadline=dl)
+    assert r.reason == "time_limit" and r.iterations == 0
+    with pytest.raises(ValueError, match="the objective is not finite at a start"):
+        bfgs_minimize(lambda x: (math.inf, None), np.zeros(2))
