@@ -89,7 +89,7 @@ from .._validate import as_poles
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.plant import Plant
-from ..results import Check, ResultMixin, Status, Verification
+from ..results import Check, DesignResult, Status, Verification
 from .placement import pole_error
 from .riccati import filter_are, filter_are_residual, hamiltonian_are, symplectic_dare
 from .riccati import sort_poles as _sort_poles
@@ -172,8 +172,8 @@ class SolheimStep:
         return f"SolheimStep({self.kind}: {mv} -> {pl}, q~ = {q})"
 
 
-@dataclass(frozen=True, eq=False)
-class SolheimResult(ResultMixin):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class SolheimResult(DesignResult):
     """Outcome of :func:`solheim`.
 
     Attributes
@@ -207,9 +207,6 @@ class SolheimResult(ResultMixin):
     poles: NDArray[np.complex128]
     target: NDArray[np.complex128]
     steps: tuple[SolheimStep, ...]
-    status: Status
-    message: str
-    verification: Verification
     plant: Plant = field(repr=False)
 
     @property

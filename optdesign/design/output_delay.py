@@ -54,7 +54,7 @@ from __future__ import annotations
 import math
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -81,7 +81,7 @@ from ..analysis.robustness import (
     worst_case_parts,
 )
 from ..errors import RiccatiError, ValidationError
-from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from ..results import Check, DesignResult, SolverStats, Status, Verification
 
 __all__ = [
     "output_delay_kalman",
@@ -166,8 +166,8 @@ class ConvergenceRow:
     K0: NDArray[np.float64]
 
 
-@dataclass(frozen=True, eq=False)
-class OutputDelayKalman(ResultMixin):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class OutputDelayKalman(DesignResult):
     r"""Stationary Kalman filter of the delayed-output system (seed 002 eqs 3-4).
 
     Attributes
@@ -218,10 +218,6 @@ class OutputDelayKalman(ResultMixin):
     p1: NDArray[np.float64]
     dim: int
     p0_change: float
-    status: Status
-    message: str
-    solver_stats: SolverStats
-    verification: Verification = field(default_factory=Verification)
     augmented: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None = None
 
     # ----------------------------------------------------------------- frequency domain

@@ -81,7 +81,7 @@ from ..classical.transition import as_hamiltonian, riccati_flow
 from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.coerce import as_plant
 from ..model.plant import Plant
-from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from ..results import Check, DesignResult, SolverStats, Status, Verification
 
 __all__ = ["RiccatiTrajectory", "riccati_de", "ode_integrator", "DEFAULT_TOL", "DEFAULT_STEPS",
            "PSD_RTOL", "STIFF_RHO_T"]
@@ -106,8 +106,8 @@ _RHS_OVERHEAD_FLOPS = 1e5
 _EPS = float(np.finfo(float).eps)
 
 
-@dataclass(frozen=True, eq=False)
-class RiccatiTrajectory(ResultMixin):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class RiccatiTrajectory(DesignResult):
     r"""Solution of the filter Riccati differential / difference equation.
 
     Attributes
@@ -168,10 +168,6 @@ class RiccatiTrajectory(ResultMixin):
     error_estimate: float
     error_kind: str
     asymmetry: float
-    status: Status
-    message: str
-    solver_stats: SolverStats
-    verification: Verification
     dt: float | None = None
 
     @property

@@ -73,7 +73,7 @@ from ..classical.riccati import filter_are_error, filter_are_residual
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
-from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from ..results import Check, DesignResult, SolverStats, Status, Verification
 from .clarabel_fixed_gain import FamilyMap, FixedGainSolution, family_map, fixed_gain_family, solve_fixed_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
@@ -114,8 +114,8 @@ class EngineSetup:
         return int(self.Gd.shape[1])
 
 
-@dataclass(frozen=True, eq=False)
-class EngineResult(ResultMixin):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class EngineResult(DesignResult):
     """Outcome of :func:`solve_inverse_kalman` (physical units).
 
     Attributes
@@ -152,14 +152,9 @@ class EngineResult(ResultMixin):
     P: NDArray[np.float64] | None
     Q: NDArray[np.float64] | None
     Qw: NDArray[np.float64] | None
-    status: Status
-    message: str
     objective_value: float
     iterations: int
     rank: int | None
-    verification: Verification
-    solver_stats: SolverStats
-    target_poles: NDArray[np.complex128]
     details: dict = field(default_factory=dict)
 
 
