@@ -100,6 +100,10 @@ class EngineSetup:
         Noise input of the decision covariance (identity for ``"full"``, G otherwise).
     family : FamilyMap
         The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
+    verify : bool
+        Check every returned design independently (:func:`solve_inverse_kalman`'s
+        ``verification``); False when the caller verifies it itself (the public verb does, with
+        :mod:`optdesign.design.verification`: the same checks are not run twice).
     """
 
     plant: Plant
@@ -107,6 +111,7 @@ class EngineSetup:
     objective: str
     Gd: NDArray[np.float64]
     family: FamilyMap
+    verify: bool = True
 
     @property
     def k(self) -> int:
@@ -159,7 +164,7 @@ class EngineResult(DesignResult):
 
 
 def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
-                           objective: str = "min_trace") -> EngineSetup:
+                           objective: str = "min_trace", verify: bool = True) -> EngineSetup:
     """Build the per-plant state of the engine.
 
     Parameters
@@ -194,7 +199,7 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
     plant.require_observable(what="placing every filter pole")
     Gd = np.eye(plant.n) if q_structure == "full" else np.asarray(plant.G, dtype=float)
     return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd,
-                       family=family_map(plant.A, plant.C, plant.dt))
+                       family=family_map(plant.A, plant.C, plant.dt), verify=bool(verify))
 
 
 def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
@@ -677,8 +682,8 @@ def _result(setup, target, status, message, t0, cpu0, *, design=None, objective=
     ver = Verification.of([])
     if design is not None:
         L, P, Q, Qw = design
-        ver = _verify(setup, target, L, P, Q, Qw, tol)
-        if not ver.passed:
+        ver = _verify(setup, target, L, P, Q, Qw, tol) if setup.verify else Verification.of([])
+        if setup.verify and not ver.passed:
             message += "; failed checks: " + ", ".join(c.name for c in ver.failed)
     stats = SolverStats(backend="spectral-newton+clarabel", native_status=native,
                         time=time.perf_counter() - t0, iterations=iterations,
