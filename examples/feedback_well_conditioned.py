@@ -109,7 +109,7 @@ def main() -> None:
     ax0.barh(names, values, color="tab:blue")
     for y, v in enumerate(values):
         ax0.text(v, y, f" {v:.3g}", va="center", fontsize=9)
-    ax0.set_xlabel("kappa2 of the closed-loop eigenvectors (cond X, log scale)")
+    ax0.set_xlabel(r"$\kappa_2$ of the closed-loop eigenvectors ($\mathrm{cond}\,X$, log scale)")
     ax0.set_xscale("log")
     ax0.set_xlim(1.0, 3.0 * max(values))
     ax0.xaxis.set_minor_formatter(NullFormatter())
@@ -118,7 +118,7 @@ def main() -> None:
         d = np.sort(spreads[name])
         ax1.step(d, np.arange(1, d.size + 1) / d.size, where="post", label=name)
     ax1.set_xscale("log")
-    ax1.set_xlabel(f"largest closed-loop pole shift, ||E|| = {REL:g} ||A|| ({SAMPLES} random E)")
+    ax1.set_xlabel(f"largest closed-loop pole shift, $\\|E\\| = {REL:g}\\,\\|A\\|$ ({SAMPLES} random $E$)")
     ax1.set_ylabel("fraction of perturbations")
     ax1.grid(True, alpha=0.3)
     ax1.legend(fontsize=8, loc="lower right")

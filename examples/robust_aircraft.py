@@ -78,28 +78,31 @@ def pole_figure(ms: ModelSet, region, designs: dict, outdir: Path) -> Path:
             [(full, max(1.0, float(np.abs(allp.imag).max()) * 1.15)), (zoom, 0.05)]
         ):
             ax = axes[row, col]
-            ax.axvspan(xr[0], edge, color="tab:green", alpha=0.10, label="region Re s <= -decay")
+            ax.axvspan(xr[0], edge, color="tab:green", alpha=0.10,
+                       label=r"region $\mathrm{Re}\,s \leq -$decay")
             ax.axvline(edge, color="tab:green", lw=1)
             ax.plot(pts.real, pts.imag, ".", ms=2, color="0.55", label="300 random plants of the polytope")
             ax.plot(verts.real, verts.imag, "x", ms=6, color="tab:red", label="the 9 models")
             ax.set_xlim(*xr)
             ax.set_ylim(-yr, yr)
             ax.grid(alpha=0.3)
-            ax.set_xlabel("Re s")
+            ax.set_xlabel(r"$\mathrm{Re}\,s$")
         axes[0, col].set_title(
-            f"{name}: worst kappa2 {d['mm'].worst('kappa2'):.3g}\n"
+            f"{name}: worst $\\kappa_2$ = {d['mm'].worst('kappa2'):.3g}\n"
             f"{d['dense'].in_region}/{d['dense'].count} random plants in the region",
             fontsize=9,
         )
         axes[1, col].set_title("zoom: the slow real pole", fontsize=9)
-    axes[0, 0].set_ylabel("Im s")
-    axes[1, 0].set_ylabel("Im s")
-    axes[0, 0].legend(fontsize=7, loc="upper left")
+    axes[0, 0].set_ylabel(r"$\mathrm{Im}\,s$")
+    axes[1, 0].set_ylabel(r"$\mathrm{Im}\,s$")
+    # one legend for all panels, below them: inside a panel it covered the fast poles
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=8, frameon=False)
     fig.suptitle(
-        "Seed 001 aircraft pitch observer, +-20 % on the aerodynamic coefficients: poles of A - L C",
+        r"Seed 001 aircraft pitch observer, $\pm$20 % on the aerodynamic coefficients: poles of $A - LC$",
         fontsize=10,
     )
-    return save_figure(fig, outdir / "robust_aircraft_poles.png")
+    fig.tight_layout(rect=(0, 0.04, 1, 1))
+    return save_figure(fig, outdir / "robust_aircraft_poles.png", layout=False)
 
 
 def study(plant, region, max_gain, sizes, h2_fracs, outdir: Path) -> Path:
@@ -137,21 +140,21 @@ def study(plant, region, max_gain, sizes, h2_fracs, outdir: Path) -> Path:
     front.sort()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9.5, 3.8))
     r = np.array(rows)
-    a1.plot(100 * r[:, 0], r[:, 1], "s--", label="LMI worst kappa2")
-    a1.plot(100 * r[:, 0], r[:, 2], "o-", label="NLP worst kappa2")
-    a1.set_xlabel("uncertainty +-k % (three aerodynamic coefficients)")
-    a1.set_ylabel("worst-case kappa2")
+    a1.plot(100 * r[:, 0], r[:, 1], "s--", label=r"LMI worst $\kappa_2$")
+    a1.plot(100 * r[:, 0], r[:, 2], "o-", label=r"NLP worst $\kappa_2$")
+    a1.set_xlabel(r"uncertainty $\pm k$ % (three aerodynamic coefficients)")
+    a1.set_ylabel(r"worst-case $\kappa_2$")
     ax2 = a1.twinx()
-    ax2.plot(100 * r[:, 0], r[:, 3], "^:", color="tab:green", label="NLP worst H2")
-    ax2.set_ylabel("worst-case H2 (NLP gain)")
+    ax2.plot(100 * r[:, 0], r[:, 3], "^:", color="tab:green", label=r"NLP worst $H_2$")
+    ax2.set_ylabel(r"worst-case $H_2$ (NLP gain)")
     a1.legend(fontsize=8, loc="upper left")
     ax2.legend(fontsize=8, loc="lower right")
     a1.grid(alpha=0.3)
     fr = np.array(front)
     a2.plot(fr[:, 0], fr[:, 1], "o-")
-    a2.set_xlabel("worst-case H2 of the estimation error")
-    a2.set_ylabel("worst-case kappa2")
-    a2.set_title("Pareto front at +-20 % (min kappa2 s.t. H2 <= h)", fontsize=9)
+    a2.set_xlabel(r"worst-case $H_2$ of the estimation error")
+    a2.set_ylabel(r"worst-case $\kappa_2$")
+    a2.set_title(r"Pareto front at $\pm$20 % (min $\kappa_2$ s.t. $H_2 \leq h$)", fontsize=9)
     a2.grid(alpha=0.3)
     return save_figure(fig, outdir / "robust_aircraft_study.png")
 

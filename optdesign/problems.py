@@ -22,11 +22,36 @@ File schema (JSON)::
 Matrices are nested lists; complex arrays are ``{"re": [...], "im": [...]}``.  ``plant`` may be
 ``null`` when the data cannot form a valid :class:`~optdesign.Plant` (e.g. singular R);
 ``notes`` then says why.
+
+A user's own problem
+--------------------
+:func:`load` also takes the path of a problem file (:func:`load_file`), and so does every place
+that takes a problem name (``optdesign design ./mine.json --method kalman``, ``optdesign kalman
+mine.npz``, a study spec's ``problem = "mine.toml"``).  Formats, chosen by the suffix:
+
+* ``.json`` / ``.toml``: the schema above, or the minimal form with the plant's fields at the top
+  level -- ``{"A": [[0, 1], [-2, -3]], "C": [[1, 0]], "Q": [[1, 0], [0, 1]], "R": [[1]]}``, optional
+  ``G``, ``B``, ``dt`` (absent, ``null`` or ``0``: continuous time), ``name``, ``title``, ``notes``
+  and ``poles`` (target poles: numbers, strings such as ``"-1+2j"``, or ``{"re": [...], "im":
+  [...]}``);
+* ``.npz`` (``numpy.savez``): arrays with those names, read with ``allow_pickle=False``;
+* ``.mat`` (MATLAB ``save mine.mat A C Q R``, formats up to v7; v7.3/HDF5 is refused): variables
+  with those names, read by :func:`scipy.io.loadmat`.
+
+Files are read safely: no pickle, no ``eval``; the file size (at most :data:`MAX_FILE_BYTES`) and
+every matrix's shape (no dimension above :data:`MAX_DIMENSION`) are checked before any matrix is
+built, then every matrix's type, shape, finiteness, symmetry and definiteness.  Every mistake
+raises :class:`ProblemFileError` naming the file and the field, e.g. ``mine.json: plant.R: R must
+be positive definite ...``; an unknown field is refused (a typo would otherwise be ignored).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import sys
+import zipfile
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
 from importlib import resources
@@ -35,11 +60,24 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import as_str
+from ._validate import as_matrix, as_poles, as_positive_float, as_square, as_str
 from .errors import ProblemNotFoundError, ValidationError
 from .model.plant import Plant
 
-__all__ = ["Problem", "names", "load", "load_all", "describe"]
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+__all__ = ["Problem", "ProblemFileError", "names", "load", "load_file", "load_all", "describe",
+           "is_problem_file", "FILE_SUFFIXES", "MAX_DIMENSION", "MAX_FILE_BYTES"]
+
+#: suffixes of the problem files :func:`load` accepts instead of a library name
+FILE_SUFFIXES = (".json", ".toml", ".npz", ".mat")
+#: the largest dimension (states, outputs, noise or control inputs) a problem file may have
+MAX_DIMENSION = 2000
+#: the largest problem file read (bytes)
+MAX_FILE_BYTES = 256 * 2**20
 
 _PLANT_KEYS = ("A", "C", "G", "Q", "R", "dt", "B", "name")
 
@@ -60,7 +98,9 @@ class Problem:
     citation, source, notes : str
     tags : tuple of str
     path : str
-        The file it was read from.
+        The file it was read from (relative to the library for a library problem).
+    origin : str
+        ``"library"`` or ``"file"`` (a user's problem file, :func:`load_file`).
     """
 
     name: str
@@ -75,6 +115,7 @@ class Problem:
     notes: str = ""
     tags: tuple[str, ...] = ()
     path: str = ""
+    origin: str = "library"
 
     def __repr__(self) -> str:
         return f"Problem({self.name!r}, kind={self.kind!r}, plant={self.plant!r})"
@@ -172,13 +213,25 @@ def _raw(name: str) -> dict[str, Any]:
     return json.loads(node.read_text(encoding="utf-8"))
 
 
-def load(name: str) -> Problem:
-    """Load a problem by name.
+def is_problem_file(name: Any) -> bool:
+    """Whether ``name`` is meant as a file rather than a library name: a path object, or a string
+    that ends in one of :data:`FILE_SUFFIXES` or contains a path separator (library names such
+    as ``carex_1.1`` contain neither)."""
+    if isinstance(name, os.PathLike):
+        return True
+    if not isinstance(name, str):
+        return False
+    return name.lower().endswith(FILE_SUFFIXES) or "/" in name or os.sep in name
+
+
+def load(name: str | os.PathLike) -> Problem:
+    """Load a problem by name, or from a user's problem file.
 
     Parameters
     ----------
-    name : str
-        A name from :func:`names` (the file stem).
+    name : str or path
+        A name from :func:`names` (the file stem), or the path of a problem file
+        (:func:`is_problem_file`; read by :func:`load_file`).
 
     Returns
     -------
@@ -188,10 +241,18 @@ def load(name: str) -> Problem:
     ------
     ProblemNotFoundError
         No such problem (the message suggests close names).
+    ProblemFileError
+        A problem file that is missing, unreadable or has a bad field (the message names the file
+        and the field).
     ValidationError
-        ``name`` is not a string.
+        ``name`` is not a string or a path.
     """
-    raw = _raw(as_str("name", name))
+    if is_problem_file(name):
+        return load_file(name)
+    name = as_str("name", name)
+    if name not in _index() and Path(name).is_file():  # a file of a kind we do not read
+        return load_file(name)
+    raw = _raw(name)
     plant_raw = raw.get("plant")
     plant = None
     if plant_raw is not None:
@@ -219,10 +280,28 @@ def load_all(tag: str | None = None, kind: str | None = None) -> list[Problem]:
     return [load(n) for n in names(tag=tag, kind=kind)]
 
 
-def describe(name: str) -> str:
+def _show(value: Any, indent: str) -> str:
+    """A value for :func:`describe`: arrays as numbers (no ``array(...)``), nested dicts one key a
+    line."""
+    if isinstance(value, Mapping):
+        return "".join(f"\n{indent}{k}:{'' if isinstance(v, Mapping) else ' '}{_show(v, indent + '  ')}"
+                       for k, v in value.items())
+    if isinstance(value, (list, tuple)) and any(isinstance(v, (Mapping, np.ndarray)) for v in value):
+        return "".join(f"\n{indent}- {_show(v, indent + '  ')}" for v in value)
+    if isinstance(value, np.ndarray):
+        if np.iscomplexobj(value) and not np.any(value.imag):
+            value = value.real
+        with np.printoptions(precision=6, suppress=True, linewidth=100):
+            return str(value).replace("\n", "\n" + indent)
+    return str(value)
+
+
+def describe(name: str | os.PathLike) -> str:
     """A few lines describing a problem (used by ``optdesign show``)."""
     p = load(name)
-    lines = [f"{p.name}: {p.title}", f"  kind: {p.kind}", f"  citation: {p.citation}"]
+    lines = [f"{p.name}: {p.title}", f"  kind: {p.kind}"]
+    if p.citation:
+        lines.append(f"  citation: {p.citation}")
     if p.source:
         lines.append(f"  source: {p.source}")
     if p.plant is not None:
@@ -237,12 +316,310 @@ def describe(name: str) -> str:
         if d:
             lines.append(f"  {label}:")
             for k, v in d.items():
-                with np.printoptions(precision=6, suppress=True, linewidth=100):
-                    lines.append(f"    {k} = {str(v).replace(chr(10), chr(10) + '      ')}")
+                sep = ":" if isinstance(v, Mapping) else " = "
+                lines.append(f"    {k}{sep}{_show(v, '      ')}")
     if p.notes:
         lines.append(f"  notes: {p.notes}")
-    lines.append(f"  file: problems/{p.path}")
+    lines.append(f"  file: problems/{p.path}" if p.origin == "library" else f"  file: {p.path}")
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- a user's problem file
+
+
+class ProblemFileError(ValidationError):
+    """A user's problem file that is missing, unreadable or has a bad field (the message names the
+    file and the field)."""
+
+
+#: the plant's matrices in a problem file, and the other fields of the minimal form
+_MATRIX_KEYS = ("A", "C", "G", "Q", "R", "B")
+_MINIMAL_KEYS = (*_MATRIX_KEYS, "dt", "name", "title", "notes", "poles")
+_SCHEMA_KEYS = ("name", "title", "kind", "tags", "citation", "source", "notes", "plant", "targets",
+                "references", "data")
+
+
+def _file_error(src: str, fieldname: str | None, msg: str) -> ProblemFileError:
+    msg = " ".join(str(msg).split())
+    return ProblemFileError(f"{src}: {fieldname}: {msg}" if fieldname else f"{src}: {msg}")
+
+
+def _nested_shape(value: Any) -> tuple[int, ...]:
+    """The shape of a nested list along its first elements (no array is built)."""
+    shape = []
+    while isinstance(value, (list, tuple)):
+        shape.append(len(value))
+        if not value:
+            break
+        value = value[0]
+    return tuple(shape)
+
+
+def _check_size(src: str, fieldname: str, shape: tuple[int, ...]) -> None:
+    big = [d for d in shape if d > MAX_DIMENSION]
+    if big:
+        raise _file_error(src, fieldname, f"shape {shape} exceeds the size limit: every dimension must be "
+                                          f"<= {MAX_DIMENSION} (optdesign.problems.MAX_DIMENSION)")
+
+
+def _read_text_mapping(path: Path, src: str) -> dict[str, Any]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise _file_error(src, None, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    try:
+        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
+    except json.JSONDecodeError as exc:
+        raise _file_error(src, None, f"invalid JSON: {exc.msg} at line {exc.lineno} column {exc.colno}") \
+            from None
+    except tomllib.TOMLDecodeError as exc:
+        raise _file_error(src, None, f"invalid TOML: {exc}") from None
+    if not isinstance(data, dict):
+        raise _file_error(src, None, f"expected an object with the plant's matrices (A, C, ...); found "
+                                     f"{type(data).__name__}")
+    for key in ("plant", None):
+        block = data.get(key) if key else data
+        if isinstance(block, Mapping):
+            for k in _MATRIX_KEYS:
+                if k in block:
+                    _check_size(src, f"plant.{k}" if key else k, _nested_shape(block[k]))
+    return data
+
+
+def _npz_shapes(path: Path, src: str) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
+    """Shape and dtype of every array of an ``.npz`` from the ``.npy`` headers (nothing loaded)."""
+    out = {}
+    try:
+        with zipfile.ZipFile(path) as zf:
+            for info in zf.infolist():
+                if not info.filename.endswith(".npy"):
+                    raise _file_error(src, info.filename, "not an array (.npz members are .npy files)")
+                with zf.open(info) as fh:
+                    version = np.lib.format.read_magic(fh)
+                    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                            else np.lib.format.read_array_header_2_0)
+                    shape, _, dtype = read(fh)
+                out[info.filename[:-4]] = (tuple(shape), dtype)
+    except (zipfile.BadZipFile, ValueError, OSError) as exc:
+        raise _file_error(src, None, f"not a readable .npz archive ({exc})") from None
+    return out
+
+
+def _read_npz(path: Path, src: str) -> dict[str, Any]:
+    for name, (shape, dtype) in _npz_shapes(path, src).items():
+        if name in _MATRIX_KEYS:
+            _check_size(src, name, shape)
+        if dtype.hasobject:
+            raise _file_error(src, name, "an object array (it would need pickle, which is not used); save "
+                                         "numbers or strings")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return {k: data[k] for k in data.files}
+    except (ValueError, OSError) as exc:
+        raise _file_error(src, None, f"cannot read the arrays: {exc}") from None
+
+
+def _read_mat(path: Path, src: str) -> dict[str, Any]:
+    import scipy.io
+
+    try:
+        info = scipy.io.whosmat(path)
+    except NotImplementedError:
+        raise _file_error(src, None, "MATLAB v7.3 (HDF5) files are not supported; save with "
+                                     "save(..., '-v7')") from None
+    except (ValueError, OSError, TypeError) as exc:
+        raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
+    for name, shape, cls in info:
+        if name in _MATRIX_KEYS:
+            _check_size(src, name, tuple(shape))
+        if cls not in ("double", "single", "char", "logical") and not cls.startswith(("int", "uint")):
+            raise _file_error(src, name, f"a MATLAB {cls} (expected a numeric matrix, or text for name "
+                                         "and title)")
+    try:
+        data = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True)
+    except (ValueError, OSError, TypeError, NotImplementedError) as exc:
+        raise _file_error(src, None, f"cannot read the variables: {exc}") from None
+    return {k: v for k, v in data.items() if not k.startswith("__")}
+
+
+def _text(src: str, fieldname: str, value: Any) -> str:
+    if isinstance(value, np.ndarray) and value.dtype.kind == "U" and value.size == 1:
+        value = str(value.ravel()[0])
+    if not isinstance(value, str):
+        raise _file_error(src, fieldname, f"must be a string; found {type(value).__name__}")
+    return value
+
+
+def _dt(src: str, fieldname: str, value: Any) -> float | None:
+    """``dt``: absent, null or 0 (MATLAB's ``Ts = 0``) -> continuous time."""
+    if isinstance(value, np.ndarray) and value.size == 1 and value.dtype.kind in "iuf":
+        value = value.ravel()[0].item()
+    if value is None or (isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0):
+        return None
+    try:
+        return as_positive_float("dt", value)
+    except ValidationError as exc:
+        raise _file_error(src, fieldname, f"{exc} (0 or absent: continuous time)") from None
+
+
+def _poles(src: str, fieldname: str, value: Any, n: int) -> np.ndarray:
+    if isinstance(value, Mapping) and set(value) == {"re", "im"}:
+        try:
+            value = np.asarray(value["re"], dtype=float) + 1j * np.asarray(value["im"], dtype=float)
+        except (TypeError, ValueError):
+            raise _file_error(src, fieldname, "re and im must be lists of numbers") from None
+    elif isinstance(value, (list, tuple)):
+        items = []
+        for v in value:
+            if isinstance(v, str):
+                try:
+                    v = complex(v.replace(" ", "").replace("i", "j"))
+                except ValueError:
+                    raise _file_error(src, fieldname, f"{v!r} is not a number (write complex poles as "
+                                                      f"'-3+1j')") from None
+            items.append(v)
+        value = items
+    try:
+        return as_poles("poles", value, n)
+    except ValidationError as exc:
+        raise _file_error(src, fieldname, str(exc)) from None
+
+
+def _plant_from(src: str, block: Mapping[str, Any], prefix: str, default_name: str) -> Plant:
+    """The plant of a file's matrices, every field checked with its name."""
+    missing = [k for k in ("A", "C") if k not in block]
+    if missing:
+        raise _file_error(src, f"{prefix}{missing[0]}", "missing (a plant needs at least A and C)")
+    kw: dict[str, Any] = {}
+    for k in _MATRIX_KEYS:
+        v = block.get(k)
+        if v is None:
+            continue
+        try:
+            kw[k] = as_square(k, v) if k in ("A", "Q", "R") else as_matrix(k, v)
+        except ValidationError as exc:
+            raise _file_error(src, f"{prefix}{k}", str(exc)) from None
+    kw["dt"] = _dt(src, f"{prefix}dt", block.get("dt"))
+    name = block.get("name", default_name)
+    kw["name"] = _text(src, f"{prefix}name", name)
+    try:
+        return Plant(**kw)
+    except ValidationError as exc:
+        msg = " ".join(str(exc).split())
+        culprit = next((k for k in (*_MATRIX_KEYS, "dt") if msg.startswith(k + " ")), None)
+        raise _file_error(src, f"{prefix}{culprit}" if culprit else prefix.rstrip(".") or "plant", msg) \
+            from None
+
+
+def _problem_from(src: str, data: Mapping[str, Any], path: Path) -> Problem:
+    """A Problem from a file's top-level mapping (library schema or the minimal form)."""
+    schema = "plant" in data
+    allowed = _SCHEMA_KEYS if schema else _MINIMAL_KEYS
+    unknown = [k for k in data if k not in allowed]
+    if unknown:
+        form = ("the library schema (name, title, plant, targets, ...)" if schema
+                else f"a plant file ({', '.join(_MINIMAL_KEYS)})")
+        raise _file_error(src, unknown[0], f"unknown field for {form}")
+    default_name = path.stem
+    if schema:
+        block = data["plant"]
+        if block is not None and not isinstance(block, Mapping):
+            raise _file_error(src, "plant", f"must be an object with the matrices A, C, ...; found "
+                                            f"{type(block).__name__}")
+        bad = [k for k in (block or {}) if k not in (*_MATRIX_KEYS, "dt", "name")]
+        if bad:
+            keys = ", ".join((*_MATRIX_KEYS, "dt", "name"))
+            raise _file_error(src, f"plant.{bad[0]}", f"unknown field; a plant has {keys}")
+        name = _text(src, "name", data.get("name", default_name))
+        plant = None if block is None else _plant_from(src, {"name": name, **block}, "plant.", name)
+        targets = data.get("targets", {})
+        for k in ("targets", "references", "data"):
+            if not isinstance(data.get(k, {}), Mapping):
+                raise _file_error(src, k, f"must be an object; found {type(data[k]).__name__}")
+        targets = dict(_decode(targets))
+        if "poles" in targets and plant is not None:
+            targets["poles"] = _poles(src, "targets.poles", data["targets"]["poles"], plant.n)
+        tags = data.get("tags", [])
+        if not isinstance(tags, list) or not all(isinstance(t, str) for t in tags):
+            raise _file_error(src, "tags", "must be a list of strings")
+        texts = {k: _text(src, k, data.get(k, "")) for k in ("kind", "citation", "source", "notes")}
+        return Problem(name=name, title=_text(src, "title", data.get("title", f"{name} (from {src})")),
+                       kind=texts["kind"] or "user", plant=plant, targets=targets,
+                       references=_decode(data.get("references", {})), data=_decode(data.get("data", {})),
+                       citation=texts["citation"], source=texts["source"], notes=texts["notes"],
+                       tags=tuple(tags), path=str(path), origin="file")
+    plant = _plant_from(src, data, "", default_name)
+    targets = {} if data.get("poles") is None else {"poles": _poles(src, "poles", data["poles"], plant.n)}
+    name = plant.name or default_name
+    return Problem(name=name, title=_text(src, "title", data.get("title", f"{name} (from {src})")),
+                   kind="user", plant=plant, targets=targets,
+                   notes=_text(src, "notes", data.get("notes", "")), source=str(path), path=str(path),
+                   origin="file")
+
+
+def load_file(path: str | os.PathLike) -> Problem:
+    """Load a user's problem from a file: JSON / TOML, ``.npz`` or MATLAB ``.mat``.
+
+    The formats and what is checked are in the module docstring ("A user's own problem").
+
+    Parameters
+    ----------
+    path : str or path
+        A file whose suffix is one of :data:`FILE_SUFFIXES`.
+
+    Returns
+    -------
+    Problem
+        ``origin == "file"``; ``name`` is the file's ``name`` field or its stem; ``kind`` is
+        ``"user"`` unless the file says otherwise; ``targets["poles"]`` from ``poles``.
+
+    Raises
+    ------
+    ProblemFileError
+        No such file, an unknown suffix, a file above :data:`MAX_FILE_BYTES`, invalid JSON/TOML, a
+        matrix above :data:`MAX_DIMENSION`, an object array, an unknown or malformed field (not
+        numeric, wrong shape, NaN/inf, Q not PSD, R not PD, ...): one line naming the file and
+        the field.
+    ValidationError
+        ``path`` is neither a string nor a path.
+
+    Examples
+    --------
+    >>> import json, os, tempfile
+    >>> d = tempfile.mkdtemp()
+    >>> f = os.path.join(d, "mine.json")
+    >>> with open(f, "w") as fh:
+    ...     json.dump({"A": [[0, 1], [-2, -3]], "C": [[1, 0]], "Q": [[1, 0], [0, 1]], "R": [[1]]}, fh)
+    >>> load_file(f).plant.n
+    2
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ValidationError(f"path must be a string or a path; found {type(path).__name__} {path!r}")
+    p = Path(path)
+    src = str(path)
+    suffix = p.suffix.lower()
+    if suffix not in FILE_SUFFIXES:
+        raise _file_error(src, None, f"unknown kind of problem file {suffix or '(no suffix)'!r}; expected "
+                                     f"{', '.join(FILE_SUFFIXES)} (or a library name: `optdesign list`)")
+    if not p.is_file():
+        raise _file_error(src, None, "no such problem file" if not p.exists() else "not a file")
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise _file_error(src, None, f"cannot read the file ({exc.strerror or exc})") from None
+    if size > MAX_FILE_BYTES:
+        raise _file_error(src, None, f"the file has {size} bytes; at most {MAX_FILE_BYTES} are read "
+                                     "(optdesign.problems.MAX_FILE_BYTES)")
+    try:
+        if suffix in (".json", ".toml"):
+            data = _read_text_mapping(p, src)
+        elif suffix == ".npz":
+            data = _read_npz(p, src)
+        else:
+            data = _read_mat(p, src)
+    except PermissionError as exc:
+        raise _file_error(src, None, f"cannot read the file ({exc.strerror or exc})") from None
+    return _problem_from(src, data, p)
 
 
 def _source_root() -> Path:  # used by tests to compare with the source tree

@@ -101,3 +101,36 @@ def test_kalman_options_on_the_command_line(capsys):
     assert "discrete, dt = 0.1" in capsys.readouterr().out
     assert main(["kalman", "--sensors", "x"]) == 2
     assert "--sensors must be comma-separated" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ issue 17, part 2: output details
+
+
+def test_show_prints_numbers_not_reprs(capsys):
+    # nested dicts of arrays were dumped as {'norm2_H': array(...)}
+    assert main(["show", "carex_1.1"]) == 0
+    out = capsys.readouterr().out
+    assert "array(" not in out and "{" not in out
+    assert "\n    computed:\n      norm2_H: 2.414213562373095\n" in out
+
+
+def test_kalman_and_design_share_one_title_line(capsys):
+    assert main(["kalman"]) == 0
+    first_kalman = capsys.readouterr().out.splitlines()[0]
+    assert main(["design", DEFAULT_PROBLEM, "--method", "kalman"]) == 0
+    first_design = capsys.readouterr().out.splitlines()[0]
+    title = problems.load(DEFAULT_PROBLEM).title
+    assert first_kalman == first_design == f"problem: {DEFAULT_PROBLEM} -- {title}"
+
+
+def test_filter_margins_repr_is_one_short_line():
+    from optdesign.analysis.robustness import filter_margins
+    from optdesign.design.kalman import kalman
+
+    plant = problems.load(DEFAULT_PROBLEM).plant
+    m = filter_margins(plant, kalman(plant).L)
+    text = repr(m)
+    assert len(text) < 200 and "\n" not in text and "array(" not in text  # was a 600-character dump
+    assert text.startswith("FilterMargins(continuous, stable; circle condition holds; guaranteed gain "
+                           "(0.5, inf)")
+    assert "summary" not in text and "channel" in m.summary()

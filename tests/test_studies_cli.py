@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import csv
 import json
+import os
+import re
 import sys
 import types
 from pathlib import Path
@@ -17,9 +19,16 @@ import pytest
 
 from optdesign import problems
 from optdesign.cli import main
+from optdesign.errors import BackendUnavailableError
 from optdesign.regions import Disk, HalfPlane, Sector
-from optdesign.studies.reproduce import PaperReproduction, ReproRow, paper_id, reproduce_all
+from optdesign.studies.reproduce import PAPERS, PaperReproduction, ReproRow, paper_id, reproduce_all
 from optdesign.studies.spec import load_spec, parse_poles, parse_region
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """Every test runs in its own folder: a study writes into the current directory."""
+    monkeypatch.chdir(tmp_path)
 
 
 def run(argv, capsys):
@@ -232,6 +241,9 @@ def test_study_runs_a_spec(tmp_path, capsys):
     code, out, err = run(["study", str(spec), "--no-progress"], capsys)
     assert code == 0, err
     assert "4 points, 4 successful" in out
+    head = f"study tiny: compleib_nn8, design well_conditioned, 4 points on serial -> tiny_results{os.sep}"
+    assert out.splitlines()[0] == head
+    # the results go to the current directory (tmp_path here), never next to the spec file
     rows = list(csv.DictReader((tmp_path / "tiny_results" / "tiny.csv").open()))
     assert len(rows) == 4 and {r["zeta"] for r in rows} == {"0.4", "0.8"}
     assert all(r["success"] == "True" for r in rows)
@@ -468,3 +480,220 @@ def test_reproduce_and_study_out_folder_errors_name_the_flag(tmp_path, capsys, m
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     code, _, err = run(["reproduce", "000", "--out", str(tmp_path / "r")], capsys)
     assert_one_line_error(code, err, "needs matplotlib: pip install 'optdesign[plot]'")
+
+
+# ------------------------------------------------------------------ issue 17, part 2: study
+
+
+FAILING_SPEC = """
+[study]
+name = "shifts"
+problem = "chang_lee_1984_ex1"
+design = "inverse"
+executor = "serial"
+[grid]
+scale = [0.5, 1.0]
+shift = [0.0, 6.0]
+"""
+
+
+def test_study_header_is_printed_before_the_sweep(tmp_path, capsys, monkeypatch):
+    import optdesign.cli.design as cli_design
+
+    seen = {}
+    real = cli_design.run_spec
+
+    def spy(*args, **kwargs):
+        seen["stdout before the sweep"] = capsys.readouterr().out
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(cli_design, "run_spec", spy)
+    (tmp_path / "tiny.toml").write_text(GOOD_SPEC)
+    code, out, err = run(["study", "tiny.toml", "--no-progress", "--no-figures"], capsys)
+    assert code == 0, err
+    assert seen["stdout before the sweep"].startswith("study tiny: compleib_nn8, design well_conditioned, "
+                                                      "4 points on serial -> tiny_results")
+
+
+def test_study_refuses_up_front_without_matplotlib(tmp_path, capsys, monkeypatch):
+    import optdesign.studies.spec as spec_module
+
+    def no_sweep(*args, **kwargs):
+        raise AssertionError("the sweep ran although its figures could not be drawn")
+
+    (tmp_path / "tiny.toml").write_text(GOOD_SPEC)
+    real_sweep = spec_module.sweep
+    monkeypatch.setitem(sys.modules, "matplotlib", None)
+    monkeypatch.setattr(spec_module, "sweep", no_sweep)
+    code, _, err = run(["study", "tiny.toml"], capsys)
+    assert_one_line_error(code, err, "the figures of tiny.toml need matplotlib, which is not installed: "
+                                     "pip install 'optdesign[plot]' (or skip the figures: optdesign study "
+                                     "--no-figures")
+    assert not (tmp_path / "tiny_results" / "tiny.csv").exists()
+    with pytest.raises(BackendUnavailableError, match="need matplotlib"):
+        spec_module.run_spec(tmp_path / "tiny.toml", progress=False)
+    # --no-figures needs no matplotlib and writes the tables only
+    monkeypatch.setattr(spec_module, "sweep", real_sweep)
+    code, out, err = run(["study", "tiny.toml", "--no-figures", "--no-progress"], capsys)
+    assert code == 0, err
+    assert (tmp_path / "tiny_results" / "tiny.csv").is_file() and "figure:" not in out
+    assert not list((tmp_path / "tiny_results").glob("*.png"))
+
+
+def test_study_outputs_go_to_the_current_directory_not_the_source_tree(tmp_path, capsys):
+    src = tmp_path / "src"
+    src.mkdir()
+    (src / "shifts.toml").write_text(FAILING_SPEC)
+    run(["study", str(src / "shifts.toml"), "--allow-failures", "--no-progress"], capsys)
+    assert sorted(p.name for p in src.iterdir()) == ["shifts.toml"]  # nothing next to the spec
+    assert (tmp_path / "shifts_results" / "shifts.csv").is_file()
+    # the spec's output folder is relative to the current directory too; --out overrides it
+    (src / "shifts.toml").write_text(FAILING_SPEC.replace('executor = "serial"', 'executor = "serial"\n'
+                                                                                 'output = "mine"'))
+    run(["study", str(src / "shifts.toml"), "--allow-failures", "--no-progress"], capsys)
+    assert (tmp_path / "mine" / "shifts.csv").is_file()
+    run(["study", str(src / "shifts.toml"), "--allow-failures", "--no-progress", "--out", "elsewhere"],
+        capsys)
+    assert (tmp_path / "elsewhere" / "shifts.csv").is_file()
+    assert sorted(p.name for p in src.iterdir()) == ["shifts.toml"]
+    # the example spec: its results go to ./alpha_sector_results, not into examples/
+    example = load_spec(Path(__file__).resolve().parents[1] / "examples" / "study_alpha_sector.toml")
+    assert example.output == Path("alpha_sector_results")
+
+
+def test_study_exit_code_1_when_a_point_fails_with_the_failed_points_listed(tmp_path, capsys):
+    (tmp_path / "shifts.toml").write_text(FAILING_SPEC)
+    code, out, _ = run(["study", "shifts.toml", "--no-progress"], capsys)
+    assert code == 1  # it used to exit 0 when only some points succeeded
+    assert "4 points, 2 successful, 2 failed" in out and "failed points (2 of 4):" in out
+    listed = [ln for ln in out.splitlines() if ln.startswith("  scale = ")]
+    assert [ln.split(":")[0] for ln in listed] == ["  scale = 0.5, shift = 6", "  scale = 1, shift = 6"]
+    assert all(": infeasible: infeasible: no design exists (a global certificate says so); " in ln
+               for ln in listed), listed
+    code, out, _ = run(["study", "shifts.toml", "--no-progress", "--allow-failures"], capsys)
+    assert code == 0 and "partial results accepted (--allow-failures)" in out
+    code, out, _ = run(["study", "shifts.toml", "--no-progress", "--json"], capsys)
+    d = json.loads(out)
+    assert code == 1 and d["failed"] == 2 and [f["shift"] for f in d["failed_points"]] == [6.0, 6.0]
+    assert all(f["reason"].startswith("infeasible: ") for f in d["failed_points"])
+
+
+def test_study_progress_goes_to_stderr_when_asked(tmp_path, capsys):
+    (tmp_path / "shifts.toml").write_text(FAILING_SPEC)
+    code, out, err = run(["study", "shifts.toml", "--allow-failures", "--no-progress"], capsys)
+    assert err == ""
+    code, out, err = run(["study", "shifts.toml", "--allow-failures", "--progress"], capsys)
+    assert code == 0 and "sweep:" not in out  # stdout keeps the results only
+    # the sweep is shorter than the 1 s delay of its report: silent, or ending with 4/4
+    assert err == "" or err.splitlines()[-1].startswith("sweep: 4/4 points")
+
+
+def test_committed_example_results_are_consistent():
+    """The committed results of examples/study_alpha_sector.py (regenerated by running it; a unit test
+    cannot rerun the 2-minute study): the API sweep and the spec run agree, every point verified,
+    failure reasons recorded as a column, and kappa2 never worse along a chunk (zeta loosens from 0.8
+    to 0.2, each point warm-started from the previous one)."""
+    folder = Path(__file__).resolve().parents[1] / "examples" / "figures" / "study_alpha_sector"
+    api = list(csv.DictReader((folder / "api_alpha_sector.csv").open()))
+    spec = list(csv.DictReader((folder / "from_spec" / "alpha_sector.csv").open()))
+    assert len(api) == len(spec) == 16 and "reason" in api[0]
+    key = lambda r: (float(r["alpha"]), float(r["zeta"]))  # noqa: E731
+    by_point = {key(r): float(r["kappa2"]) for r in spec}
+    for r in api:
+        assert r["success"] == "True", r
+        assert float(r["kappa2"]) == pytest.approx(by_point[key(r)], rel=1e-6)
+    for alpha in {key(r)[0] for r in api}:
+        chunk = sorted((r for r in api if key(r)[0] == alpha), key=lambda r: -key(r)[1])
+        k2 = [float(r["kappa2"]) for r in chunk]
+        assert all(b <= a * (1 + 1e-6) for a, b in zip(k2, k2[1:], strict=False)), (alpha, k2)
+
+
+# ------------------------------------------------------------------ issue 17, part 2: output details
+
+
+def test_region_is_echoed_in_the_syntax_it_was_given(capsys):
+    code, out, _ = run(["design", "compleib_dis2", "--method", "well_conditioned", "--zeta", "0.7",
+                        "--radius", "20", "--starts", "1"], capsys)
+    assert code == 0
+    line = next(ln for ln in out.splitlines() if ln.startswith("region: "))
+    assert line.startswith("region: sector:0.7 & disk:20  (damping ratio >= 0.7 (a sector of half-angle "
+                           "45.57 deg); |s| <= 20)")
+    assert "half_angle=" not in out  # it was Sector(half_angle=0.795...)
+    from optdesign.studies.spec import format_region
+
+    for text in ("halfplane:1 & sector:0.7 & disk:20", "stable & strip:-30,0 & hstrip:9 & ellipse:-5,10,8",
+                 "disk:-1,0.5"):
+        assert format_region(parse_region(text), meaning=False) == text  # the inverse of parse_region
+
+
+def test_infeasible_inverse_design_output(capsys):
+    code, out, _ = run(["design", "chang_lee_1984_ex1", "--method", "inverse", "--poles=-1,2"], capsys)
+    assert code == 1
+    assert "poles of A - L C" not in out  # was "poles of A - L C: -"
+    assert out.count("target pole(s) 2 not in the open left half-plane") == 1  # the certificate once
+    assert "certificate: unstable_target: " in out
+    assert out.rstrip().endswith("verification: none (no design to check)")  # was an empty "verification:"
+    assert "L: none (no gain was designed; the status and the certificate say why)" in out
+
+
+def test_a_dc_frequency_is_said_to_be_dc():
+    from optdesign.cli.common import annotate_frequencies, pole_scale
+
+    text = "lambda_min(T R T* - R) = -0.3 at omega = 4.5e-08 rad/s; worst frequency 4.5e-08 rad/s"
+    out = annotate_frequencies(text, pole_scale([-0.45, -0.2]))
+    assert out.count("(DC: zero frequency to the scan's resolution)") == 2
+    assert annotate_frequencies("at omega = 0 rad/s", 1.0).endswith("rad/s (DC: zero frequency to the scan's "
+                                                                    "resolution)")
+    assert annotate_frequencies("at omega = 3.02 rad/s", 1.0) == "at omega = 3.02 rad/s"
+    # the bound follows the plant's time scale: 4.5e-08 rad/s is not DC for poles at 1e-7 rad/s
+    assert "DC" not in annotate_frequencies("omega = 4.5e-08 rad/s", pole_scale([-1e-7]))
+
+
+def test_pole_order_is_the_same_in_every_verb(capsys):
+    lines = {}
+    for argv in (["kalman"], ["design", "chang_lee_1984_ex1", "--method", "inverse", "--poles=-5,-8"],
+                 ["design", "chang_lee_1984_ex1", "--method", "kalman"],
+                 ["design", "chang_lee_1984_ex1", "--method", "place", "--poles=-5,-8"]):
+        code, out, _ = run(argv, capsys)
+        assert code == 0
+        lines[" ".join(argv)] = [ln.strip() for ln in out.splitlines()
+                                 if ln.strip().startswith(("poles of A - L C", "target poles"))]
+    for found in lines.values():
+        assert all(ln.endswith(": -8, -5") for ln in found), lines
+    code, out, _ = run(["design", "double_integrator_poles_m2pm2j", "--method", "inverse"], capsys)
+    assert "target poles: -2-2j, -2+2j" in out and "poles of A - L C: -2-2j, -2+2j" in out
+    code, out, _ = run(["design", "double_integrator_poles_m2pm2j", "--method", "inverse", "--json"], capsys)
+    d = json.loads(out)
+    assert d["target"]["im"] == pytest.approx([-2.0, 2.0]) and d["poles"]["im"] == pytest.approx([-2.0, 2.0])
+
+
+def test_reproduce_reports_each_paper_and_figure(tmp_path, monkeypatch, capsys):
+    mod = types.ModuleType("fake_paper")
+
+    def reproduce(outdir, *, quick=False, progress=None):
+        from optdesign.studies.reproduce import pyplot, save_figure
+
+        fig, ax = pyplot().subplots()
+        ax.plot([0, 1], [0, 1])
+        path = save_figure(fig, Path(outdir) / "fake_fig.png", progress=progress)
+        return PaperReproduction("000", "fake", (ReproRow("ex", "K", "1", "1", True),), (path,))
+
+    mod.reproduce = reproduce
+    monkeypatch.setitem(sys.modules, "optdesign.studies.paper000", mod)
+    monkeypatch.setitem(sys.modules, "optdesign.studies.paper001", _fake_paper(True))  # no progress argument
+    code, out, err = run(["reproduce", "000", "001", "--out", "r", "--progress"], capsys)
+    assert code == 0
+    assert out.splitlines()[0] == f"reproducing seed paper(s) 000, 001 -> r{os.sep}"  # first, before the work
+    lines = err.splitlines()
+    assert lines[0] == "seed 000 (1/2): " + PAPERS["000"]
+    assert re.fullmatch(r"wrote fake_fig.png \(at \d+\.\d s\)", lines[1]), lines
+    assert lines[2].startswith("reproduce: 1/2 papers (")
+    assert re.search(r"; seed 000 ok in \d+\.\d s$", lines[2]), lines
+    assert lines[3] == "seed 001 (2/2): " + PAPERS["001"]
+    assert lines[-1].startswith("reproduce: 2/2 papers")
+    code, out, err = run(["reproduce", "000", "--out", "r2"], capsys)
+    assert code == 0 and err == ""  # not a terminal and not asked: silent
+    from optdesign.cli import build_parser
+
+    help_text = build_parser()._subparsers._group_actions[0].choices["reproduce"].format_help()
+    assert "./optdesign-reproduction, in the current directory" in " ".join(help_text.split())

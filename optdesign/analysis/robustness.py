@@ -710,6 +710,27 @@ class FilterMargins:
         lines.extend(self.notes)
         return "\n".join(lines)
 
+    def __repr__(self) -> str:
+        """One short line (:meth:`summary` has everything): time domain, stability, the circle
+        condition, the guaranteed and the actual margins, the worst channel."""
+        lo, hi = self.guaranteed_gain_margin
+        circle = "holds" if self.circle.passed else "fails"
+        domain = "discrete" if self.discrete else "continuous"
+        parts = [f"{domain}, {'stable' if self.stable else 'UNSTABLE'}",
+                 f"circle condition {circle}",
+                 f"guaranteed gain ({lo:.3g}, {hi:.3g}) phase +-{self.guaranteed_phase_margin:.3g} deg",
+                 f"radius {self.radius:.3g}"]
+        p = self.gain_margin_lower.size
+        if p:
+            with np.errstate(invalid="ignore"):
+                k = int(np.nanargmin(self.disk_margin)) if np.any(np.isfinite(self.disk_margin)) else 0
+            parts.append(f"{p} channel{'s' if p > 1 else ''}, worst {k}: gain "
+                         f"({self.gain_margin_lower[k]:.3g}, {self.gain_margin_upper[k]:.3g}) phase "
+                         f"{self.phase_margin[k]:.3g} deg disk {self.disk_margin[k]:.3g}")
+        if not self.complete:
+            parts.append("incomplete (time limit)")
+        return f"FilterMargins({'; '.join(parts)})"
+
 
 def _crossings(g: Callable[[NDArray], NDArray], grid: NDArray, v: NDArray) -> list[float]:
     """All roots of a real scalar function of frequency found by sign changes of ``v = g(grid)``."""

@@ -9,7 +9,9 @@
     optdesign study SPEC.toml                    a sweep described in a file
     optdesign reproduce [PAPER] [--out DIR]      every seed paper's examples and figures
 
-Every command is registered statically in :func:`build_parser` (modules ``basic`` and ``design``).
+PROBLEM is a library name (``optdesign list``) or a problem file of the user's (JSON/TOML with the
+matrices, ``.npz``, MATLAB ``.mat``; :func:`optdesign.problems.load_file`).  Every command is
+registered statically in :func:`build_parser` (modules ``basic`` and ``design``).
 """
 
 from .common import DEFAULT_PROBLEM, CLIError, join_negative_values, jsonable, plant_of, print_json

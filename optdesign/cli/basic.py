@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
 from .. import problems
 from ..design.kalman import kalman, kalmd
-from .common import DEFAULT_PROBLEM, CLIError, plant_of, print_json
+from .common import DEFAULT_PROBLEM, PROBLEM_HELP, CLIError, header, plant_of, print_json
 
 
 def cmd_list(args: argparse.Namespace) -> int:
@@ -45,7 +46,8 @@ def cmd_kalman(args: argparse.Namespace) -> int:
     plant = prob.plant
     if not plant.has_noise_model:
         raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): a Kalman filter needs both")
-    opts = {"sensors": _int_list("--sensors", args.sensors), "known": _int_list("--known", args.known)}
+    opts: dict[str, Any] = {"sensors": _int_list("--sensors", args.sensors),
+                            "known": _int_list("--known", args.known)}
     if args.kalmd is not None:
         kf = kalmd(plant, args.kalmd, method=args.method, **opts)
     else:
@@ -55,7 +57,7 @@ def cmd_kalman(args: argparse.Namespace) -> int:
                      "residual": kf.residual, "status": str(kf.status), "success": kf.success,
                      "verification": kf.verification.as_dict()})
     else:
-        print(f"problem: {prob.name} — {prob.title}")
+        print(header(prob))
         print(kf.summary())
     return 0 if kf.success else 1
 
@@ -67,13 +69,13 @@ def _cfg_list(sp: argparse.ArgumentParser) -> None:
 
 
 def _cfg_show(sp: argparse.ArgumentParser) -> None:
-    sp.add_argument("problem", help="problem name (see `optdesign list`)")
+    sp.add_argument("problem", help=PROBLEM_HELP)
     sp.add_argument("--json", action="store_true", help="machine-readable output")
 
 
 def _cfg_kalman(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("problem", nargs="?", default=DEFAULT_PROBLEM,
-                    help=f"problem name (default: {DEFAULT_PROBLEM})")
+                    help=f"{PROBLEM_HELP} (default: {DEFAULT_PROBLEM})")
     sp.add_argument("--method", choices=("scipy", "hamiltonian"), default="scipy",
                     help="Riccati solver (default scipy; hamiltonian = ordered Schur of the Hamiltonian)")
     sp.add_argument("--sensors", help="measured outputs, e.g. --sensors 0,2 (MATLAB's sensors; default all)")

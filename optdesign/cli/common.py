@@ -17,15 +17,22 @@ import argparse
 import json
 import math
 import re
-from collections.abc import Sequence
+import sys
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import numpy as np
 
 from .. import problems
+from ..classical.riccati import format_pole, sort_poles
 
 __all__ = ["CLIError", "Parser", "DEFAULT_PROBLEM", "jsonable", "print_json", "plant_of",
-           "join_negative_values"]
+           "join_negative_values", "header", "format_poles", "annotate_frequencies", "print_checks",
+           "print_outcome", "add_progress_flag", "pole_scale", "flush", "PROBLEM_HELP"]
+
+#: help text of a PROBLEM argument
+PROBLEM_HELP = ("problem name (see `optdesign list`) or a problem file: JSON/TOML with the matrices "
+                "(A, C, Q, R, ...), .npz or MATLAB .mat (see `python -m pydoc optdesign.problems`)")
 
 #: The embedded example used when no problem is named (seed 000, Example 1).
 DEFAULT_PROBLEM = "chang_lee_1984_ex1"
@@ -68,11 +75,94 @@ def print_json(obj: Any) -> None:
 
 # ---------------------------------------------------------------- commands
 def plant_of(name: str):
-    """The library problem ``name``, which must have a valid plant (:class:`CLIError` otherwise)."""
+    """The problem ``name`` (a library name or a problem file, :func:`optdesign.problems.load`),
+    which must have a valid plant (:class:`CLIError` otherwise)."""
     p = problems.load(name)
     if p.plant is None:
         raise CLIError(f"problem {name!r} has no valid plant ({p.notes or 'see its notes'})")
     return p
+
+
+def header(prob) -> str:
+    """The first line of every command's report: ``problem: NAME -- TITLE``."""
+    return f"problem: {prob.name} -- {prob.title}" if prob.title else f"problem: {prob.name}"
+
+
+def format_poles(poles: Iterable[complex] | None) -> str:
+    """Poles in the one order of every command (:func:`optdesign.classical.riccati.sort_poles`: by
+    real part, then imaginary part), comma-separated; ``"none"`` for None."""
+    if poles is None:
+        return "none"
+    return ", ".join(format_pole(z) for z in sort_poles(np.asarray(poles, dtype=complex).ravel()))
+
+
+#: "omega = 4.5e-08 rad/s", "at 3.02 rad/s", "frequency 0 rad/s"
+_FREQUENCY = re.compile(r"((?:omega =|frequency|at) )([-+0-9.eE]+)( rad/s)")
+
+
+def annotate_frequencies(text: str, scale: float) -> str:
+    """Say where a frequency in ``text`` is DC: ``omega = 4.5e-08 rad/s`` becomes ``omega = 4.5e-08
+    rad/s (DC: zero frequency to the scan's resolution)`` when it is at most ``1e-6 * scale``
+    (``scale``: the largest pole modulus of the problem, so the bound follows the plant's own time
+    scale; frequency scans move ``w = 0`` off a pole at the origin by ``1e-7`` of that)."""
+    bound = 1e-6 * (scale if math.isfinite(scale) and scale > 0 else 1.0)
+
+    def note(m: re.Match) -> str:
+        try:
+            w = float(m.group(2))
+        except ValueError:
+            return m.group(0)
+        return m.group(0) + (" (DC: zero frequency to the scan's resolution)" if abs(w) <= bound else "")
+
+    return _FREQUENCY.sub(note, text)
+
+
+def pole_scale(*pole_sets: Any) -> float:
+    """The largest modulus among the given pole sets (None entries skipped), 1 if there is none."""
+    mags = [np.abs(np.asarray(p, dtype=complex)).max(initial=0.0) for p in pole_sets if p is not None]
+    top = float(max(mags, default=0.0))
+    return top if top > 0 else 1.0
+
+
+def print_checks(verification, indent: str = "") -> None:
+    """``verification:`` and one check per line, or ``verification: none (no design to check)``."""
+    if len(verification):
+        print(f"{indent}verification:")
+        for c in verification:
+            print(f"{indent}  {c}")
+    else:
+        print(f"{indent}verification: none (no design to check)")
+
+
+def print_outcome(res, scale: float) -> None:
+    """The message, the certificate (once: not again when the message already quotes it) and the
+    checks of a result; frequencies at DC said so (:func:`annotate_frequencies`)."""
+    message = " ".join(str(getattr(res, "message", "") or "").split())
+    cert = getattr(res, "certificate", None)
+    cert_text = " ".join(str(cert).split()) if cert is not None else ""
+    for quoted in (cert_text, " ".join(str(getattr(cert, "reason", "")).split())):
+        if quoted and quoted in message:  # the message quotes the certificate: say it once
+            message = message.replace(quoted, "").strip(" :;,")
+    status = str(getattr(getattr(res, "status", ""), "value", getattr(res, "status", "")))
+    if message and message != status:
+        print(annotate_frequencies(message, scale))
+    if cert_text:
+        print(f"certificate: {annotate_frequencies(cert_text, scale)}")
+    print_checks(res.verification)
+
+
+def add_progress_flag(sp: argparse.ArgumentParser, what: str) -> None:
+    """``--progress`` / ``--no-progress`` (default: only when stderr is a terminal)."""
+    sp.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                    help=f"progress of {what} on stderr (default: only when stderr is a terminal)")
+
+
+def flush() -> None:
+    """Flush stdout (a header printed before a long run shows at once, even through a pipe)."""
+    try:
+        sys.stdout.flush()
+    except (OSError, ValueError):  # pragma: no cover - stdout closed
+        pass
 
 
 #: a value that starts like a negative number (``-1``, ``-.5``, ``-1,-2``, ``-3+1j, -3-1j``)

@@ -2,26 +2,34 @@
 
 ::
 
-    optdesign design PROBLEM --method METHOD [--poles ...] [--region ...] [--json]
-    optdesign study SPEC.toml [--executor ...] [--workers N] [--out DIR]
-    optdesign reproduce [PAPER ...] [--out DIR] [--quick]
+    optdesign design PROBLEM --method METHOD [--poles ...] [--region ...] [--json] [--progress]
+    optdesign study SPEC.toml [--executor ...] [--workers N] [--out DIR] [--allow-failures]
+                              [--no-figures] [--progress | --no-progress]
+    optdesign reproduce [PAPER ...] [--out DIR] [--quick] [--progress | --no-progress]
 
-Every user error is a
-one-line message with exit code 2 (:class:`optdesign.cli.CLIError`, or an
-:class:`~optdesign.errors.OptDesignError` such as a bad spec file); a design that runs but does
-not succeed exits with 1, as does a reproduction with a missing or failing paper.
+PROBLEM is a library name or a problem file (JSON/TOML, .npz, MATLAB .mat:
+:func:`optdesign.problems.load_file`).  Every user error is a one-line message with exit code 2
+(:class:`optdesign.cli.CLIError`, or an :class:`~optdesign.errors.OptDesignError` such as a bad
+spec or problem file); a design that runs but does not succeed exits with 1, as does a study with a
+failed point (unless ``--allow-failures``) and a reproduction with a missing or failing paper.
+Progress goes to stderr, by default only when stderr is a terminal; results go to stdout and to the
+output folder (relative to the current directory).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import inspect
 import math
 import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from .._validate import as_poles
+from ..classical.riccati import sort_poles
 from ..design.feedback import lqr_for_poles, place, well_conditioned_feedback
 from ..design.inverse_kalman import kalman_for_poles
 from ..design.kalman import kalman
@@ -33,8 +41,19 @@ from ..model.regions import Disk, HalfPlane, Sector
 from ..results import Verification
 from ..studies.designers import _gain_values, place_baseline
 from ..studies.reproduce import PAPERS, paper_id, reproduce_all
-from ..studies.spec import load_spec, parse_poles, parse_region, run_spec
-from .common import CLIError, plant_of, print_json
+from ..studies.spec import format_region, load_spec, parse_poles, parse_region, require_matplotlib, run_spec
+from .common import (
+    PROBLEM_HELP,
+    CLIError,
+    add_progress_flag,
+    flush,
+    format_poles,
+    header,
+    plant_of,
+    pole_scale,
+    print_json,
+    print_outcome,
+)
 
 __all__ = ["cmd_design", "cmd_study", "cmd_reproduce", "DESIGN_METHODS", "region_from_args",
            "with_stability_check"]
@@ -120,8 +139,6 @@ def with_stability_check(plant, res):
     A pole placement is no observer unless its error dynamics are stable: unstable requested poles
     are placed (and shown), but the design is reported as not successful, with the reason.
     """
-    import dataclasses
-
     if res.L is None:
         return res
     check = stability_check(plant.A - res.L @ plant.C, plant.is_discrete)
@@ -133,13 +150,22 @@ def with_stability_check(plant, res):
     return dataclasses.replace(res, verification=res.verification + Verification.of([check]), message=message)
 
 
-def _fmt_poles(p) -> str:
-    if p is None:
-        return "-"
-    out = []
-    for z in np.asarray(p, dtype=complex).ravel():
-        out.append(f"{z.real:.6g}{z.imag:+.6g}j" if z.imag else f"{z.real:.6g}")
-    return ", ".join(out)
+def _sorted(poles) -> np.ndarray | None:
+    """Poles in the one order of every command (JSON too); None stays None."""
+    return None if poles is None else sort_poles(np.asarray(poles, dtype=complex).ravel())
+
+
+def _matrix(name: str, X) -> None:
+    with np.printoptions(precision=6, linewidth=100, suppress=False):
+        print(f"{name} =", np.array2string(np.asarray(X), prefix=f"{name} = "))
+
+
+def _with_progress(fn, kw: dict[str, Any], progress: bool | None) -> dict[str, Any]:
+    """``kw`` plus ``progress=`` (None: only on a terminal) when the verb takes it: multi-start
+    designs report their starts on stderr."""
+    if "progress" in inspect.signature(fn).parameters:
+        return {**kw, "progress": progress}
+    return kw
 
 
 # --------------------------------------------------------------------------- design
@@ -148,7 +174,7 @@ def _fmt_poles(p) -> str:
 def _cfg_design(sp: argparse.ArgumentParser) -> None:
     sp.formatter_class = argparse.RawDescriptionHelpFormatter
     sp.epilog = _REGION_HELP
-    sp.add_argument("problem", help="problem name (see `optdesign list`)")
+    sp.add_argument("problem", help=PROBLEM_HELP)
     sp.add_argument("--method", required=True, choices=DESIGN_METHODS, help="design verb (see below)")
     sp.add_argument("--poles", help="target poles, e.g. --poles -1,-2,-3+1j,-3-1j (default: the "
                                     "problem's)")
@@ -170,6 +196,7 @@ def _cfg_design(sp: argparse.ArgumentParser) -> None:
                     help="controller mode (state feedback u = -K x by duality): place, well_conditioned and "
                          "inverse (the inverse LQR) on (A, B) -- the problem's data A, B for pole-placement "
                          "problems, else the plant's A, B")
+    add_progress_flag(sp, "the multi-start runs")
     sp.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -239,14 +266,15 @@ def _design_feedback(args: argparse.Namespace, prob) -> tuple[Any, dict[str, Any
     A, B, dt = _feedback_system(prob)
     fplant = Plant(A, np.eye(A.shape[0]), B=B, dt=dt, name=prob.name)
     method = args.method
+    res: Any
     if method == "place":
         target = _target_poles(args, prob)
         res = place(A, B, target, dt=dt, seed=args.seed)
         return res, {"target": target, "K": res.gain_matrix, "poles": res.computed_poles}
     if method == "inverse":
         target = _target_poles(args, prob)
-        kw = {"objective": args.objective} if args.objective else {}
-        res = lqr_for_poles(fplant, target, **kw)
+        opts = {"objective": args.objective} if args.objective else {}
+        res = lqr_for_poles(fplant, target, **opts)
         return res, {"target": target, "K": res.K, "Q": res.Q, "poles": getattr(res, "poles", None),
                      "certificate": res.certificate.as_dict() if res.certificate is not None else None}
     if method == "well_conditioned":
@@ -265,22 +293,86 @@ def _design_feedback(args: argparse.Namespace, prob) -> tuple[Any, dict[str, Any
 
 
 def _print_feedback(prob, method: str, res, out: dict[str, Any]) -> None:
-    print(f"problem: {prob.name} -- {prob.title}")
+    print(header(prob))
     print(f"method: {method} (state feedback)    status: {out['status']}    success: {out['success']}")
     if out.get("target") is not None:
-        print(f"target poles: {_fmt_poles(out['target'])}")
+        print(f"target poles: {format_poles(out['target'])}")
+    if out.get("region"):
+        print(f"region: {format_region(res.region) if hasattr(res, 'region') else out['region']}")
     for k in ("K", "Q"):
         if out.get(k) is not None:
-            with np.printoptions(precision=6, linewidth=100):
-                print(f"{k} =", np.array2string(np.asarray(out[k]), prefix=f"{k} = "))
+            _matrix(k, out[k])
     if out.get("poles") is not None:
-        print(f"poles of A - B K: {_fmt_poles(out['poles'])}")
-    print(res.message)
-    if out.get("certificate"):
-        print(f"certificate: {res.certificate}")
-    print("verification:")
-    for c in res.verification:
-        print(f"  {c}")
+        print(f"poles of A - B K: {format_poles(out['poles'])}")
+    print_outcome(res, pole_scale(out.get("target"), out.get("poles")))
+
+
+def _design_observer(args: argparse.Namespace, prob) -> tuple[Any, dict[str, Any]]:
+    """The observer verbs (every ``--method`` without ``--feedback``); (result, extra output)."""
+    plant, method = prob.plant, args.method
+    res: Any
+    if method == "kalman":
+        if not plant.has_noise_model:
+            raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): --method kalman needs both")
+        res = kalman(plant, method=args.riccati or "scipy")
+        return res, {"P": res.P, "residual": res.residual}
+    if method == "inverse":
+        if plant.R is None:
+            raise CLIError(f"problem {prob.name!r} has no measurement-noise covariance R: --method inverse "
+                           "needs it")
+        target = _target_poles(args, prob)
+        opts = {"objective": args.objective} if args.objective else {}
+        res = kalman_for_poles(plant, target, method=args.inverse_method or "auto", seed=args.seed, **opts)
+        return res, {"target": res.target, "Q": res.Q, "P": res.P, "solver": res.method,
+                     "objective": res.objective,
+                     "certificate": res.certificate.as_dict() if res.certificate is not None else None}
+    if method == "place":
+        res = with_stability_check(plant, place_baseline(plant, _target_poles(args, prob)))
+        return res, {"target": res.target}
+    region = region_from_args(args, plant.is_discrete)
+    kw: dict[str, Any] = {"seed": args.seed}
+    names = ("objective", "max_gain", "starts") if method == "well_conditioned" else ("objective", "starts")
+    kw.update({k: getattr(args, k) for k in names if getattr(args, k) is not None})
+    if method == "wc_kalman":
+        res = well_conditioned_kalman(plant, region=region,
+                                      **_with_progress(well_conditioned_kalman, kw, args.progress))
+        return res, {"Q": res.Q, "P": res.P, "region": region.to_dict() if region is not None else None}
+    kw = _with_progress(well_conditioned_observer, kw, args.progress)
+    if region is not None:
+        if args.poles is not None:
+            raise CLIError("give either --poles (fixed poles) or a region "
+                           "(--region/--alpha/--zeta/--radius), not both")
+        res = well_conditioned_observer(plant, region=region, **kw)
+        return res, {"region": region.to_dict()}
+    if args.poles is None and "poles" not in prob.targets:
+        raise CLIError("--method well_conditioned needs --poles or a region (--region/--alpha/--zeta/"
+                       f"--radius); problem {prob.name!r} has no target poles")
+    target = _target_poles(args, prob)
+    return well_conditioned_observer(plant, poles=target, **kw), {"target": target}
+
+
+def _print_design(prob, res, out: dict[str, Any], vals: dict[str, Any]) -> None:
+    print(header(prob))
+    print(f"method: {out['method']}    status: {out['status']}    success: {out['success']}")
+    if out.get("target") is not None:
+        print(f"target poles: {format_poles(out['target'])}")
+    region = getattr(res, "region", None)
+    if out.get("region") and region is not None:
+        print(f"region: {format_region(region)}")
+    if out.get("L") is not None:
+        _matrix("L", out["L"])
+    for k in ("Q", "P"):
+        if out.get(k) is not None:
+            _matrix(k, out[k])
+    if out.get("poles") is not None:
+        print(f"poles of A - L C: {format_poles(out['poles'])}")
+    elif out.get("L") is None:
+        print("L: none (no gain was designed; the status and the certificate say why)"
+              if getattr(res, "certificate", None) is not None else "L: none (no gain was designed)")
+    if vals:
+        print(f"kappa2 = {vals['kappa2']:.6g}   eta = {vals['eta']:.6g}   ||L||_2 = {vals['gain_norm']:.6g}")
+    scale = pole_scale(np.linalg.eigvals(prob.plant.A), out.get("target"), out.get("poles"))
+    print_outcome(res, scale)
 
 
 def cmd_design(args: argparse.Namespace) -> int:
@@ -288,98 +380,32 @@ def cmd_design(args: argparse.Namespace) -> int:
     _check_applicable(args)
     prob = plant_of(args.problem)
     plant = prob.plant
-    method = args.method
-    out: dict[str, Any] = {"problem": prob.name, "method": method}
+    out: dict[str, Any] = {"problem": prob.name, "method": args.method}
     if args.feedback:
         res, extra = _design_feedback(args, prob)
         out.update(extra, feedback=True, status=str(getattr(res.status, "value", res.status)),
                    success=bool(res.success), message=res.message, verification=res.verification.as_dict())
+        out.update(target=_sorted(out.get("target")), poles=_sorted(out.get("poles")))
         if args.json:
             print_json(out)
         else:
-            _print_feedback(prob, method, res, out)
+            _print_feedback(prob, args.method, res, out)
         return 0 if res.success else 1
-    if method == "kalman":
-        if not plant.has_noise_model:
-            raise CLIError(f"problem {prob.name!r} has no noise model (Q and R): --method kalman needs both")
-        res = kalman(plant, method=args.riccati or "scipy")
-        out.update(P=res.P, residual=res.residual)
-    elif method == "inverse":
-        if plant.R is None:
-            raise CLIError(f"problem {prob.name!r} has no measurement-noise covariance R: --method inverse "
-                           "needs it")
-        target = _target_poles(args, prob)
-        kw = {"objective": args.objective} if args.objective else {}
-        res = kalman_for_poles(plant, target, method=args.inverse_method or "auto", seed=args.seed, **kw)
-        out.update(target=res.target, Q=res.Q, P=res.P, solver=res.method, objective=res.objective,
-                   certificate=res.certificate.as_dict() if res.certificate is not None else None)
-    elif method == "place":
-        res = with_stability_check(plant, place_baseline(plant, _target_poles(args, prob)))
-        out.update(target=res.target)
-    elif method == "well_conditioned":
-        region = region_from_args(args, plant.is_discrete)
-        kw: dict[str, Any] = {"seed": args.seed}
-        for k in ("objective", "max_gain", "starts"):
-            if getattr(args, k) is not None:
-                kw[k] = getattr(args, k)
-        if region is not None:
-            if args.poles is not None:
-                raise CLIError("give either --poles (fixed poles) or a region "
-                               "(--region/--alpha/--zeta/--radius), "
-                               "not both")
-            res = well_conditioned_observer(plant, region=region, **kw)
-            out.update(region=region.to_dict())
-        else:
-            if args.poles is None and "poles" not in prob.targets:
-                raise CLIError("--method well_conditioned needs --poles or a region "
-                               "(--region/--alpha/--zeta/"
-                               f"--radius); problem {prob.name!r} has no target poles")
-            target = _target_poles(args, prob)
-            res = well_conditioned_observer(plant, poles=target, **kw)
-            out.update(target=target)
-    else:  # wc_kalman
-        region = region_from_args(args, plant.is_discrete)
-        kw = {"seed": args.seed}
-        for k in ("objective", "starts"):
-            if getattr(args, k) is not None:
-                kw[k] = getattr(args, k)
-        res = well_conditioned_kalman(plant, region=region, **kw)
-        out.update(Q=res.Q, P=res.P, region=region.to_dict() if region is not None else None)
-
+    res, extra = _design_observer(args, prob)
+    out.update(extra)
     L = getattr(res, "L", None)
     vals: dict[str, Any] = {}
     if L is not None and np.all(np.isfinite(L)):
         vals = _gain_values(plant, L)
     out.update(status=str(getattr(res.status, "value", res.status)), success=bool(res.success),
-               message=res.message,
-               L=L, poles=getattr(res, "poles", None), kappa2=vals.get("kappa2"), eta=vals.get("eta"),
-               gain_norm=vals.get("gain_norm"), verification=res.verification.as_dict())
+               message=res.message, L=L, poles=_sorted(getattr(res, "poles", None)),
+               kappa2=vals.get("kappa2"), eta=vals.get("eta"), gain_norm=vals.get("gain_norm"),
+               verification=res.verification.as_dict())
+    out["target"] = _sorted(out.get("target"))
     if args.json:
         print_json(out)
     else:
-        print(f"problem: {prob.name} -- {prob.title}")
-        print(f"method: {method}    status: {out['status']}    success: {out['success']}")
-        if "target" in out and out["target"] is not None:
-            print(f"target poles: {_fmt_poles(out['target'])}")
-        if out.get("region"):
-            print(f"region: {getattr(res, 'region', None)!r}")
-        if L is not None:
-            with np.printoptions(precision=6, linewidth=100, suppress=False):
-                print("L =", np.array2string(np.asarray(L), prefix="L = "))
-        for k in ("Q", "P"):
-            if out.get(k) is not None:
-                with np.printoptions(precision=6, linewidth=100):
-                    print(f"{k} =", np.array2string(np.asarray(out[k]), prefix=f"{k} = "))
-        print(f"poles of A - L C: {_fmt_poles(out['poles'])}")
-        if vals:
-            print(f"kappa2 = {vals['kappa2']:.6g}   eta = {vals['eta']:.6g}   ||L||_2 = "
-                  f"{vals['gain_norm']:.6g}")
-        print(res.message)
-        if out.get("certificate"):
-            print(f"certificate: {res.certificate}")
-        print("verification:")
-        for c in res.verification:
-            print(f"  {c}")
+        _print_design(prob, res, out, vals)
     return 0 if res.success else 1
 
 
@@ -390,14 +416,38 @@ def _cfg_study(sp: argparse.ArgumentParser) -> None:
     sp.formatter_class = argparse.RawDescriptionHelpFormatter
     sp.epilog = ("The spec format is documented in optdesign.studies.spec (python -m pydoc "
                  "optdesign.studies.spec);\n"
-                 "an example is examples/study_alpha_sector.toml.")
+                 "an example is examples/study_alpha_sector.toml.\n\n"
+                 "Results (CSV, JSON, figures) go to --out, else the spec's output folder, else "
+                 "./<name>_results --\nrelative to the current directory, never to the spec file.\n"
+                 "Exit code 0 when every point succeeds, 1 when one fails (the failed points are "
+                 "listed;\n--allow-failures accepts partial results), 2 for a bad spec or argument.")
     sp.add_argument("spec", help="study spec (TOML)")
     sp.add_argument("--executor", choices=("processes", "threads", "serial", "dask"),
                     help="override the spec's executor")
     sp.add_argument("--workers", type=int, help="override the spec's number of workers")
-    sp.add_argument("--out", help="override the spec's output folder")
-    sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+    sp.add_argument("--out", help="output folder (default: the spec's output, else ./<name>_results)")
+    sp.add_argument("--allow-failures", action="store_true", dest="allow_failures",
+                    help="exit 0 when some points fail (partial results accepted; at least one must succeed)")
+    sp.add_argument("--no-figures", action="store_true", dest="no_figures",
+                    help="write the CSV and JSON only (no matplotlib needed)")
+    add_progress_flag(sp, "the sweep (one step per point)")
     sp.add_argument("--json", action="store_true", help="print the result summary as JSON")
+
+
+#: failed points listed by ``optdesign study`` (the CSV has them all)
+_MAX_LISTED = 20
+
+
+def _failed_points(spec, table) -> list[dict[str, Any]]:
+    return [{**{k: r.get(k) for k in spec.axes}, "status": r.get("status"),
+             "reason": r.get("reason") or r.get("error") or "no reason recorded"}
+            for r in table.records if not r.get("success")]
+
+
+def _study_header(spec, executor: str, workers: int | None, out: Path) -> str:
+    on = executor + (f" ({workers} workers)" if workers and executor != "serial" else "")
+    return (f"study {spec.name}: {spec.problem}, design {spec.design}, {len(spec.points)} points on {on}"
+            f" -> {out}{os.sep}")
 
 
 def cmd_study(args: argparse.Namespace) -> int:
@@ -405,45 +455,54 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise CLIError(f"--workers must be >= 1; found {args.workers}")
     spec = load_spec(args.spec)
-    if args.out is not None:
-        _check_out_dir(args.out)
-    res = run_spec(spec, executor=args.executor, workers=args.workers, progress=not args.no_progress,
-                   output=args.out)
+    if spec.figures and not args.no_figures:
+        require_matplotlib(f"the figures of {spec.source}")  # before the sweep, not after it
+    out = Path(args.out) if args.out is not None else spec.output
+    _check_out_dir(str(out), "--out" if args.out is not None else f"{spec.source}: study.output")
+    executor = args.executor or spec.executor
+    if not args.json:
+        print(_study_header(spec, executor, args.workers or spec.workers, out))
+        flush()
+    res = run_spec(spec, executor=args.executor, workers=args.workers, progress=args.progress,
+                   output=out, figures=not args.no_figures)
     t = res.table
+    failed = _failed_points(spec, t)
     if args.json:
         print_json({"spec": str(args.spec), "points": len(t), "successful": t.n_success,
-                     "failed": len(t) - t.n_success, "wall_time": t.wall_time, "csv": str(res.csv),
-                     "json": str(res.json), "figures": [str(f) for f in res.figures], "meta": t.meta})
+                     "failed": len(failed), "failed_points": failed, "wall_time": t.wall_time,
+                     "csv": str(res.csv), "json": str(res.json), "figures": [str(f) for f in res.figures],
+                     "meta": t.meta})
     else:
-        print(f"study {spec.name}: {spec.problem}, design {spec.design}, {len(spec.points)} points on "
-              f"{t.meta.get('executor')}")
         print(t.summary())
-        errors = [r for r in t.records if r.get("error")]
-        if errors:
-            print(f"first error: {errors[0]['error']}")
-        failed = [r for r in t.records if not r.get("error") and not r.get("success")]
         if failed:
-            at = ", ".join(f"{k} = {failed[0].get(k)}" for k in spec.axes)
-            print(f"first unsuccessful point ({at}): {failed[0].get('status')}: "
-                  f"{failed[0].get('reason') or 'no reason recorded'}")
+            print(f"failed points ({len(failed)} of {len(t)}):")
+            for f in failed[:_MAX_LISTED]:
+                at = ", ".join(f"{k} = {f[k]:g}" if isinstance(f[k], float) else f"{k} = {f[k]}"
+                               for k in spec.axes)
+                print(f"  {at}: {f['reason']}")
+            if len(failed) > _MAX_LISTED:
+                print(f"  ... and {len(failed) - _MAX_LISTED} more (the CSV has them all: columns status, "
+                      "reason, error)")
         print(f"results: {res.csv}")
         print(f"         {res.json}")
-        for f in res.figures:
-            print(f"figure:  {f}")
-    return 0 if t.n_success else 1
+        for fig in res.figures:
+            print(f"figure:  {fig}")
+        if failed and args.allow_failures and t.n_success:
+            print("partial results accepted (--allow-failures)")
+    if not failed:
+        return 0
+    return 0 if args.allow_failures and t.n_success else 1
 
 
-def _check_out_dir(out: str) -> None:
-    """``--out``: the folder must exist or be creatable, and be writable (one-line error otherwise)."""
-    from pathlib import Path
-
+def _check_out_dir(out: str, flag: str = "--out") -> None:
+    """The output folder must exist or be creatable, and be writable (one-line error otherwise)."""
     path = Path(out)
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise CLIError(f"--out {out}: cannot create the folder ({exc.strerror or exc})") from None
+        raise CLIError(f"{flag} {out}: cannot create the folder ({exc.strerror or exc})") from None
     if not path.is_dir() or not os.access(path, os.W_OK):
-        raise CLIError(f"--out {out}: not a writable folder")
+        raise CLIError(f"{flag} {out}: not a writable folder")
 
 
 # --------------------------------------------------------------------------- reproduce
@@ -455,8 +514,9 @@ def _cfg_reproduce(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("papers", nargs="*", metavar="PAPER", help="seed paper(s): 000 ... 004 (default: all)")
     sp.add_argument("--out", default="optdesign-reproduction",
                     help="folder for the figures and summary.md / summary.csv (default "
-                         "./optdesign-reproduction)")
+                         "./optdesign-reproduction, in the current directory)")
     sp.add_argument("--quick", action="store_true", help="smaller grids and fewer starts (CI)")
+    add_progress_flag(sp, "each paper and figure")
 
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
@@ -471,7 +531,11 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         raise CLIError("reproduce writes figures and needs matplotlib: "
                        "pip install 'optdesign[plot]'") from None
     _check_out_dir(args.out)
-    summary = reproduce_all(args.out, papers=papers, quick=args.quick)
+    ids = papers or list(PAPERS)
+    print(f"reproducing seed paper(s) {', '.join(ids)}{' (quick)' if args.quick else ''} -> "
+          f"{Path(args.out)}{os.sep}")
+    flush()
+    summary = reproduce_all(args.out, papers=papers, quick=args.quick, progress=args.progress)
     print(summary.overview())
     print(f"summary: {summary.markdown}")
     print(f"         {summary.csv}")

@@ -84,7 +84,7 @@ def _loci(plant, steps, num: int):
     return out
 
 
-def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
+def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 000's examples, write the figures into ``outdir``, return the table.
 
     Parameters
@@ -93,6 +93,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         Folder for the PNG figures (created if missing).
     quick : bool
         Coarser loci and frequency grids (for tests / CI).
+    progress : optdesign._progress.Progress, optional
+        Told about every figure written.
 
     Returns
     -------
@@ -224,45 +226,45 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
                              "feasible" if feasible else "infeasible", txt, res.success == feasible,
                              "issue 3; Q11 = a1^2 - 2 a0 and Q22 = a0^2 are fixed, Q12 free"))
 
-    figures = [_figure_family(outdir, fam, members, s1),
-               _figure_loci(outdir, plant1, s1, plant2, s2, num),
-               _figure_double_integrator(outdir, di, return_difference, quick)]
+    figures = [_figure_family(outdir, fam, members, s1, progress),
+               _figure_loci(outdir, plant1, s1, plant2, s2, num, progress),
+               _figure_double_integrator(outdir, di, return_difference, quick, progress)]
     return PaperReproduction(paper="000", title=_TITLE, rows=tuple(rows), figures=tuple(figures))
 
 
 # ------------------------------------------------------------------------ figures
-def _figure_family(outdir: Path, fam, members, s1) -> Path:
+def _figure_family(outdir: Path, fam, members, s1, progress=None) -> Path:
     plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     x = fam["P22"]
-    ax[0].plot(x, fam["trace"], label="trace Q")
-    ax[0].plot(x, fam["q22"], "--", label="Q22 = 10 P22 - 36")
-    ax[0].plot(x, fam["q12"], ":", label="Q12 = -30 - P22")
+    ax[0].plot(x, fam["trace"], label=r"$\mathrm{trace}\,Q$")
+    ax[0].plot(x, fam["q22"], "--", label="$Q_{22} = 10P_{22} - 36$")
+    ax[0].plot(x, fam["q12"], ":", label="$Q_{12} = -30 - P_{22}$")
     ax[0].set_xscale("log")
-    ax[0].set_xlabel("P22 (free)")
-    ax[0].set_ylabel("entries of Q (trace, Q22, Q12)")
-    ax[0].set_title("Example 1: the family of Q (L = [8, -6])")
+    ax[0].set_xlabel("$P_{22}$ (free)")
+    ax[0].set_ylabel(r"entries of $Q$ ($\mathrm{trace}\,Q$, $Q_{22}$, $Q_{12}$)")
+    ax[0].set_title("Example 1: the family of $Q$ ($L = [8, -6]$)")
     ax[1].plot(x, fam["lambda_min"], color="k")
     ax[1].axhline(0, color="0.6", lw=0.8)
     ax[1].set_xscale("log")
-    ax[1].set_xlabel("P22")
-    ax[1].set_ylabel("smallest eigenvalue of Q")
+    ax[1].set_xlabel("$P_{22}$")
+    ax[1].set_ylabel("smallest eigenvalue of $Q$")
     marks = {"min trace": members["min_trace"].P[1, 1], "max min-eig": members["feasibility"].P[1, 1],
-             "nearest to I": members["nearest"].P[1, 1], "paper (sequential)": s1.P[1, 1]}
+             "nearest to $I$": members["nearest"].P[1, 1], "paper (sequential)": s1.P[1, 1]}
     for (lab, v), mk in zip(marks.items(), "os^D", strict=True):
         lm = np.linalg.eigvalsh([[76, -30 - v], [-30 - v, 10 * v - 36]])[0]
-        ax[1].plot([v], [lm], mk, label=f"{lab}: P22 = {v:.4g}")
+        ax[1].plot([v], [lm], mk, label=f"{lab}: $P_{{22}}$ = {v:.4g}")
         ax[0].axvline(v, color="0.8", lw=0.8)
     ax[0].legend(fontsize=8)
     ax[1].legend(fontsize=8)
-    return save_figure(fig, outdir / "seed000_ex1_family.png")
+    return save_figure(fig, outdir / "seed000_ex1_family.png", progress=progress)
 
 
-def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int) -> Path:
+def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int, progress=None) -> Path:
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for ax, plant, res, title in ((axes[0], plant1, s1, "Example 1: -2, -3 -> -5, -8"),
-                                  (axes[1], plant2, s2, "Example 2: -1 +- j -> -8, -5")):
+    for ax, plant, res, title in ((axes[0], plant1, s1, r"Example 1: $-2, -3 \to -5, -8$"),
+                                  (axes[1], plant2, s2, r"Example 2: $-1 \pm j \to -8, -5$")):
         loci = _loci(plant, res.steps, num)
         for k, pts in enumerate(loci, start=1):
             if pts.size == 0:
@@ -273,18 +275,19 @@ def _figure_loci(outdir: Path, plant1, s1, plant2, s2, num: int) -> Path:
                         lw=max(1.5, 6.0 - 4.0 * (k - 1)),
                         alpha=0.85, label=f"step {k} ({res.steps[k - 1].kind})" if j == 0 else None)
         eig = np.linalg.eigvals(plant.A)
-        ax.plot(eig.real, eig.imag, "kx", ms=8, label="eig(A)")
+        ax.plot(eig.real, eig.imag, "kx", ms=8, label="eigenvalues of $A$")
         ax.plot(res.target.real, res.target.imag, "o", mfc="none", mec="r", ms=9, label="targets")
         ax.axvline(0, color="0.7", lw=0.8)
-        ax.set_xlabel("Re")
-        ax.set_ylabel("Im")
+        ax.set_xlabel(r"$\mathrm{Re}\,s$")
+        ax.set_ylabel(r"$\mathrm{Im}\,s$")
         ax.set_title(title)
         ax.legend(fontsize=8)
-    fig.suptitle("Filter poles as the noise of each sequential step is turned up (Q = sum Q_i + s Q_k)")
-    return save_figure(fig, outdir / "seed000_pole_loci.png")
+    fig.suptitle(r"Filter poles as the noise of each sequential step is turned up "
+                 r"($Q = \Sigma_i\, Q_i + s\,Q_k$)")
+    return save_figure(fig, outdir / "seed000_pole_loci.png", progress=progress)
 
 
-def _figure_double_integrator(outdir: Path, di, return_difference, quick: bool) -> Path:
+def _figure_double_integrator(outdir: Path, di, return_difference, quick: bool, progress=None) -> Path:
     plt = pyplot()
     fig, ax = plt.subplots(1, 2, figsize=(10, 4))
     w = np.logspace(-1.5, 2, 300 if quick else 1500)
@@ -299,17 +302,17 @@ def _figure_double_integrator(outdir: Path, di, return_difference, quick: bool) 
         if not res.success:
             c = res.certificate
             ax[0].plot([c.omega], [np.sqrt(1 + c.min_eigenvalue)], "v", color=f"C{k}")
-            ax[0].annotate(f"|T| = {np.sqrt(1 + c.min_eigenvalue):.3f}\nat w = {c.omega:.3f}",
+            ax[0].annotate(f"$|T|$ = {np.sqrt(1 + c.min_eigenvalue):.3f}\nat $\\omega$ = {c.omega:.3f}",
                            (c.omega, np.sqrt(1 + c.min_eigenvalue)), textcoords="offset points",
                            xytext=(10, -5), fontsize=8)
     ax[0].axhline(1.0, color="k", lw=0.8)
-    ax[0].set_xlabel("w (rad/s)")
-    ax[0].set_ylabel("|1 + C (jwI - A)^-1 L|")
-    ax[0].set_title("Return difference (Kalman: >= 1 for all w)")
+    ax[0].set_xlabel(r"$\omega$ (rad/s)")
+    ax[0].set_ylabel(r"$|1 + C(j\omega I - A)^{-1}L|$")
+    ax[0].set_title(r"Return difference (Kalman: $\geq 1$ for all $\omega$)")
     ax[0].legend(fontsize=8)
     # reachable pole pairs of the double integrator: damping >= 1/sqrt 2 (a1^2 >= 2 a0)
     r = np.linspace(0, 4, 2)
-    ax[1].fill_between(-r, r, -r, color="0.9", label="reachable (damping >= 0.707)")
+    ax[1].fill_between(-r, r, -r, color="0.9", label=r"reachable (damping $\geq 0.707$)")
     for k, (prob, res) in enumerate(di.values()):
         z = np.asarray(prob.targets["poles"], dtype=complex)
         ax[1].plot(z.real, z.imag, "o", color=f"C{k}", ms=7)
@@ -323,8 +326,8 @@ def _figure_double_integrator(outdir: Path, di, return_difference, quick: bool) 
     ax[1].set_xlim(-4, 0.5)
     ax[1].set_ylim(-3.5, 3.5)
     ax[1].axvline(0, color="0.6", lw=0.8)
-    ax[1].set_xlabel("Re")
-    ax[1].set_ylabel("Im")
+    ax[1].set_xlabel(r"$\mathrm{Re}\,s$")
+    ax[1].set_ylabel(r"$\mathrm{Im}\,s$")
     ax[1].set_title("Targets and the reachable sector")
     ax[1].legend(fontsize=8, loc="lower left")
-    return save_figure(fig, outdir / "seed000_double_integrator.png")
+    return save_figure(fig, outdir / "seed000_double_integrator.png", progress=progress)

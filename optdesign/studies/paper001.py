@@ -88,7 +88,7 @@ def aircraft_design(starts: int = 3):
     return d, region, L_paper
 
 
-def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
+def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 001's examples, write Fig. 1-4 into ``outdir``, return the table.
 
     Parameters
@@ -97,6 +97,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         Folder for the PNG figures (created if missing).
     quick : bool
         Coarser grids and fewer multi-starts (for tests / CI).
+    progress : optdesign._progress.Progress, optional
+        Told about every figure written.
 
     Returns
     -------
@@ -199,18 +201,20 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
             color="white",
             mec="black",
             ms=8,
-            label=f"L = [{L[0]:g}, {L[1]:g}]: kappa2 = {observer_2x2_kappa2(a1, a2, L[0], L[1]):.2f}",
+            label=f"$L = [{L[0]:g}, {L[1]:g}]$: $\\kappa_2$ = {observer_2x2_kappa2(a1, a2, L[0], L[1]):.2f}",
         )
-    ax.plot([], [], color="red", ls="--", label="double pole (D = 0): kappa2 = inf")
-    ax.plot([], [], color="white", lw=0, marker="s", mfc="none", mec="gray", label="hatched: unstable A - LC")
+    ax.plot([], [], color="red", ls="--", label=r"double pole ($D = 0$): $\kappa_2 = \infty$")
+    ax.plot([], [], color="white", lw=0, marker="s", mfc="none", mec="gray",
+            label=r"hatched: unstable $A - LC$")
     ax.set_xlabel(r"$l_1$")
     ax.set_ylabel(r"$l_2$")
     ax.set_title(
-        "Seed 001 Fig. 1: kappa2 of A - LC over the gain plane (A = [[0, 1], [2, -1]], C = [1, 0])",
+        r"Seed 001 Fig. 1: $\kappa_2$ of $A - LC$ over the gain plane ($A = [[0, 1], [2, -1]]$, "
+        r"$C = [1, 0]$)",
         fontsize=9,
     )
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
-    figs.append(save_figure(fig, outdir / "seed001_fig1_kappa2_gain_plane.png", **_SAVE))
+    figs.append(save_figure(fig, outdir / "seed001_fig1_kappa2_gain_plane.png", progress=progress, **_SAVE))
 
     # Fig. 2: the region {stable, eta <= beta}
     l1r = np.linspace(a2 + 1e-6, 30.0, 600 if not quick else 200)
@@ -241,25 +245,27 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         )
     )
     fig, ax = plt.subplots(figsize=(7.5, 5.5))
-    ax.fill_between(l1r, real_lo, real_hi, color="tab:blue", alpha=0.45, label="eta <= 2, real poles")
-    ax.fill_between(l1r, cx_lo, cx_hi, color="tab:orange", alpha=0.55, label="eta <= 2, complex poles")
+    ax.fill_between(l1r, real_lo, real_hi, color="tab:blue", alpha=0.45, label=r"$\eta \leq 2$, real poles")
+    ax.fill_between(l1r, cx_lo, cx_hi, color="tab:orange", alpha=0.55, label=r"$\eta \leq 2$, complex poles")
     l1b = np.linspace(-5, 30, 300)
     ax.plot(l1b, a1 + a2 * l1b, "k-", lw=1.2, label=r"stability boundary $l_2 = a_1 + a_2 l_1$")
     ax.axvline(a2, color="k", ls=":", lw=1.2, label=r"stability boundary $l_1 = a_2$")
-    ax.plot(l1b, a1 + (a2 + l1b) ** 2 / 4, "r--", lw=1.0, label="double pole (eta = inf)")
+    ax.plot(l1b, a1 + (a2 + l1b) ** 2 / 4, "r--", lw=1.0, label=r"double pole ($\eta = \infty$)")
     for case, mk in zip(ex1.references["cases_printed"], ("o", "s"), strict=True):
         L = np.ravel(case["L"])
-        ax.plot(L[0], L[1], mk, color="k", ms=7, label=f"L = [{L[0]:g}, {L[1]:g}] (kappa2 {case['kappa2']})")
+        ax.plot(L[0], L[1], mk, color="k", ms=7,
+                label=f"$L = [{L[0]:g}, {L[1]:g}]$ ($\\kappa_2$ = {case['kappa2']})")
     ax.set_xlim(-5, 30)
     ax.set_ylim(-60, 140)
     ax.set_xlabel(r"$l_1$")
     ax.set_ylabel(r"$l_2$")
     ax.set_title(
-        f"Seed 001 Fig. 2: stable gains with eta <= {beta:g} (inside: kappa2 <= 2 + sqrt 5 = {kb:.3f})",
+        f"Seed 001 Fig. 2: stable gains with $\\eta \\leq {beta:g}$ "
+        f"(inside: $\\kappa_2 \\leq 2 + \\sqrt{{5}}$ = {kb:.3f})",
         fontsize=9,
     )
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
-    figs.append(save_figure(fig, outdir / "seed001_fig2_gain_region.png", **_SAVE))
+    figs.append(save_figure(fig, outdir / "seed001_fig2_gain_region.png", progress=progress, **_SAVE))
 
     # ------------------------------------------------------------------ Example 2
     ex2 = problems.load("jung_huh_ex2")
@@ -329,7 +335,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
             min(hi, x[-1]),
             color="tab:blue",
             alpha=0.15,
-            label="exact set eta <= 2" if k == 0 else None,
+            label=r"exact set $\eta \leq 2$" if k == 0 else None,
         )
     for k, (lo, hi) in enumerate(printed):
         ax.plot(
@@ -339,18 +345,19 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
             lw=5,
             alpha=0.7,
             solid_capstyle="butt",
-            label="printed q/r intervals (wrong)" if k == 0 else None,
+            label="printed $q/r$ intervals (wrong)" if k == 0 else None,
         )
     ax.axvline(
-        qset.double_pole, color="tab:red", ls=":", lw=1, label=f"double pole, q/r = {qset.double_pole:.4g}"
+        qset.double_pole, color="tab:red", ls=":", lw=1, label=f"double pole, $q/r$ = {qset.double_pole:.4g}"
     )
-    ax.plot(q_opt, kal.eta, "k*", ms=11, label=f"eta-optimal Kalman filter (NLP): q/r = {q_opt:.3g}")
+    ax.plot(q_opt, kal.eta, "k*", ms=11, label=f"$\\eta$-optimal Kalman filter (NLP): $q/r$ = {q_opt:.3g}")
     ax.set_ylim(0, 12)
-    ax.set_xlabel("q / r")
+    ax.set_xlabel("$q/r$")
     ax.set_ylabel(r"$\eta$, $\kappa_2(P)$ (clipped at 50)")
-    ax.set_title("Seed 001 Fig. 3: eta and kappa2 of the Kalman filter vs the noise ratio q/r", fontsize=9)
+    ax.set_title(r"Seed 001 Fig. 3: $\eta$ and $\kappa_2$ of the Kalman filter vs the noise ratio $q/r$",
+                 fontsize=9)
     ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
-    figs.append(save_figure(fig, outdir / "seed001_fig3_qr.png", **_SAVE))
+    figs.append(save_figure(fig, outdir / "seed001_fig3_qr.png", progress=progress, **_SAVE))
 
     # ------------------------------------------------------------------ Example 3
     ex3 = problems.load("jung_huh_ex3")
@@ -425,15 +432,19 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
             "the figure is not digitized: no printed count to compare",
         )
     )
-    fig = plt.figure(figsize=(12, 5.2))
+    fig = plt.figure(figsize=(12.5, 5.2))
+    fig.subplots_adjust(left=0.06, right=0.98, wspace=0.32)  # room for the 3-D z label (l_3)
     ax = fig.add_subplot(1, 2, 1, projection="3d")
     if len(pts):
         sc = ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], c=np.log10(ks), s=6, cmap="viridis", alpha=0.6)
-        cb = fig.colorbar(sc, ax=ax, shrink=0.7, pad=0.1)
+        # on the left: the z-axis label (l_3) is on the right of a 3-D axes and collided with it
+        cb = fig.colorbar(sc, ax=ax, shrink=0.6, pad=0.04, location="left")
         cb.set_label(r"$\log_{10}\,\kappa_2$")
-    ax.scatter(*L_paper.ravel(), color="red", s=60, marker="o", label=f"paper's L (kappa2 {k_paper:.2f})")
+    ax.scatter(*L_paper.ravel(), color="red", s=60, marker="o",
+               label=f"paper's $L$ ($\\kappa_2$ = {k_paper:.2f})")
     Lb = np.ravel(ex3.references["cases_printed"][1]["L"])
-    ax.scatter(*Lb, color="black", s=60, marker="x", label="paper's ill-conditioned L (kappa2 11756)")
+    ax.scatter(*Lb, color="black", s=60, marker="x",
+               label=r"paper's ill-conditioned $L$ ($\kappa_2$ = 11756)")
     if np.all(np.abs(des.L) <= 10):
         ax.scatter(
             *des.L.ravel(),
@@ -441,44 +452,47 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
             edgecolor="k",
             s=90,
             marker="*",
-            label=f"optimized L (kappa2 {des.kappa2:.2f})",
+            label=f"optimized $L$ ($\\kappa_2$ = {des.kappa2:.2f})",
         )
     ax.set_xlabel(r"$l_1$")
     ax.set_ylabel(r"$l_2$")
     ax.set_zlabel(r"$l_3$")
-    ax.set_title("gains with eta < 4 in the box |l_i| < 10", fontsize=9)
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        axis.set_ticks([-10, -5, 0, 5, 10])
+    ax.set_title(r"gains with $\eta < 4$ in the box $|l_i| < 10$", fontsize=9)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.05), fontsize=7)
     ax2 = fig.add_subplot(1, 2, 2)
     pp = np.linalg.eigvals(plant3.A - L_paper @ plant3.C)
     dec = -float(np.max(pp.real))
     xmin = min(-12.0, float(np.min(des.poles.real)) * 1.3, float(np.min(pp.real)) * 1.3)
     ymax = max(30.0, float(np.max(np.abs(des.poles.imag))) * 1.2)
-    ax2.axvspan(xmin, -dec, color="tab:green", alpha=0.12, label=f"region Re s <= -{dec:.3f}")
+    ax2.axvspan(xmin, -dec, color="tab:green", alpha=0.12,
+                label=f"region $\\mathrm{{Re}}\\,s \\leq -{dec:.3f}$")
     ax2.plot(
         pp.real,
         pp.imag,
         "ro",
         ms=8,
-        label=f"paper's L: kappa2 {k_paper:.3f}, ||L|| = {np.linalg.norm(L_paper, 2):.2f}",
+        label=f"paper's $L$: $\\kappa_2$ = {k_paper:.3f}, $\\|L\\|$ = {np.linalg.norm(L_paper, 2):.2f}",
     )
     ax2.plot(
         des.poles.real,
         des.poles.imag,
         "k*",
         ms=11,
-        label=f"optimized: kappa2 {des.kappa2:.3f}, ||L|| = {des.gain_norm:.2f}",
+        label=f"optimized: $\\kappa_2$ = {des.kappa2:.3f}, $\\|L\\|$ = {des.gain_norm:.2f}",
     )
     ow = np.linalg.eigvals(plant3.A)
-    ax2.plot(ow.real, ow.imag, "bx", ms=8, label="open-loop eigenvalues of A")
+    ax2.plot(ow.real, ow.imag, "bx", ms=8, label="open-loop eigenvalues of $A$")
     ax2.set_xlim(xmin, 1.0)
     ax2.set_ylim(-ymax, ymax)
     ax2.axhline(0, color="gray", lw=0.5)
     ax2.axvline(0, color="gray", lw=0.5)
-    ax2.set_xlabel("Re s")
-    ax2.set_ylabel("Im s")
+    ax2.set_xlabel(r"$\mathrm{Re}\,s$")
+    ax2.set_ylabel(r"$\mathrm{Im}\,s$")
     ax2.set_title("observer poles (same decay, same gain norm)", fontsize=9)
     ax2.legend(loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, fontsize=7, framealpha=0.85)
     fig.suptitle("Seed 001 Fig. 4: aircraft pitch model (Example 3)", fontsize=10)
-    figs.append(save_figure(fig, outdir / "seed001_fig4_aircraft.png", **_SAVE))
+    figs.append(save_figure(fig, outdir / "seed001_fig4_aircraft.png", progress=progress, **_SAVE))
 
     return PaperReproduction(paper="001", title=_TITLE, rows=tuple(rows), figures=tuple(figs))

@@ -74,7 +74,7 @@ def crossfeed_counterexample(R1: float = 16.0, R2: float = 1.0, *, seed: int = 0
     return None
 
 
-def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
+def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 002's results on the scalar example, write the figures, return the table.
 
     Parameters
@@ -83,6 +83,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         Folder for the PNG figures (created if missing).
     quick : bool
         Fewer orders / steps (for tests and CI).
+    progress : optdesign._progress.Progress, optional
+        Told about every figure written.
 
     Returns
     -------
@@ -182,11 +184,11 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
                              "the bound that holds is sqrt(sigma_min(R1)/sigma_max(R2)) = 4; the OCR may "
                              "have lost the square root"))
     # ---------------------------------------------------------------- figures
-    figs = _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref)
+    figs = _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref, progress)
     return PaperReproduction("002", _TITLE, tuple(rows), figs)
 
 
-def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref):
+def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref, progress=None):
     plt = pyplot()
     w = np.logspace(-2, 2, 1200)
     T_d = np.abs(fp.return_difference(w)[:, 0, 0])
@@ -195,44 +197,44 @@ def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref)
     c_h0 = circle_condition(pl_h0, k_h0.L)
     c_d = fp.circle_condition()
     fig, (ax, bx) = plt.subplots(2, 1, figsize=(7, 6.4), sharex=True)
-    ax.semilogx(w, T_c0, label="delay-free, y = x + v (c1 = 0)")
-    ax.semilogx(w, T_h0, label="delay-free, y = 1.5 x + v (h = 0)")
-    ax.semilogx(w, T_d, label="delayed, y = x + 0.5 x(t-1) + v (eq 16)", lw=2)
-    ax.axhline(1.0, color="k", ls="--", lw=1, label="|T| = 1 (circle condition)")
-    ax.set_ylabel("|T(j omega)|")
+    ax.semilogx(w, T_c0, label="delay-free, $y = x + v$ ($c_1 = 0$)")
+    ax.semilogx(w, T_h0, label="delay-free, $y = 1.5x + v$ ($h = 0$)")
+    ax.semilogx(w, T_d, label="delayed, $y = x + 0.5\\,x(t-1) + v$ (eq 16)", lw=2)
+    ax.axhline(1.0, color="k", ls="--", lw=1, label="$|T| = 1$ (circle condition)")
+    ax.set_ylabel(r"$|T(j\omega)|$")
     ax.set_title("Return difference of the Kalman filter (seed 002, eqs 16-17)")
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     H = fp.loop_H(w)[:, 0, :]
     rhs = np.real(np.einsum("ki,ij,kj->k", H, fp.W, H.conj())) / fp.R[0, 0]
-    bx.loglog(w, T_h0**2 - 1, label="h = 0: |T|^2 - 1")
-    bx.loglog(w, T_d**2 - 1, lw=2, label="delayed: |T|^2 - 1")
-    bx.loglog(w, rhs, "k:", label="delayed: |H|^2 q / r (eq 19)")
-    bx.set_xlabel("omega [rad/s]")
-    bx.set_ylabel("|T|^2 - 1  (>= 0)")
-    bx.set_title(f"min over omega: delayed {c_d.min_eigenvalue:.1e}, h = 0 {c_h0.min_eigenvalue:.1e} "
-                 "(-> 0 as omega -> inf)", fontsize=9)
+    bx.loglog(w, T_h0**2 - 1, label="$h = 0$: $|T|^2 - 1$")
+    bx.loglog(w, T_d**2 - 1, lw=2, label="delayed: $|T|^2 - 1$")
+    bx.loglog(w, rhs, "k:", label="delayed: $|H|^2 q/r$ (eq 19)")
+    bx.set_xlabel(r"$\omega$ (rad/s)")
+    bx.set_ylabel(r"$|T|^2 - 1$  ($\geq 0$)")
+    bx.set_title(rf"min over $\omega$: delayed {c_d.min_eigenvalue:.1e}, $h = 0$ {c_h0.min_eigenvalue:.1e} "
+                 r"($\to 0$ as $\omega \to \infty$)", fontsize=9)
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize=8)
-    f1 = save_figure(fig, outdir / "seed002_return_difference.png", dpi=120)
+    f1 = save_figure(fig, outdir / "seed002_return_difference.png", dpi=120, progress=progress)
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8))
     m = [r.order for r in pade_rows]
     a1.semilogy(m, [abs(r.p0[0, 0] - p0_ref) + 1e-17 for r in pade_rows], "o-")
-    a1.set_xlabel("Pade degree m (one section; round-off below 1e-11)")
-    a1.set_ylabel(f"|p0 - p0_ref|, p0_ref = {p0_ref:.10f}")
-    a1.set_title("Pade [m/m] of exp(-sh) + ARE")
+    a1.set_xlabel("Pade degree $m$ (one section; round-off below $10^{-11}$)")
+    a1.set_ylabel(f"$|p_0 - p_{{0,\\mathrm{{ref}}}}|$, $p_{{0,\\mathrm{{ref}}}}$ = {p0_ref:.10f}")
+    a1.set_title("Pade $[m/m]$ of $e^{-sh}$ + ARE")
     a1.grid(True, which="both", alpha=0.3)
     N = np.array([r.order for r in samp_rows], dtype=float)
     err = np.array([abs(r.p0[0, 0] - p0_ref) for r in samp_rows])
     rich = np.array([abs((4 * b.p0[0, 0] - a.p0[0, 0]) / 3 - p0_ref) + 1e-17
                      for a, b in zip(samp_rows[:-1], samp_rows[1:], strict=True)])
     a2.loglog(1.0 / N, err, "o-", label="shift register + DARE")
-    a2.loglog(1.0 / N[1:], rich, "s-", label="Richardson (N, N/2)")
+    a2.loglog(1.0 / N[1:], rich, "s-", label="Richardson ($N$, $N/2$)")
     a2.loglog(1.0 / N, err[0] * (N[0] / N) ** 2, "k:", label="slope 2")
-    a2.set_xlabel("step / h = 1/N")
+    a2.set_xlabel("step / $h = 1/N$")
     a2.set_title("Sampling with shift register + DARE")
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize=8)
-    f2 = save_figure(fig, outdir / "seed002_convergence.png", dpi=120)
+    f2 = save_figure(fig, outdir / "seed002_convergence.png", dpi=120, progress=progress)
     return (f1, f2)

@@ -104,7 +104,7 @@ def _well_conditioned_rows(cases, designed, quick: bool) -> list[ReproRow]:
     return rows
 
 
-def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
+def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 003's example, write its figures into ``outdir``, return the table.
 
     Parameters
@@ -113,6 +113,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         Folder for the PNG figures (created if missing).
     quick : bool
         Shorter simulations and fewer multi-starts (for tests / CI).
+    progress : optdesign._progress.Progress, optional
+        Told about every figure written.
 
     Returns
     -------
@@ -215,21 +217,37 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         "theory", "Theorem 2: F assignable iff (C, A) observable", "iff (C, A) observable", "holds", True,
         "F ~ A_a - L_a C_a, A_a = [[A, E], [0, N]], C_a = [C, 0] with free E; needs rank C = p too; "
         "the proof's eq (23) is false at the noise modes, no condition on noise vs plant modes"))
-    figures = _figures(outdir, sims, printed)
+    figures = _figures(outdir, sims, printed, progress)
     return PaperReproduction(paper="seed 003 (Kim, Lee & Kim)", title=_TITLE, rows=tuple(rows),
                              figures=tuple(figures))
 
 
-def _figures(outdir: Path, sims, printed) -> list[Path]:
+def _symlog(ax, level: float) -> None:
+    """Symmetric-log y axis, linear within +-``level``: the transients are drawn whole (no
+    clipping) and the steady state (of the size of the noise) stays readable."""
+    ax.set_yscale("symlog", linthresh=level, linscale=1.5)
+    ax.axhspan(-level, level, color="0.95", zorder=0)
+    lo, hi = ax.get_ylim()
+    top = max(abs(lo), abs(hi))
+    decades = [10.0 ** k for k in range(int(np.floor(np.log10(level))) + 1, int(np.ceil(np.log10(top))) + 1)]
+    ticks = sorted({0.0, level / 2, -level / 2, *decades, *(-d for d in decades)})
+    ax.set_yticks([v for v in ticks if lo <= v <= hi], [f"{v:g}" for v in ticks if lo <= v <= hi])
+    from matplotlib.ticker import NullLocator  # matplotlib is optional: imported when drawing
+
+    ax.yaxis.set_minor_locator(NullLocator())
+
+
+def _figures(outdir: Path, sims, printed, progress=None) -> list[Path]:
     plt = pyplot()
     out: list[Path] = []
     number = {("step", 1): 1, ("step", 2): 2, ("sinusoid", 1): 3, ("sinusoid", 2): 4}
+    level = 2.0 * max(STEP_LEVEL, SINE_AMPLITUDE)
     for (key, i), fig_no in number.items():
         S = sims[key]
         t = S["paper"][1].t
         paper_label = ("generalized, printed gains" if printed[key].is_stable
                        else "generalized, designed, direct coupling (printed gains unstable)")
-        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.5, 6.0), sharex=True)
+        fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.5, 6.4), sharex=True)
         ax1.plot(t, S["paper"][1].x[:, i], "k-", lw=2.2, label=f"true $x_{i + 1}$")
         styles = (("paper", paper_label, "C0-"), ("output", "generalized, output coupling", "C2--"),
                   ("high_gain", "plain observer $L=-K_P$", "C3:"), ("rejecting", "noise-rejecting", "C1-."))
@@ -238,20 +256,30 @@ def _figures(outdir: Path, sims, printed) -> list[Path]:
             ax1.plot(t, sim.xhat[:, i], st, lw=1.2, label=lab)
             ax2.plot(t, sim.error[:, i], st, lw=1.2, label=lab)
         ax1.set_ylabel(f"$x_{i + 1}$, $\\hat x_{i + 1}$")
-        ax1.legend(fontsize=7, loc="best")
         ax2.axhline(0.0, color="0.6", lw=0.6)
-        ax2.set_ylabel(f"$x_{i + 1} - \\hat x_{i + 1}$")
-        ax2.set_xlabel("t [s]")
-        lim = 4.0 * max(STEP_LEVEL, SINE_AMPLITUDE)
-        ax2.set_ylim(-lim, lim)
-        noise_txt = f"step {STEP_LEVEL:g}" if key == "step" else f"{SINE_AMPLITUDE:g} sin(2 pi t)"
+        ax2.set_ylabel(f"$x_{i + 1} - \\hat x_{i + 1}$ (symmetric log)")
+        ax2.set_xlabel("$t$ (s)")
+        _symlog(ax2, level)
+        noise_txt = (f"step {STEP_LEVEL:g}" if key == "step"
+                     else f"${SINE_AMPLITUDE:g}\\,\\sin(2\\pi t)$")
         ax1.set_title(f"Fig. {fig_no}: estimated state {i + 1} with {key} noise ({noise_txt})", fontsize=10)
-        ax2.set_title("generalized: C xh follows the noisy y, so x - xh does not vanish (printed/direct "
-                      "gains bias states 2-3;\noutput coupling confines the error to the measured x1); "
-                      "noise-rejecting: x - xh -> 0", fontsize=7.5)
-        out.append(save_figure(fig, outdir / f"seed003_fig{fig_no}_state{i + 1}_{key}.png"))
-    # side-by-side comparison, same poles
-    fig, axes = plt.subplots(2, 2, figsize=(11, 6.5), sharex=True)
+        ax2.set_title(r"generalized: $C\hat x$ follows the noisy $y$, so $x - \hat x$ does not vanish "
+                      r"(printed/direct gains bias states 2-3;" "\n"
+                      r"output coupling confines the error to the measured $x_1$); noise-rejecting: "
+                      r"$x - \hat x \to 0$", fontsize=7.5)
+        fig.legend(*ax1.get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=7.5,
+                   frameon=False)
+        fig.tight_layout(rect=(0, 0.07, 1, 1))
+        out.append(save_figure(fig, outdir / f"seed003_fig{fig_no}_state{i + 1}_{key}.png", layout=False,
+                               progress=progress))
+    out.append(_figure_comparison(outdir, sims, level, progress))
+    return out
+
+
+def _figure_comparison(outdir: Path, sims, level: float, progress=None) -> Path:
+    """Side-by-side comparison, same poles: the generalized vs the noise-rejecting observer."""
+    plt = pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7.0), sharex=True)
     for row, key in enumerate(("step", "sinusoid")):
         for col, name in enumerate(("output", "rejecting")):
             ax = axes[row, col]
@@ -259,22 +287,24 @@ def _figures(outdir: Path, sims, printed) -> list[Path]:
             for j in range(sim.x.shape[1]):
                 ax.plot(sim.t, sim.error[:, j], lw=1.2, label=f"$x_{j + 1} - \\hat x_{j + 1}$")
             ax.plot(sim.t, sim.eps[:, 0], "k--", lw=1.0, label=r"$\varepsilon = y - C\hat x$")
-            ax.plot(sim.t, sim.delta[:, 0], color="0.6", lw=0.8, label=r"noise $\delta$")
+            ax.plot(sim.t, sim.delta[:, 0], color="0.45", lw=0.8, label=r"noise $\delta$")
             ax.axhline(0.0, color="0.8", lw=0.5)
-            ax.set_ylim(-0.6, 0.6)
+            _symlog(ax, level)
             if name == "output":
-                title = (f"generalized observer, {key} noise: eps -> 0, x - xh -> -C$^+$delta "
-                         f"(tail |e| {sim.tail('error'):.2f})")
+                title = (f"generalized observer, {key} noise: " r"$\varepsilon \to 0$, "
+                         r"$x - \hat x \to -C^{+}\delta$" f" (tail $|e|$ = {sim.tail('error'):.2f})")
             else:
-                title = (f"noise-rejecting observer, {key} noise: x - xh -> 0 "
-                         f"(tail |e| {sim.tail('error'):.0e}), eps -> delta")
-            ax.set_title(title, fontsize=8)
+                title = (f"noise-rejecting observer, {key} noise: " r"$x - \hat x \to 0$"
+                         f" (tail $|e|$ = {sim.tail('error'):.0e}), " r"$\varepsilon \to \delta$")
+            ax.set_title(title, fontsize=8.5)
             if row == 1:
-                ax.set_xlabel("t [s]")
+                ax.set_xlabel("$t$ (s)")
             if col == 0:
-                ax.set_ylabel(f"{key} noise: error, innovation")
-            ax.legend(fontsize=7, loc="upper right")
+                ax.set_ylabel(f"{key} noise: error, innovation\n(symmetric log, linear in the grey band)",
+                              fontsize=8.5)
     fig.suptitle("Seed 003: the generalized observer does not reject output noise from the state estimate; "
                  "an output-disturbance (noise-rejecting) observer does (same poles)", fontsize=9)
-    out.append(save_figure(fig, outdir / "seed003_comparison.png"))
-    return out
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), loc="lower center", ncol=5, fontsize=8.5,
+               frameon=False)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    return save_figure(fig, outdir / "seed003_comparison.png", layout=False, progress=progress)

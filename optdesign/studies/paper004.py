@@ -115,7 +115,7 @@ def naive_error(M, P0, times) -> np.ndarray:
     return err
 
 
-def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
+def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 004's example, write its figures into ``outdir``, return the table.
 
     Parameters
@@ -124,6 +124,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
         Folder for the PNG figures (created if missing).
     quick : bool
         Fewer sample times in the figures (the numbers in the table are the same).
+    progress : optdesign._progress.Progress, optional
+        Told about every figure written.
 
     Returns
     -------
@@ -222,8 +224,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False) -> PaperReproduction:
                              text, None, "the restarted transition matrix (riccati_de method='transition') "
                              "stays exact"))
 
-    figs = (_figure_gain(outdir, raw.t, K_paper, K_sym, t_exact, P_exact, Rinv_C, are, raw.P, h),
-            _figure_convergence(outdir, conv, t_long, naive))
+    figs = (_figure_gain(outdir, raw.t, K_paper, K_sym, t_exact, P_exact, Rinv_C, are, raw.P, h, progress),
+            _figure_convergence(outdir, conv, t_long, naive, progress))
     return PaperReproduction(paper="004", title=_TITLE, rows=tuple(rows), figures=figs)
 
 
@@ -232,45 +234,47 @@ def _stairs(ax, t_mid, y, h, **kw):
     ax.stairs(y, edges, baseline=None, **kw)
 
 
-def _figure_gain(outdir: Path, t_mid, K_paper, K_sym, t, P, Rinv_C, are, P_raw, h) -> Path:
+def _figure_gain(outdir: Path, t_mid, K_paper, K_sym, t, P, Rinv_C, are, P_raw, h, progress=None) -> Path:
     plt = pyplot()
     K = P @ Rinv_C.T
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.0))
     for i, ax in enumerate(axes[:2]):
         ax.plot(t, K[:, i, 0], "k-", lw=1.2, label="exact (transition matrix)")
-        _stairs(ax, t_mid, K_paper[:, i, 0], h, color="C3", lw=1.2, label="BPF m = 50 (paper)")
+        _stairs(ax, t_mid, K_paper[:, i, 0], h, color="C3", lw=1.2, label="BPF $m = 50$ (paper)")
         ax.axhline(are.L[i, 0], color="C0", ls="--", lw=1, label="steady state (ARE)")
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel(f"K{i + 1}(t)")
-        ax.set_title(f"filter gain K{i + 1}(t)")
+        ax.set_xlabel("$t$ (s)")
+        ax.set_ylabel(f"$K_{i + 1}(t)$")
+        ax.set_title(f"filter gain $K_{i + 1}(t)$")
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     ax = axes[2]
     for (i, j), c in zip(((0, 0), (0, 1), (1, 1)), ("C0", "C1", "C2"), strict=True):
-        ax.plot(t, P[:, i, j], color=c, lw=1.2, label=f"P{i + 1}{j + 1} exact")
-        _stairs(ax, t_mid, 0.5 * (P_raw[:, i, j] + P_raw[:, j, i]), h, color=c, lw=0.8, ls=":")
-    ax.set_title("covariance P(t) (dotted: BPF m = 50)")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("entries of P(t)")
+        # the block values as a wide translucent staircase under the thin exact curve: both visible
+        _stairs(ax, t_mid, 0.5 * (P_raw[:, i, j] + P_raw[:, j, i]), h, color=c, lw=3.0, alpha=0.4,
+                label=f"$P_{{{i + 1}{j + 1}}}$ BPF $m = 50$")
+        ax.plot(t, P[:, i, j], color=c, lw=1.1, label=f"$P_{{{i + 1}{j + 1}}}$ exact")
+    ax.set_title("covariance $P(t)$: exact and BPF $m = 50$")
+    ax.set_xlabel("$t$ (s)")
+    ax.set_ylabel("entries of $P(t)$")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7.5, ncol=2, loc="center right", bbox_to_anchor=(1.0, 0.3))  # below P11, P22
     fig.suptitle("Seed 004 Fig 2: harmonic oscillator, time-varying Kalman gain")
-    return save_figure(fig, outdir / "seed004_fig2_filter_gain.png")
+    return save_figure(fig, outdir / "seed004_fig2_filter_gain.png", progress=progress)
 
 
-def _figure_convergence(outdir: Path, conv, t_long, naive) -> Path:
+def _figure_convergence(outdir: Path, conv, t_long, naive, progress=None) -> Path:
     plt = pyplot()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4))
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     m = conv["m"]
     ax1.loglog(m, conv["midpoint"], "o-", label="BPF at block midpoints (symmetrized)")
-    ax1.loglog(m, conv["raw"], "s--", label="BPF, paper's V U^-1 (asymmetric)")
+    ax1.loglog(m, conv["raw"], "s--", label=r"BPF, paper's $VU^{-1}$ (asymmetric)")
     ax1.loglog(m, conv["piecewise"], "^-", label="BPF as piecewise constant")
-    ax1.loglog(m, conv["midpoint"][0] * (m[0] / m) ** 2, "k:", lw=0.8, label="slope -2")
-    ax1.loglog(m, conv["piecewise"][0] * (m[0] / m), "k-.", lw=0.8, label="slope -1")
+    ax1.loglog(m, conv["midpoint"][0] * (m[0] / m) ** 2, "k:", lw=0.8, label="slope $-2$")
+    ax1.loglog(m, conv["piecewise"][0] * (m[0] / m), "k-.", lw=0.8, label="slope $-1$")
     ax1.set_xticks(m, [str(int(v)) for v in m])
     ax1.minorticks_off()
-    ax1.set_xlabel("blocks m")
-    ax1.set_ylabel("max ||P - P_exact||_F / max ||P_exact||_F")
+    ax1.set_xlabel("blocks $m$")
+    ax1.set_ylabel(r"$\max_t \|P - P_{\mathrm{exact}}\|_F \,/\, \max_t \|P_{\mathrm{exact}}\|_F$")
     ax1.set_title("order of the block-pulse recursion")
     ax1.grid(alpha=0.3, which="both")
     ax1.legend(fontsize=8)
@@ -279,9 +283,9 @@ def _figure_convergence(outdir: Path, conv, t_long, naive) -> Path:
         ax2.loglog(t_long[finite], np.maximum(nerr[finite], 1e-17), "o-", ms=3, color=f"C{k}", label=name)
         if np.any(~finite):
             ax2.axvline(t_long[~finite][0], color=f"C{k}", ls="--", lw=0.8)
-    ax2.set_xlabel("t [s]")
+    ax2.set_xlabel("$t$ (s)")
     ax2.set_ylabel("relative error")
-    ax2.set_title("V U^-1 from one exponential (dashed: overflow)")
+    ax2.set_title(r"$VU^{-1}$ from one exponential (dashed: overflow)")
     ax2.grid(alpha=0.3, which="both")
     ax2.legend(fontsize=8)
-    return save_figure(fig, outdir / "seed004_convergence.png")
+    return save_figure(fig, outdir / "seed004_convergence.png", progress=progress)

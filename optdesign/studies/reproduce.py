@@ -1,8 +1,9 @@
 """Shared pieces for reproducing the seed papers (used by ``optdesign reproduce`` and ``examples/``).
 
 Each paper has a module ``optdesign.studies.paperNNN`` with a function
-``reproduce(outdir, *, quick=False) -> PaperReproduction`` that recomputes the paper's
-examples with the library, writes its figures (PNG) into ``outdir`` and returns the table
+``reproduce(outdir, *, quick=False, progress=None) -> PaperReproduction`` that recomputes the
+paper's examples with the library, writes its figures (PNG) into ``outdir`` (each reported to
+``progress``, a :class:`optdesign._progress.Progress`, by :func:`save_figure`) and returns the table
 of printed vs reproduced values.  :func:`reproduce_all` runs them all (a paper module that is
 missing or fails is reported, not raised) and writes a summary table of printed vs reproduced
 values (``summary.md`` and ``summary.csv``) next to the figures.
@@ -12,13 +13,15 @@ from __future__ import annotations
 
 import csv
 import importlib
+import inspect
 import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._progress import Progress, as_progress
 from ..errors import BackendUnavailableError, ValidationError
-from .sweep import _one_line
+from .sweep import one_line_error
 
 __all__ = [
     "ReproRow",
@@ -97,13 +100,18 @@ def output_dir(outdir: str | Path) -> Path:
     return out
 
 
-def save_figure(fig, path: str | Path, *, dpi: int = 110, layout: bool = True, **savefig_kw) -> Path:
-    """Lay out (``tight_layout`` unless ``layout=False``), write and close a figure; its path."""
+def save_figure(fig, path: str | Path, *, dpi: int = 110, layout: bool = True,
+                progress: Progress | None = None, **savefig_kw) -> Path:
+    """Lay out (``tight_layout`` unless ``layout=False``), write and close a figure; its path.
+
+    ``progress`` (optional) gets one line naming the file."""
     if layout:
         fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=dpi, **savefig_kw)
     pyplot().close(fig)
+    if progress is not None:
+        progress.line(f"wrote {path.name} (at {progress.elapsed:.1f} s)")
     return path
 
 
@@ -219,7 +227,7 @@ def _md_cell(x) -> str:
     return " ".join(str(x).split()).replace("|", "\\|")
 
 
-def _run_paper(pid: str, outdir: Path, quick: bool) -> PaperOutcome:
+def _run_paper(pid: str, outdir: Path, quick: bool, progress: Progress | None = None) -> PaperOutcome:
     title = PAPERS[pid]
     modname = f"optdesign.studies.paper{pid}"
     t0 = time.perf_counter()
@@ -229,19 +237,21 @@ def _run_paper(pid: str, outdir: Path, quick: bool) -> PaperOutcome:
         if exc.name == modname:
             return PaperOutcome(pid, title, "missing", error=f"module {modname} does not exist (not "
                                                              "written yet)")
-        return PaperOutcome(pid, title, "failed", error=f"importing {modname}: {_one_line(exc)}",
+        return PaperOutcome(pid, title, "failed", error=f"importing {modname}: {one_line_error(exc)}",
                             time=time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 - reported in the table
-        return PaperOutcome(pid, title, "failed", error=f"importing {modname}: {_one_line(exc)}",
+        return PaperOutcome(pid, title, "failed", error=f"importing {modname}: {one_line_error(exc)}",
                             time=time.perf_counter() - t0)
     fn = getattr(module, "reproduce", None)
     if not callable(fn):
         return PaperOutcome(pid, title, "missing", error=f"{modname} has no reproduce(outdir, *, quick) "
                                                          "function")
+    kw = {"progress": progress} if progress is not None and "progress" in inspect.signature(fn).parameters \
+        else {}
     try:
-        rep = fn(outdir, quick=quick)
+        rep = fn(outdir, quick=quick, **kw)
     except Exception as exc:  # noqa: BLE001 - a failing paper is reported, the others still run
-        return PaperOutcome(pid, title, "failed", error=_one_line(exc), time=time.perf_counter() - t0)
+        return PaperOutcome(pid, title, "failed", error=one_line_error(exc), time=time.perf_counter() - t0)
     finally:
         _close_figures()
     dt = time.perf_counter() - t0
@@ -262,7 +272,8 @@ def _close_figures() -> None:
         sys.modules["matplotlib.pyplot"].close("all")
 
 
-def reproduce_all(outdir: str | Path, papers=None, quick: bool = False) -> ReproductionSummary:
+def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
+                  progress: bool | None = None) -> ReproductionSummary:
     """Reproduce seed papers: every figure into ``outdir``, and a summary of printed vs reproduced values.
 
     Parameters
@@ -273,6 +284,9 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False) -> Repro
         Paper ids (``"000"`` ... ``"004"``; ``"seed001"``, ``2`` ... accepted); default all.
     quick : bool
         Passed to each paper's ``reproduce`` (smaller grids and fewer starts, for CI).
+    progress : bool or None
+        Report each paper (started, finished, how long) and each figure written, on stderr:
+        ``None`` (default) only when stderr is a terminal, ``True`` always, ``False`` never.
 
     Returns
     -------
@@ -285,12 +299,20 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False) -> Repro
     Raises
     ------
     ValidationError
-        An unknown paper id.
+        An unknown paper id; ``progress`` not a bool or None.
     """
     ids = list(PAPERS) if papers is None else list(dict.fromkeys(paper_id(p) for p in papers))
+    progress = as_progress(progress)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
-    outcomes = tuple(_run_paper(pid, out, quick) for pid in ids)
+    results = []
+    with Progress(len(ids), "reproduce", enabled=progress, unit="paper") as bar:
+        for i, pid in enumerate(ids):
+            bar.line(f"seed {pid} ({i + 1}/{len(ids)}): {PAPERS[pid]}")
+            o = _run_paper(pid, out, quick, bar)
+            results.append(o)
+            bar.update(1, note=f"seed {pid} {o.status} in {o.time:.1f} s")
+    outcomes = tuple(results)
     md_path = out / "summary.md"
     csv_path = out / "summary.csv"
     lines = ["# optdesign: seed papers reproduced", "",

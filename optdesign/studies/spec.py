@@ -7,9 +7,12 @@ Format
     [study]
     name = "alpha_sector"           # optional (default: the file name)
     title = "..."                   # optional, used in the figure
-    problem = "compleib_dis2"       # a library problem (`optdesign list`)
+    problem = "compleib_dis2"       # a library problem (`optdesign list`), or a problem file
+                                    # (mine.json / .toml / .npz / .mat, relative to the spec file;
+                                    # see optdesign.problems.load_file)
     design = "well_conditioned"     # the study verb (see below)
-    output = "alpha_sector_results" # folder, relative to the spec file (default "<name>_results")
+    output = "alpha_sector_results" # folder, relative to the current directory (default
+                                    # "<name>_results"; `optdesign study --out DIR` overrides it)
     executor = "processes"          # processes | threads | serial | dask (default processes)
     workers = 2                     # optional: pool size / Dask LocalCluster workers
     scheduler = "tcp://host:8786"   # optional, executor = "dask": an existing cluster
@@ -36,20 +39,22 @@ Format
 
 Study verbs (``design``) and their grid axes:
 
-========================== ============================================== =====================================
+========================== ============================================== ===============================
 design                     designer (:mod:`optdesign.studies.designers`)  axes
-========================== ============================================== =====================================
+========================== ============================================== ===============================
 ``well_conditioned``       :class:`RegionSweepDesigner`                   alpha, zeta, radius, max_gain,
                            (build once, re-solve)                         kappa2_max, eta_max
 ``kalman``                 :class:`KalmanNoiseDesigner` (q/r)             q, r
 ``inverse``                :class:`PoleTargetDesigner`, inverse           scale, shift
 ``place``                  :class:`PoleTargetDesigner`, place             scale, shift
 ``well_conditioned_poles`` :class:`PoleTargetDesigner`, fixed poles       scale, shift
-========================== ============================================== =====================================
+========================== ============================================== ===============================
 
 Results: ``<output>/<name>.csv`` (one row per point: inputs, status, success, metrics, time,
-error), ``<output>/<name>.json`` and the figure(s).  Only successful (solved and verified)
-points are drawn; the legend says how many failed.
+error, and for a failed point its ``reason`` in one line), ``<output>/<name>.json`` and the
+figure(s).  Only successful (solved and verified) points are drawn; the title says how many
+failed.  The output folder is relative to the *current directory* (never to the spec file: running
+an example spec does not write into the source tree).
 
 Every mistake in a spec file raises :class:`SpecError` (a :class:`~optdesign.errors.ValidationError`)
 with a one-line message that names the file and the field, e.g.
@@ -74,6 +79,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import problems
 from ..errors import BackendUnavailableError, OptDesignError, ValidationError
 from ..model.regions import Disk, Ellipse, HalfPlane, HorizontalStrip, Region, Sector, VerticalStrip
 from .designers import DESIGNERS
@@ -91,6 +97,8 @@ __all__ = [
     "parse_poles",
     "plot_table",
     "REGION_SHAPES",
+    "require_matplotlib",
+    "format_region",
 ]
 
 if sys.version_info >= (3, 11):
@@ -167,6 +175,50 @@ def parse_region(text: str, *, field: str = "region") -> Region:
     return region
 
 
+def _member_text(m: Region) -> tuple[str, str]:
+    """(``--region`` syntax, meaning) of one region shape."""
+    if isinstance(m, HalfPlane):
+        if m.alpha == 0:
+            return "stable", "Re s <= 0"
+        return f"halfplane:{m.alpha:.6g}", f"Re s <= {-m.alpha:.6g}"
+    if isinstance(m, Sector):
+        deg = math.degrees(m.half_angle)
+        if m.apex == 0:
+            return (f"sector:{m.damping:.6g}",
+                    f"damping ratio >= {m.damping:.6g} (a sector of half-angle {deg:.4g} deg)")
+        return (f"Sector(half_angle={m.half_angle:.6g}, apex={m.apex:.6g})",
+                f"|Im s| <= tan({deg:.4g} deg) ({m.apex:.6g} - Re s)")
+    if isinstance(m, Disk):
+        if m.center == 0:
+            return f"disk:{m.radius:.6g}", f"|s| <= {m.radius:.6g}"
+        return f"disk:{m.center:.6g},{m.radius:.6g}", f"|s - ({m.center:.6g})| <= {m.radius:.6g}"
+    if isinstance(m, VerticalStrip):
+        return f"strip:{m.lo:.6g},{m.hi:.6g}", f"{m.lo:.6g} <= Re s <= {m.hi:.6g}"
+    if isinstance(m, HorizontalStrip):
+        return f"hstrip:{m.omega:.6g}", f"|Im s| <= {m.omega:.6g}"
+    if isinstance(m, Ellipse):
+        return (f"ellipse:{m.center:.6g},{m.a:.6g},{m.b:.6g}",
+                f"((Re s - ({m.center:.6g}))/{m.a:.6g})^2 + (Im s/{m.b:.6g})^2 <= 1")
+    return repr(m), ""
+
+
+def format_region(region: Region, *, meaning: bool = True) -> str:
+    """A region in the syntax of :func:`parse_region` (its inverse), with what each member means.
+
+    Examples
+    --------
+    >>> format_region(HalfPlane(1.0) & Disk(0.0, 20.0))
+    'halfplane:1 & disk:20  (Re s <= -1; |s| <= 20)'
+    >>> format_region(Sector.from_damping(0.7), meaning=False)
+    'sector:0.7'
+    """
+    members = region.members if hasattr(region, "members") else (region,)
+    parts = [_member_text(m) for m in members]
+    text = " & ".join(p[0] for p in parts)
+    glosses = [p[1] for p in parts if p[1]]
+    return f"{text}  ({'; '.join(glosses)})" if meaning and glosses else text
+
+
 def parse_poles(value: Any, *, field: str = "poles") -> np.ndarray:
     """Poles from ``"-1, -2, -3+1j, -3-1j"`` or a list of numbers / strings (complex vector).
 
@@ -197,29 +249,33 @@ _STUDY_KEYS = ("name", "title", "problem", "design", "output", "executor", "work
 _EXECUTORS = ("processes", "threads", "serial", "dask")
 _FIGURE_KEYS = ("kind", "x", "y", "series", "value", "logx", "logy", "file", "title")
 
-#: human-readable axis labels
+#: human-readable axis labels (matplotlib mathtext for the symbols)
 LABELS: dict[str, str] = {
-    "alpha": "decay rate alpha  (poles: Re s <= -alpha)",
-    "zeta": "damping ratio zeta  (sector)",
-    "radius": "radius bound |s| <= radius",
-    "max_gain": "gain bound ||L||_2 <= max_gain",
-    "kappa2_max": "bound kappa2 <= kappa2_max",
-    "eta_max": "bound eta <= eta_max",
-    "q": "process-noise multiplier q",
-    "r": "measurement-noise multiplier r",
+    "alpha": r"decay rate $\alpha$  (poles: $\mathrm{Re}\,s \leq -\alpha$)",
+    "zeta": r"damping ratio $\zeta$  (sector)",
+    "radius": r"radius bound $|s| \leq$ radius",
+    "max_gain": r"gain bound $\|L\|_2 \leq$ max_gain",
+    "kappa2_max": r"bound $\kappa_2 \leq$ kappa2_max",
+    "eta_max": r"bound $\eta \leq$ eta_max",
+    "q": "process-noise multiplier $q$",
+    "r": "measurement-noise multiplier $r$",
     "scale": "scale of the target poles",
     "shift": "shift of the target poles' real parts",
-    "kappa2": "kappa2 of A - LC  (eigenvector condition number)",
-    "eta": "eta of A - LC  (non-normality)",
+    "kappa2": r"$\kappa_2$ of $A - LC$  (eigenvector condition number)",
+    "eta": r"$\eta$ of $A - LC$  (non-normality)",
     "kappa_fro": "Frobenius condition number of the eigenvectors",
-    "gain_norm": "gain norm ||L||_2",
-    "max_real_pole": "largest real part of eig(A - LC)",
+    "gain_norm": r"gain norm $\|L\|_2$",
+    "max_real_pole": r"largest real part of $\mathrm{eig}(A - LC)$",
     "pole_error": "relative pole error",
-    "trace_Q": "trace of Q",
+    "trace_Q": r"$\mathrm{trace}\,Q$",
     "time": "time per point (s)",
     "solver_time": "solver time per point (s)",
     "iterations": "IPOPT iterations",
 }
+
+#: the symbol of a grid axis in legends (``alpha = 0.5`` is drawn as a Greek alpha)
+SYMBOLS: dict[str, str] = {"alpha": r"$\alpha$", "zeta": r"$\zeta$", "q": "$q$", "r": "$r$",
+                           "kappa2_max": r"$\kappa_{2,\max}$", "eta_max": r"$\eta_{\max}$"}
 
 
 @dataclass(frozen=True)
@@ -270,7 +326,8 @@ class StudyOutput:
 
 
 def load_spec(path: str | Path) -> StudySpec:
-    """Read and validate a TOML study spec (the output folder is relative to the file).
+    """Read and validate a TOML study spec (a problem file it names is relative to the spec file;
+    the output folder is relative to the current directory).
 
     Raises
     ------
@@ -387,11 +444,21 @@ def _fixed_arguments(source: str, fixed: Mapping[str, Any], cls: Any, forced: Ma
     return kwargs, constant_point
 
 
-def _make_designer(source: str, cls: Any, problem: str, forced: Mapping[str, Any],
+def _make_designer(source: str, cls: Any, prob: problems.Problem, forced: Mapping[str, Any],
                    kwargs: Mapping[str, Any]) -> Any:
-    """The designer of the spec; its validation errors name the ``[fixed]`` field (or the problem)."""
+    """The designer of the spec; its validation errors name the ``[fixed]`` field (or the problem).
+
+    A library problem is passed by name (each worker loads it); a problem file by its plant (and
+    its target poles, unless ``[fixed]`` gives poles)."""
+    if prob.origin == "library":
+        what: dict[str, Any] = {"problem": prob.name}
+    else:
+        what = {"plant": prob.plant}
+        names = {f.name for f in dataclasses.fields(cls)}
+        if "poles" in names and "poles" not in kwargs and "poles" in prob.targets:
+            what["poles"] = tuple(complex(z) for z in np.asarray(prob.targets["poles"]).ravel())
     try:
-        return cls(problem=problem, **forced, **kwargs)
+        return cls(**what, **forced, **kwargs)
     except ValidationError as exc:
         msg = " ".join(str(exc).split())
         where = next((f"fixed.{k}" for k in kwargs if k in msg), None)
@@ -429,12 +496,13 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         raise _err(source, "study.name", f"must be a non-empty name without slashes; found {name!r}")
     problem = study.get("problem")
     if not isinstance(problem, str):
-        raise _err(source, "study.problem", "missing or not a string (a problem name, see `optdesign list`); "
-                                            f"found {problem!r}")
-    from .. import problems as _problems
-
+        raise _err(source, "study.problem", "missing or not a string (a problem name, see `optdesign list`, "
+                                            f"or a problem file); found {problem!r}")
+    ref: str | Path = problem
+    if problems.is_problem_file(problem) and not Path(problem).is_absolute():
+        ref = Path(base) / problem  # a problem file next to the spec
     try:
-        prob = _problems.load(problem)
+        prob = problems.load(ref)
     except OptDesignError as exc:
         raise _err(source, "study.problem", str(exc)) from None
     if prob.plant is None:
@@ -464,9 +532,7 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
     output = study.get("output", f"{name}_results")
     if not isinstance(output, str) or not output.strip():
         raise _err(source, "study.output", f"must be a folder name; found {output!r}")
-    out_path = Path(output)
-    if not out_path.is_absolute():
-        out_path = Path(base) / out_path
+    out_path = Path(output)  # relative to the current directory, like --out
 
     # fixed arguments
     fixed = data.get("fixed", {})
@@ -474,7 +540,7 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         raise _err(source, "fixed", "must be a table of designer arguments")
     axes_allowed = list(cls.AXES)
     kwargs, constant_point = _fixed_arguments(source, fixed, cls, forced, design)
-    designer = _make_designer(source, cls, problem, forced, kwargs)
+    designer = _make_designer(source, cls, prob, forced, kwargs)
 
     # grid
     g = data.get("grid")
@@ -595,14 +661,29 @@ def _label(col: str, width: int = 34) -> str:
     return text
 
 
+def _readable_log(axis, values: np.ndarray) -> None:
+    """Log-axis ticks as plain numbers (``5, 10, 20, 50``), not ``5 x 10^0``: 1-2-5 steps over a
+    few decades, decades only over a wide range."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    v = values[np.isfinite(values) & (values > 0)]
+    decades = float(np.log10(v.max() / v.min())) if v.size else 0.0
+    subs = (1.0, 2.0, 5.0) if decades <= 3 else (1.0,)
+    axis.set_major_locator(LogLocator(base=10.0, subs=subs))
+    axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
 def _title(text: str, note: str) -> str:
     import textwrap
 
-    # never break inside a parenthesized group such as "(|s| <= 10)": protect its spaces
-    depth, chars = 0, []
+    # never break inside a parenthesized group such as "(|s| <= 10)" or inside mathtext ("$\kappa_2$"):
+    # protect their spaces
+    depth, math, chars = 0, False, []
     for c in text:
         depth += (c == "(") - (c == ")")
-        chars.append("\u00a0" if c == " " and depth > 0 else c)
+        math ^= c == "$"
+        chars.append("\u00a0" if c == " " and (depth > 0 or math) else c)
     lines = [ln.replace("\u00a0", " ") for ln in textwrap.wrap("".join(chars), 70)]
     return "\n".join(lines + ([note.strip()] if note else []))
 
@@ -622,13 +703,14 @@ def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: s
     n_fail = int((~ok).sum())
     note = f"({n_fail} of {len(table)} points failed: not drawn)" if n_fail else ""
     if fig.kind == "heatmap":
-        recs = [r if r.get("success") else {**r, fig.value: None} for r in table.records]
+        value = fig.value or "kappa2"
+        recs = [r if r.get("success") else {**r, value: None} for r in table.records]
         masked = SweepTable(records=recs, inputs=table.inputs)
-        xs, ys, Z = masked.pivot(fig.x, fig.y[0], fig.value)
+        xs, ys, Z = masked.pivot(fig.x, fig.y[0], value)
         f, ax = plt.subplots(figsize=(7.2, 5.0))
         mesh = ax.pcolormesh(xs, ys, Z, shading="nearest", cmap="viridis")
         cb = f.colorbar(mesh, ax=ax)
-        cb.set_label(_label(fig.value))
+        cb.set_label(_label(value))
         if xs.size * ys.size <= 150:
             fin = np.isfinite(Z).any()
             lo, hi = (np.nanmin(Z), np.nanmax(Z)) if fin else (0.0, 1.0)
@@ -667,17 +749,21 @@ def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: s
                 idx = np.where(sel)[0]
                 order = idx[np.argsort(xcol[idx].astype(float), kind="stable")]
                 yy = np.where(ok[order], yv[order], np.nan)
-                label = f"{fig.series} = {val:g}" if isinstance(val, (int, float)) else (
-                    f"{fig.series} = {val}" if fig.series else ycol)
+                sym = SYMBOLS.get(fig.series or "", fig.series)
+                label = f"{sym} = {val:g}" if isinstance(val, (int, float)) else (
+                    f"{sym} = {val}" if fig.series else _label(ycol))
                 ax.plot(xcol[order].astype(float), yy, marker="o", ms=3.5, lw=1.4, label=label)
             ax.set_ylabel(_label(ycol))
             if fig.logy:
                 ax.set_yscale("log")
+                _readable_log(ax.yaxis, yv[ok])
             if fig.logx:
                 ax.set_xscale("log")
+                _readable_log(ax.xaxis, xcol.astype(float))
             ax.grid(True, alpha=0.3)
             if k == 0 and (fig.series is not None or len(fig.y) == 1):
-                ax.legend(fontsize=8, title=fig.series, title_fontsize=8, loc="upper left",
+                ax.legend(fontsize=8, title=SYMBOLS.get(fig.series or "", fig.series), title_fontsize=8,
+                          loc="upper left",
                           bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         axs[-1, 0].set_xlabel(_label(fig.x))
         axs[0, 0].set_title(_title(fig.title or title or ", ".join(fig.y), note), fontsize=10)
@@ -699,8 +785,26 @@ def _dask_client(spec: StudySpec, workers: int | None):
     return Client(cluster, timeout=60), cluster
 
 
+def require_matplotlib(what: str = "figures") -> None:
+    """Raise :class:`~optdesign.errors.BackendUnavailableError` now if matplotlib is missing (before
+    any work whose figures could not be drawn).
+
+    Raises
+    ------
+    BackendUnavailableError
+        matplotlib cannot be imported; the message says what to install (or how to skip figures).
+    """
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise BackendUnavailableError(f"{what} need matplotlib, which is not installed: pip install "
+                                      "'optdesign[plot]' (or skip the figures: optdesign study "
+                                      "--no-figures, run_spec(..., figures=False))") from None
+
+
 def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, workers: int | None = None,
-             progress: bool = True, output: str | Path | None = None) -> StudyOutput:
+             progress: bool | None = None, output: str | Path | None = None,
+             figures: bool = True) -> StudyOutput:
     """Run a study: sweep, CSV + JSON, figure(s).
 
     Parameters
@@ -710,20 +814,38 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
         Overrides the spec's.
     workers : int, optional
         Overrides the spec's.
-    progress : bool
-        Progress bar (terminal only).
+    progress : bool or None
+        Progress on stderr, one step per point (:func:`~optdesign.studies.sweep`): ``None``
+        (default) only on a terminal, ``True`` always, ``False`` never.
     output : path, optional
-        Overrides the spec's output folder.
+        Overrides the spec's output folder (relative to the current directory).
+    figures : bool, default True
+        Draw the spec's figures.  When there are figures to draw, matplotlib is required *before*
+        the sweep runs (:func:`require_matplotlib`), so that a long sweep does not end in an
+        import error.
 
     Returns
     -------
     StudyOutput
+
+    Raises
+    ------
+    SpecError
+        The spec file is bad (``spec`` given as a path).
+    ValidationError
+        A bad ``executor``, ``workers``, ``progress`` or ``figures``.
+    BackendUnavailableError
+        Figures requested and matplotlib missing; executor ``"dask"`` without dask.distributed.
     """
     if not isinstance(spec, StudySpec):
         spec = load_spec(spec)
     exe = executor or spec.executor
     if exe not in _EXECUTORS:
         raise ValidationError(f"executor must be one of {', '.join(_EXECUTORS)}; found {exe!r}")
+    if not isinstance(figures, bool):
+        raise ValidationError(f"figures must be True or False; found {figures!r}")
+    if figures and spec.figures:
+        require_matplotlib(f"the figures of {spec.source}")
     w = workers or spec.workers
     out = Path(output) if output is not None else spec.output
     out.mkdir(parents=True, exist_ok=True)
@@ -746,5 +868,6 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
     json_path = out / f"{spec.name}.json"
     table.to_json(json_path)
     title = spec.title or f"{spec.problem}: {spec.design}"
-    figs = tuple(plot_table(table, fig, out / fig.file, title=title) for fig in spec.figures)
+    figs = tuple(plot_table(table, fig, out / fig.file, title=title)
+                 for fig in (spec.figures if figures else ()))
     return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=figs)

@@ -29,14 +29,17 @@ results on a process pool, a thread pool, in-process or on a Dask cluster.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import csv
 import dataclasses
 import itertools
 import json
 import math
+import multiprocessing
 import os
 import pickle
-import sys
+import queue
+import re
 import time
 import traceback
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -46,6 +49,7 @@ from typing import Any
 
 import numpy as np
 
+from .._progress import Progress, as_progress
 from .._validate import as_int
 from ..errors import ValidationError
 
@@ -57,6 +61,11 @@ __all__ = [
     "InlineExecutor",
     "default_chunksize",
     "TIMING_COLUMNS",
+    "failure_reason",
+    "plain_reason",
+    "one_line_error",
+    "STATUS_MEANING",
+    "IPOPT_MEANING",
 ]
 
 #: columns that depend on the machine and the scheduling, not on the design (ignored by
@@ -140,7 +149,7 @@ def record_of(result: Any) -> dict[str, Any]:
             v = getattr(result, k)
             flat[k] = getattr(v, "value", v)
     if "reason" not in flat and "success" in flat:
-        flat["reason"] = None if flat["success"] else _reason(result)
+        flat["reason"] = None if flat["success"] else _reason(result, flat.get("status"), out.get("message"))
     stats = out.get("solver_stats", getattr(result, "solver_stats", None))
     if "time" in flat:
         flat["solver_time"] = flat.pop("time")
@@ -149,28 +158,133 @@ def record_of(result: Any) -> dict[str, Any]:
     return flat
 
 
-def _reason(result: Any) -> str:
-    """Why a result is not a success, in one line: its first failed check and its message."""
+#: what each status means, in one clause (the first part of a failure reason)
+STATUS_MEANING: dict[str, str] = {
+    "optimal": "solved",
+    "optimal_inaccurate": "solved to a looser tolerance",
+    "solved": "solved",
+    "infeasible": "infeasible: no design exists (a global certificate says so)",
+    "infeasible_inaccurate": "infeasible according to an inaccurate solve",
+    "not_found": "no verified design found (a local method: feasibility unknown)",
+    "iteration_limit": "the iteration limit ran out before a verified design was found",
+    "time_limit": "the time limit ran out before a verified design was found",
+    "unbounded": "the solver's iterates diverged",
+    "numerical_error": "the solver stopped on a numerical difficulty",
+    "solver_error": "the solver failed to run",
+    "error": "the design raised an error",
+}
+
+#: IPOPT return statuses (as CasADi reports them) in our words
+IPOPT_MEANING: dict[str, str] = {
+    "Solve_Succeeded": "IPOPT converged",
+    "Solved_To_Acceptable_Level": "IPOPT converged to its acceptable (looser) tolerance",
+    "Feasible_Point_Found": "IPOPT found a feasible point",
+    "Infeasible_Problem_Detected": "IPOPT converged to a point that violates the constraints (locally "
+                                   "infeasible)",
+    "Search_Direction_Becomes_Too_Small": "IPOPT's steps became too small to make progress",
+    "Diverging_Iterates": "IPOPT's iterates diverged",
+    "User_Requested_Stop": "IPOPT was stopped by a callback",
+    "Maximum_Iterations_Exceeded": "IPOPT reached its iteration limit",
+    "Maximum_CpuTime_Exceeded": "IPOPT reached its CPU-time limit",
+    "Maximum_WallTime_Exceeded": "IPOPT reached its time limit",
+    "Restoration_Failed": "IPOPT's feasibility restoration failed",
+    "Error_In_Step_Computation": "IPOPT could not compute a step (singular linear system)",
+    "Invalid_Number_Detected": "the problem functions gave NaN or inf at an IPOPT iterate",
+    "Not_Enough_Degrees_Of_Freedom": "the NLP has more equality constraints than free variables",
+    "Invalid_Problem_Definition": "IPOPT refused the problem definition",
+    "Invalid_Option": "IPOPT refused an option",
+    "Unrecoverable_Exception": "IPOPT failed with an internal exception",
+    "NonIpopt_Exception_Thrown": "a function evaluation raised inside IPOPT",
+    "Insufficient_Memory": "IPOPT ran out of memory",
+    "Internal_Error": "IPOPT failed with an internal error",
+}
+
+# "ipopt: Native (Solver failed. You may use opti.debug.value ... return_status is 'Native')"
+_IPOPT_MESSAGE = re.compile(r"ipopt: (\w+)(?: \((?:[^()]|\([^()]*\))*\))?")
+# CasADi's advice and C++ locations, wherever they are left
+_CASADI_NOISE = (
+    re.compile(r"Solver failed\.\s*"),
+    re.compile(r"You may use opti\.debug\.value to investigate[^.;)]*\.?\s*"),
+    re.compile(r"return_status is '\w+'\s*"),
+    re.compile(r"Error in Opti::\w+ \[\w+\]\s*(?:at\s*)?"),
+    re.compile(r"\S*\.(?:cpp|hpp):\d+:\s*"),
+    re.compile(r"Assertion \"[^\"]*\" failed:\s*"),
+)
+
+
+def plain_reason(text: str) -> str:
+    """A backend's message in our words, on one line: IPOPT return statuses spelled out
+    (:data:`IPOPT_MEANING`), CasADi's advice ("You may use opti.debug.value to investigate ...")
+    and C++ source locations removed.
+
+    Examples
+    --------
+    >>> plain_reason("ipopt: Maximum_Iterations_Exceeded (Solver failed. You may use "
+    ...              "opti.debug.value to investigate the latest values of variables. return_status "
+    ...              "is 'Maximum_Iterations_Exceeded')")
+    'IPOPT reached its iteration limit'
+    """
+    text = " ".join(str(text).split())
+
+    def spell(m: re.Match) -> str:
+        return IPOPT_MEANING.get(m.group(1), f"IPOPT stopped with status {m.group(1)}")
+
+    text = _IPOPT_MESSAGE.sub(spell, text)
+    for pat in _CASADI_NOISE:
+        text = pat.sub("", text)
+    text = re.sub(r"\(\s*\)", "", text)  # parentheses emptied by the removals
+    text = re.sub(r"\s+([;,.)])", r"\1", text)
+    return " ".join(text.split()).strip(" ;,")
+
+
+def failure_reason(status: str, detail: str = "", failed_check: Any = None) -> str:
+    """Why a point failed, in one line of our vocabulary: ``"<status>: <what it means>; <detail>"``.
+
+    Parameters
+    ----------
+    status : str
+        A :class:`~optdesign.results.Status` value (or ``"error"``).
+    detail : str
+        The result's message or the error (cleaned by :func:`plain_reason`).
+    failed_check : Check, optional
+        The first independent check that failed: named with its value and bound.
+    """
+    status = str(getattr(status, "value", status))
+    head = f"{status}: {STATUS_MEANING.get(status, 'not a success')}"
+    if failed_check is not None:
+        c = failed_check
+        check = f"{c.name} = {c.value:.3g} (must be {c.sense} {c.tolerance:.3g})"
+        head = (f"{status} but not verified: the independent check {check} fails"
+                if status in ("optimal", "optimal_inaccurate", "solved") else f"{head}; failed check {check}")
+    detail = plain_reason(detail)
+    return (f"{head}; {detail}" if detail else head)[:400]
+
+
+def _reason(result: Any, status: Any, message: Any) -> str:
+    """Why a result is not a success, in one line (:func:`failure_reason`)."""
     ver = getattr(result, "verification", None)
     failed = list(getattr(ver, "failed", ()) or ())
-    head = ""
-    if failed:
-        c = failed[0]
-        head = f"failed check {c.name} = {c.value:.3g} (must be {c.sense} {c.tolerance:.3g}); "
-    return (head + " ".join(str(getattr(result, "message", "")).split()))[:300]
+    if message is None:
+        message = getattr(result, "message", "")
+    return failure_reason(getattr(status, "value", status) or "", str(message or ""),
+                          failed[0] if failed else None)
 
 
-def _one_line(exc: BaseException) -> str:
-    """``"Type: message at file:line"`` on one line (the message's line breaks become spaces)."""
+def one_line_error(exc: BaseException) -> str:
+    """``"Type: message at file:line"`` on one line (the message's line breaks become spaces;
+    CasADi's advice removed by :func:`plain_reason`)."""
     tb = traceback.extract_tb(exc.__traceback__)
     where = f" at {Path(tb[-1].filename).name}:{tb[-1].lineno}" if tb else ""
-    msg = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {msg}{where}"
+    return f"{type(exc).__name__}: {plain_reason(str(exc))}{where}"
 
 
 def _run_chunk(design_fn: Callable[..., Any], chunk: Sequence[tuple[int, dict[str, Any]]],
-               keep: bool = False) -> list[tuple]:
-    """Evaluate one chunk in a worker; never raises for a failing point."""
+               keep: bool = False, notify: Any = None) -> list[tuple]:
+    """Evaluate one chunk in a worker; never raises for a failing point.
+
+    ``notify`` (optional, anything with ``put``: a queue) receives ``(index, success)`` after every
+    point, for the progress report; it never changes what is computed.
+    """
     fn = design_fn
     start = getattr(design_fn, "start_chunk", None)
     setup_error = None
@@ -178,7 +292,7 @@ def _run_chunk(design_fn: Callable[..., Any], chunk: Sequence[tuple[int, dict[st
         try:
             fn = start()
         except Exception as exc:  # noqa: BLE001 - recorded for every point of the chunk
-            setup_error = _one_line(exc)
+            setup_error = one_line_error(exc)
     rows = []
     for index, point in chunk:
         t0 = time.perf_counter()
@@ -192,8 +306,15 @@ def _run_chunk(design_fn: Callable[..., Any], chunk: Sequence[tuple[int, dict[st
                 err = None
             except Exception as exc:  # noqa: BLE001 - a sweep records failures, never crashes
                 rec = {"status": "error", "success": False}
-                err = _one_line(exc)
+                err = one_line_error(exc)
+        if err is not None:
+            rec["reason"] = failure_reason("error", err)
         rows.append((index, rec, time.perf_counter() - t0, err, os.getpid(), res if keep else None))
+        if notify is not None:
+            try:
+                notify.put((index, bool(rec.get("success"))))
+            except Exception:  # noqa: BLE001 - progress is never worth losing a point
+                pass
     return rows
 
 
@@ -451,20 +572,59 @@ def _check_picklable(design_fn: Any) -> None:
             f"designer object, not a lambda or a local function); pickling failed: {exc}") from None
 
 
-def _progress_bar(total: int, enabled: bool):
-    """A tqdm bar on stderr that appears after 1 s, only on a terminal and if tqdm is installed."""
-    if not enabled:
+class _Direct:
+    """A ``put`` that updates the progress report at once (in-process executors)."""
+
+    def __init__(self, tracker: _PointTracker) -> None:
+        self.tracker = tracker
+
+    def put(self, item: tuple[int, bool]) -> None:
+        self.tracker.point(*item)
+
+
+class _PointTracker:
+    """Counts finished points once each (from the workers' notices or from a finished chunk)."""
+
+    def __init__(self, bar: Progress) -> None:
+        self.bar = bar
+        self.seen: set[int] = set()
+        self.failed = 0
+
+    def point(self, index: int, ok: bool) -> None:
+        if index in self.seen:
+            return
+        self.seen.add(index)
+        self.failed += not ok
+        self.bar.update(1, note=f"{self.failed} failed" if self.failed else "")
+
+    def drain(self, channel: Any) -> None:
+        while channel is not None:
+            try:
+                item = channel.get_nowait()
+            except queue.Empty:
+                return
+            except (OSError, EOFError):  # the manager went away
+                return
+            self.point(*item)
+
+
+def _notice_channel(exe: Any, tracker: _PointTracker, stack: contextlib.ExitStack) -> Any:
+    """Where workers report finished points: direct (in-process), a queue (threads), a manager
+    queue (process pools; started only when progress is shown), None for other executors (Dask:
+    the report then advances per chunk)."""
+    if not tracker.bar.enabled:
         return None
-    try:
-        if not sys.stderr.isatty():
+    if isinstance(exe, InlineExecutor):
+        return _Direct(tracker)
+    if isinstance(exe, cf.ThreadPoolExecutor):
+        return queue.SimpleQueue()
+    if isinstance(exe, cf.ProcessPoolExecutor):
+        try:
+            manager = stack.enter_context(multiprocessing.Manager())
+            return manager.Queue()
+        except (OSError, EOFError, RuntimeError):  # no manager process: per-chunk progress
             return None
-    except (AttributeError, ValueError):
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:
-        return None
-    return tqdm(total=total, delay=1.0, unit="pt", leave=False, file=sys.stderr, desc="sweep")
+    return None
 
 
 def _kill_pool(executor: cf.ProcessPoolExecutor) -> None:
@@ -480,12 +640,33 @@ def _kill_pool(executor: cf.ProcessPoolExecutor) -> None:
             pass
 
 
+def _wait_all(futures: dict[cf.Future, list], collect: Callable[[cf.Future, list], None],
+              tracker: _PointTracker, channel: Any, timeout: float | None) -> bool:
+    """Collect every future as it finishes, reporting the workers' per-point notices in between;
+    True if ``timeout`` (seconds from now) ran out first."""
+    start = time.perf_counter()
+    pending = set(futures)
+    poll = 0.2 if channel is not None else None
+    while pending:
+        wait = poll
+        if timeout is not None:
+            left = timeout - (time.perf_counter() - start)
+            if left <= 0:
+                return True
+            wait = left if wait is None else min(wait, left)
+        done, pending = cf.wait(pending, timeout=wait, return_when=cf.FIRST_COMPLETED)
+        tracker.drain(channel)
+        for fut in done:
+            collect(fut, futures[fut])
+    return False
+
+
 def sweep(
     design_fn: Callable[..., Any],
     points: Sequence[Mapping[str, Any]] | Mapping[str, Iterable[Any]],
     *,
     executor: Any = None,
-    progress: bool = True,
+    progress: bool | None = None,
     chunksize: int | None = None,
     timeout: float | None = None,
     workers: int | None = None,
@@ -508,9 +689,12 @@ def sweep(
         core, created and shut down here.  ``"threads"``: a thread pool; ``"serial"``: in-process
         (:class:`InlineExecutor`).  Any ``concurrent.futures.Executor`` is used as is and not shut
         down (e.g. ``client.get_executor()`` of a Dask cluster; a Dask ``Client`` is accepted too).
-    progress : bool, default True
-        Show a tqdm bar on stderr -- only on a terminal, only if tqdm is installed, and only once
-        the sweep has run for more than a second.
+    progress : bool or None
+        Report progress on stderr, one step per finished point (``optdesign._progress.Progress``:
+        a tqdm bar on a terminal, plain lines otherwise), once the sweep has run for a second.
+        ``None`` (default): only when stderr is a terminal; ``True``: always; ``False``: never.
+        Per-point reports come from in-process, thread and process-pool executors; other
+        executors (Dask) report per chunk.
     chunksize : int, optional
         Points per task; default :func:`default_chunksize` (depends on the number of points only).
     timeout : float, optional
@@ -533,7 +717,8 @@ def sweep(
     ------
     ValidationError
         No points, a point that is not a mapping with string keys, ``design_fn`` not callable or
-        (process pools) not picklable, bad ``chunksize`` / ``timeout`` / ``workers`` / executor.
+        (process pools) not picklable, bad ``chunksize`` / ``timeout`` / ``workers`` / ``progress`` /
+        executor.
 
     Examples
     --------
@@ -563,6 +748,7 @@ def sweep(
         raise ValidationError(f"timeout must be a positive number of seconds; found {timeout!r}")
     if workers is not None:
         workers = as_int("workers", workers, 1)
+    progress = as_progress(progress)
     inputs = tuple(dict.fromkeys(k for p in pts for k in p))
     if executor is None or executor == "processes" or isinstance(executor, cf.ProcessPoolExecutor):
         _check_picklable(design_fn)
@@ -588,7 +774,10 @@ def sweep(
             if rows[index] is None:
                 fill(index, {"status": "error", "success": False}, float("nan"), message, None)
 
-    bar = _progress_bar(len(pts), progress)
+    stack = contextlib.ExitStack()
+    bar = stack.enter_context(Progress(len(pts), "sweep", enabled=progress, unit="point", delay=1.0))
+    tracker = _PointTracker(bar)
+    channel = _notice_channel(exe, tracker, stack)
     timed_out = False
     futures: dict[cf.Future, list] = {}
 
@@ -596,12 +785,14 @@ def sweep(
         try:
             out = fut.result()
         except Exception as exc:  # noqa: BLE001 - worker died, task lost, pickling...
-            fail_chunk(chunk, f"task failed in the executor: {_one_line(exc)}")
+            fail_chunk(chunk, f"task failed in the executor: {one_line_error(exc)}")
         else:
             for index, rec, dt, err, pid, res in out:
                 fill(index, rec, dt, err, pid, res)
-        if bar is not None:
-            bar.update(len(chunk))
+        if not isinstance(channel, _Direct):
+            tracker.drain(channel)
+        for index, _ in chunk:
+            tracker.point(index, bool(rows[index] and rows[index].get("success")))
 
     try:
         if isinstance(exe, InlineExecutor):
@@ -611,18 +802,15 @@ def sweep(
                     timed_out = True
                     fail_chunk(chunk, f"timed out: not started within timeout={timeout:g} s")
                     continue
-                collect(exe.submit(_run_chunk, design_fn, chunk, keep_results), chunk)
+                collect(exe.submit(_run_chunk, design_fn, chunk, keep_results, channel), chunk)
         else:
             for chunk in chunks:
                 try:
-                    futures[exe.submit(_run_chunk, design_fn, chunk, keep_results)] = chunk
+                    futures[exe.submit(_run_chunk, design_fn, chunk, keep_results, channel)] = chunk
                 except Exception as exc:  # noqa: BLE001 - e.g. a broken pool: record, keep going
-                    fail_chunk(chunk, f"could not submit: {_one_line(exc)}")
-            try:
-                for fut in cf.as_completed(list(futures), timeout=timeout):
-                    collect(fut, futures[fut])
-            except cf.TimeoutError:
-                timed_out = True
+                    fail_chunk(chunk, f"could not submit: {one_line_error(exc)}")
+            timed_out = _wait_all(futures, collect, tracker, channel, timeout)
+            if timed_out:
                 for fut, chunk in futures.items():
                     if not fut.done():
                         fut.cancel()
@@ -638,13 +826,12 @@ def sweep(
             own = False
         raise
     finally:
-        if bar is not None:
-            bar.close()
         if own:
             if timed_out and isinstance(exe, cf.ProcessPoolExecutor):
                 _kill_pool(exe)
             else:
                 exe.shutdown(wait=not timed_out, cancel_futures=True)
+        stack.close()
     meta = {"executor": label, "chunksize": size, "chunks": len(chunks), "timed_out": timed_out}
     return SweepTable(records=rows, inputs=inputs, wall_time=time.perf_counter() - t0,
                       results=results if keep_results else None, meta=meta)
