@@ -38,9 +38,11 @@ from pathlib import Path
 import numpy as np
 
 from .. import problems
+from ..analysis.robustness import return_difference
 from ..classical.placement import pole_error
 from ..classical.riccati import filter_are, hamiltonian_are
 from ..classical.solheim import solheim
+from ..design.inverse_kalman import kalman_for_poles
 from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "example1_family"]
@@ -100,9 +102,6 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     -------
     PaperReproduction
     """
-    from ..analysis.robustness import return_difference
-    from ..design.inverse_kalman import kalman_for_poles
-
     outdir = output_dir(outdir)
     rows: list[ReproRow] = []
     num = 25 if quick else 80
@@ -206,6 +205,14 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     rows.append(ReproRow("eq (41)", "middle term", "q (h11 + h22)(a^2 + b^2)^2", "q (h11 + h22)(a^2 + b^2)",
                          False, "as in eq (36) and (45)"))
 
+    figures = _double_integrator_part(fam, members, num, outdir, plant1, plant2, progress, quick, rows,
+                                      s1, s2)
+    return PaperReproduction(paper="000", title=_TITLE, rows=tuple(rows), figures=tuple(figures))
+
+
+def _double_integrator_part(fam, members, num, outdir, plant1, plant2, progress, quick, rows, s1, s2):
+    """The double integrator of issue 3 (which targets a Kalman filter can reach, the infeasible
+    one's certificate) and the three figures; appends its rows to ``rows``."""
     # ------------------------------------------------------- double integrator (issue 3)
     di = {}
     for name in ("double_integrator_poles_m1_m3", "double_integrator_poles_m2pm2j",
@@ -229,7 +236,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     figures = [_figure_family(outdir, fam, members, s1, progress),
                _figure_loci(outdir, plant1, s1, plant2, s2, num, progress),
                _figure_double_integrator(outdir, di, return_difference, quick, progress)]
-    return PaperReproduction(paper="000", title=_TITLE, rows=tuple(rows), figures=tuple(figures))
+    return figures
 
 
 # ------------------------------------------------------------------------ figures

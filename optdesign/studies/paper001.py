@@ -49,6 +49,9 @@ from ..classical.jung_huh import (
     observer_2x2_kappa2,
     observer_2x2_stable,
 )
+from ..classical.riccati import filter_are
+from ..design.well_conditioned import well_conditioned_kalman, well_conditioned_observer
+from ..model.regions import HalfPlane
 from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
 
 __all__ = ["reproduce", "real_schur_eta", "aircraft_design"]
@@ -74,9 +77,6 @@ def real_schur_eta(X) -> float:
 
 def aircraft_design(starts: int = 3):
     """Example 3 redesigned: min kappa2, poles in ``Re s <= -decay(L_paper)``, ``||L|| <= ||L_paper||``."""
-    from ..design.well_conditioned import well_conditioned_observer
-    from ..model.regions import HalfPlane
-
     ex = problems.load("jung_huh_ex3")
     plant = ex.plant
     L_paper = np.asarray(ex.references["cases_printed"][0]["L"], dtype=float).reshape(3, 1)
@@ -104,13 +104,22 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     -------
     PaperReproduction
     """
-    from ..design.well_conditioned import well_conditioned_kalman
-
     plt = pyplot()
     outdir = output_dir(outdir)
     rows: list[ReproRow] = []
     figs: list[Path] = []
+    for part in (_example1, _example2, _example3):
+        r, f = part(plt, outdir, quick, progress)
+        rows += r
+        figs += f
 
+    return PaperReproduction(paper="001", title=_TITLE, rows=tuple(rows), figures=tuple(figs))
+
+
+def _example1(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow], list[Path]]:
+    """Example 1 (2x2 observer: eq (21), the kappa2 bound) and Fig. 1-2."""
+    rows: list[ReproRow] = []
+    figs: list[Path] = []
     # ------------------------------------------------------------------ Example 1
     ex1 = problems.load("jung_huh_ex1")
     a1, a2 = float(ex1.data["a1"]), float(ex1.data["a2"])
@@ -159,6 +168,14 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
             "eq (19) at eta = 2: 2 + sqrt 5",
         )
     )
+    _example1_figures(L, a1, a2, beta, case, e, ex1, figs, kb, outdir, plant1, plt, progress, quick,
+                      rows)
+    return rows, figs
+
+
+def _example1_figures(L, a1, a2, beta, case, e, ex1, figs, kb, outdir, plant1, plt, progress, quick, rows):
+    """Fig. 1 (kappa2 over the gain plane) and Fig. 2 (the stable gains with eta <= beta), with their
+    checks."""
     # Fig. 1: kappa2 over the gain plane
     n1 = 161 if quick else 401
     l1g = np.linspace(-5.0, 30.0, n1)
@@ -267,13 +284,16 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     ax.legend(loc="upper left", fontsize=8, framealpha=0.85)
     figs.append(save_figure(fig, outdir / "seed001_fig2_gain_region.png", progress=progress, **_SAVE))
 
+
+def _example2(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow], list[Path]]:
+    """Example 2 (the Kalman filter against the noise ratio q/r) and Fig. 3."""
+    rows: list[ReproRow] = []
+    figs: list[Path] = []
     # ------------------------------------------------------------------ Example 2
     ex2 = problems.load("jung_huh_ex2")
     a, b = float(ex2.data["a"]), float(ex2.data["b"])
     beta2 = float(ex2.targets["beta"])
     e = "Ex. 2"
-    from ..classical.riccati import filter_are
-
     worst = 0.0
     for qr in (0.5, 1.3, 3.0, 146.0):
         are = filter_are(ex2.plant.replace(Q=[[qr]]))
@@ -358,7 +378,13 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
                  fontsize=9)
     ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
     figs.append(save_figure(fig, outdir / "seed001_fig3_qr.png", progress=progress, **_SAVE))
+    return rows, figs
 
+
+def _example3(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow], list[Path]]:
+    """Example 3 (the aircraft pitch observer) and Fig. 4."""
+    rows: list[ReproRow] = []
+    figs: list[Path] = []
     # ------------------------------------------------------------------ Example 3
     ex3 = problems.load("jung_huh_ex3")
     plant3 = ex3.plant
@@ -408,6 +434,12 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
             + f"; eta {des.eta:.4f}; poles {fmt(des.poles)}; {des.message}",
         )
     )
+    _example3_figure(L_paper, X, des, e, ex3, figs, k_paper, outdir, plant3, plt, progress, quick, rows)
+    return rows, figs
+
+
+def _example3_figure(L_paper, X, des, e, ex3, figs, k_paper, outdir, plant3, plt, progress, quick, rows):
+    """Fig. 4: the gains with eta < 4 in the box, and the poles of the paper's and the optimized gain."""
     # Fig. 4: gains with eta < 4 in the box
     ng = 13 if quick else 25
     g = np.linspace(-10, 10, ng)
@@ -495,4 +527,4 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     fig.suptitle("Seed 001 Fig. 4: aircraft pitch model (Example 3)", fontsize=10)
     figs.append(save_figure(fig, outdir / "seed001_fig4_aircraft.png", progress=progress, **_SAVE))
 
-    return PaperReproduction(paper="001", title=_TITLE, rows=tuple(rows), figures=tuple(figs))
+
