@@ -26,6 +26,7 @@ __all__ = [
     "NotControllableError",
     "NotConjugateClosedError",
     "EmptyRegionError",
+    "DefectivePolesError",
     "InfeasibleError",
     "SolverError",
     "BackendUnavailableError",
@@ -88,6 +89,31 @@ class NotConjugateClosedError(ValidationError):
 
 class EmptyRegionError(ValidationError):
     """A pole region (typically an intersection) has an empty interior."""
+
+
+class DefectivePolesError(ValidationError):
+    """A pole is requested more often than ``rank(C)``: ``A - L C`` would be defective.
+
+    The eigenspace of ``A - L C`` for a pole has dimension at most ``rank(C)`` (more at an
+    unobservable mode), so a larger multiplicity forces a Jordan block: kappa2 is infinite for
+    every gain.  The eigenstructure engine raises it; with a separation
+    (:func:`optdesign.solvers.eigenstructure.spread_poles`) it designs for the nearest
+    distinct-pole set instead.
+
+    Attributes
+    ----------
+    pole : complex
+    multiplicity : int
+        How often the pole is requested.
+    rank : int
+        ``rank(C)``.
+    """
+
+    def __init__(self, message: str, *, pole: complex, multiplicity: int, rank: int) -> None:
+        super().__init__(message)
+        self.pole = complex(pole)
+        self.multiplicity = int(multiplicity)
+        self.rank = int(rank)
 
 
 class InfeasibleError(OptDesignError, ValueError):

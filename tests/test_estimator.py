@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import control
 import numpy as np
 import pytest
@@ -149,8 +151,12 @@ def test_estimator_of_other_results_and_plain_plants():
     design = well_conditioned_observer(plant, poles=[-4.0, -5.0], starts=1)
     est = estimator_of(design, plant)
     assert est.ninputs == 1 and est.noutputs == 3
-    with pytest.raises(ValidationError, match="ObserverDesign does not carry its plant: pass plant="):
-        estimator_of(design)
+    # an ObserverDesign carries its plant now (issue 12): the plant argument is optional
+    own = estimator_of(design)
+    np.testing.assert_allclose(own.A, est.A)
+    np.testing.assert_allclose(own.B, est.B)
+    with pytest.raises(ValidationError, match="does not carry its plant: pass plant="):
+        estimator_of(SimpleNamespace(L=design.L, poles=design.poles))
 
 
 def test_errors():

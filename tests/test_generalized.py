@@ -557,7 +557,10 @@ def test_well_conditioned_method_time_limit():
         d = verb(plant, Step(), method="well_conditioned", starts=3, time_limit=1e-3)
         assert d.status == Status.TIME_LIMIT and not d.success
         assert d.design.status == Status.TIME_LIMIT and "time limit of 0.001 s reached" in d.design.message
-        assert len(d.design.starts) == 1  # no start after the first once the budget is spent
+        # the engine's lockstep starts; when none has a finite gain, the NLP route's first start (it
+        # always runs once): the answer has a gain either way
+        assert d.design.solver_stats.extra["route"] in ("engine", "engine+nlp")
+        assert np.all(np.isfinite(d.design.L))
         assert verb(plant, Step(), time_limit=1e-3).status == Status.SOLVED
 
 

@@ -112,7 +112,7 @@ def test_record_of_uses_record_and_renames_solver_time():
     rec = record_of(R())
     assert rec == {"kappa2": 2.5, "solver_time": 0.1, "status": "optimal", "success": True, "reason": None}
     assert type(rec["kappa2"]) is float
-    # an unsuccessful result says why, in one line: its first failed check, then its message
+    # an unsuccessful result says why, in one line: its status in words, its first failed check, its message
     failed = Verification.of([Check.at_most("pole_error", 0.5, 1e-8, "poles"), Check.at_most("x", 0, 1)])
 
     class Bad:
@@ -122,7 +122,8 @@ def test_record_of_uses_record_and_renames_solver_time():
         message = "IPOPT stopped\n  after 3000 iterations"
 
     why = record_of(Bad())["reason"]
-    assert why == "failed check pole_error = 0.5 (must be <= 1e-08); IPOPT stopped after 3000 iterations"
+    assert why == ("iteration_limit: the iteration limit ran out before a verified design was found; "
+                   "failed check pole_error = 0.5 (must be <= 1e-08); IPOPT stopped after 3000 iterations")
     assert record_of({"a": 1, "b": [1, 2]}) == {"a": 1}
     assert record_of(3.0) == {"value": 3.0}
 
@@ -232,10 +233,16 @@ def test_table_csv_json_pivot_and_diff(tmp_path):
 # ------------------------------------------------------------------ progress bar
 
 
-def test_progress_bar_quiet_when_not_a_terminal(capsys):
-    t = sweep(slow_square, grid(a=range(6)), executor="serial", progress=True)  # ~1.5 s
+def test_progress_automatic_is_quiet_when_not_a_terminal(capsys):
+    t = sweep(slow_square, grid(a=range(6)), executor="serial")  # ~1.5 s, progress=None (automatic)
     assert len(t) == 6
     assert capsys.readouterr().err == ""
+
+
+def test_progress_forced_writes_plain_lines_when_not_a_terminal(capsys):
+    sweep(slow_square, grid(a=range(6)), executor="serial", progress=True)  # ~1.5 s
+    err = capsys.readouterr().err
+    assert "sweep" in err and "6/6" in err  # the last line is always written
 
 
 def test_progress_bar_shown_on_a_terminal_after_a_second(monkeypatch):
@@ -247,10 +254,14 @@ def test_progress_bar_shown_on_a_terminal_after_a_second(monkeypatch):
 
     fake = FakeTTY()
     monkeypatch.setattr(sys, "stderr", fake)
-    sweep(square, grid(a=range(2)), executor="serial", progress=True)  # well under a second: no bar
+    sweep(square, grid(a=range(2)), executor="serial")  # well under a second: no bar
     assert fake.getvalue() == ""
-    sweep(slow_square, grid(a=range(6)), executor="serial", progress=True)  # 1.5 s: a bar
-    assert "sweep" in fake.getvalue() and "pt" in fake.getvalue()
+    sweep(slow_square, grid(a=range(6)), executor="serial")  # 1.5 s: a bar
+    assert "sweep" in fake.getvalue() and "6/6" in fake.getvalue() and "point" in fake.getvalue()
+    fake.truncate(0)
+    fake.seek(0)
+    sweep(slow_square, grid(a=range(6)), executor="serial", progress=False)  # silenced on a terminal too
+    assert fake.getvalue() == ""
 
 
 # ------------------------------------------------------------------ region designer: re-use, verification
@@ -303,6 +314,8 @@ def test_region_designer_point_errors_are_recorded():
         ({"options": [1, 2]}, r"options must be a dict of solver options .*; found list \[1, 2\]"),
         ({"options": {"ipopt.bogus": 1}}, r"options must be IPOPT / CasADi .*No such IPOPT option: bogus"),
         ({"options": {"ipopt.max_iter": True}}, r"options: 'ipopt.max_iter' must map to a string or a num"),
+        ({"objective": np.array(["kappa2", "eta"])}, "objective must be one of .*; found array"),
+        ({"placement": np.array(["always", "fallback"])}, "placement must be 'always' or 'fallback'"),
     ],
 )
 def test_region_designer_construction_errors(kwargs, match):
@@ -359,6 +372,8 @@ def test_region_designer_refuses_a_region_outside_the_stability_region():
         ({"problem": "chang_lee_1984_ex1", "reuse": 1}, "reuse must be true or false; found 1"),
         ({"plant": problems.load("compleib_dis2").plant}, r"needs poles \(no problem to take them from\)"),
         ({"problem": "compleib_dis2"}, "problem 'compleib_dis2' has no target poles; give poles"),
+        ({"problem": "chang_lee_1984_ex1", "poles": ["a", "b"]}, "poles must be numeric"),  # was a ValueError
+        ({"problem": "chang_lee_1984_ex1", "method": np.array(["place", "inverse"])}, "method must be one"),
     ],
 )
 def test_pole_target_designer_construction_errors(kwargs, match):

@@ -334,7 +334,7 @@ def _call_well_conditioned(aug: Plant, region, poles, objective, starts, seed, s
     from . import well_conditioned as wc  # imported lazily: CasADi is loaded only when needed
 
     return wc.well_conditioned_observer(aug, region=region, poles=poles, objective=objective,
-                                        structure=structure, starts=starts, seed=seed, options=options,
+                                        gain_mask=structure, starts=starts, seed=seed, options=options,
                                         time_limit=time_limit)
 
 

@@ -37,6 +37,37 @@ Tolerance table (value -> tolerance, and why):
     solvers agree to what their own error estimates explain (a difference explained by the other
     solver's residual passes).
 
+Observer designs (:mod:`optdesign.design.well_conditioned`; ``floor`` is the rounding floor of the
+poles of ``A - L C``, capped at :data:`POLE_FLOOR_CAP`):
+
+``stability``
+    ``max Re eig(A - L C)`` -> ``<= -floor max(1, max |pole|)`` (continuous), or the spectral radius
+    -> ``<= 1 - floor`` (discrete): stable beyond the rounding level of the poles.
+``region_margin``
+    ``region.margin(poles)`` (max signed distance, ``<= 0`` inside) -> ``max(REGION_TOL, floor)``
+    times ``max(1, max |pole|)``: a free-pole design meets its region constraints to ~1e-10; no pole
+    is placed better than it can be computed.
+``eig_residual``
+    ``||(A - L C) Z - Z diag(poles)||_F / (||A - L C||_F ||Z||_F)`` of the solver's eigenbasis ``Z``
+    -> :data:`EIG_RESIDUAL_TOL` (1e-8): ``Z`` is an eigenbasis (backward error, scale-free).
+``kappa2_agreement``
+    ``|cond(Z) - kappa2| / kappa2`` (``kappa2`` from numpy's eigenvectors,
+    :func:`optdesign.analysis.metrics.kappa2`) -> :func:`kappa2_agreement_tol`:
+    ``1e-6 + 10 eps kappa2 ||A - L C||_F / gap`` (``gap`` the smallest distance between two poles),
+    at most 1 %: two computed eigenbases differ per column by ``~ eps ||X|| / gap``, which kappa2
+    amplifies in their condition numbers.
+``mask``
+    largest ``|L|`` entry outside the structure mask -> ``0`` (the structural zeros are set exactly).
+``gain_bound``, ``eta_bound``
+    ``||L||_2`` and eta -> the bound times ``1 + BOUND_RTOL`` (1e-6: the NLP meets it to ~1e-10,
+    the metric is recomputed with numpy).
+``kappa2_bound``
+    kappa2 -> ``kappa2_max (1 + kappa2_agreement_tol(kappa2_max))``: to the accuracy of a computed
+    kappa2.
+``finite_gain``, ``feasible``
+    a gain with NaN / Inf entries, or a design with no gain (the verdict is in the message) ->
+    fails (value inf, tolerance 0).
+
 The factor 4 (:data:`ESTIMATE_FACTOR`) is the safety margin on first-order *estimates*.
 
 References
@@ -75,6 +106,18 @@ __all__ = [
     "independent_are",
     "cross_check",
     "relative_difference",
+    "EIG_RESIDUAL_TOL",
+    "REGION_TOL",
+    "BOUND_RTOL",
+    "KAPPA2_TOL",
+    "KAPPA2_TOL_MAX",
+    "kappa2_agreement_tol",
+    "eigen_spread",
+    "observer_stability_check",
+    "region_margin_check",
+    "eig_residual_check",
+    "kappa2_agreement_check",
+    "bound_check",
 ]
 
 _EPS = float(np.finfo(float).eps)
@@ -86,6 +129,9 @@ CHECK_NAMES = frozenset({
     "structure", "gain_relation_asymmetry", "gain_relation_min_eig", "gain_relation_residual", "margin",
     "circle_condition", "feedback_pole_error", "feedback_region_margin", "feedback_stability_margin",
     "nonfinite", "error_estimate",
+    # observer designs (well-conditioned, generalized)
+    "eig_residual", "kappa2_agreement", "eta_bound", "finite_gain", "feasible", "finite_noise",
+    "gain_vs_riccati", "internal_model", "noise_rejection", "commutant_residual", "S_condition",
     # robust designs (several models)
     "region_margin", "gain_bound", "kappa2_bound", "h2_bound", "hinf_bound", "mask", "lmi_P_min_eig",
     "lmi_region", "lmi_h2_bound", "lmi_hinf_bound", "dense_region", "farkas_radius", "found",
@@ -99,6 +145,17 @@ FORWARD_ERROR_TOL = 1e-6
 POLE_FLOOR_CAP = 1e-6
 #: the safety factor on first-order error estimates (they are estimates, not bounds)
 ESTIMATE_FACTOR = 4.0
+#: relative eigen-residual ``||X Z - Z Lambda||_F / (||X||_F ||Z||_F)`` required of a solver's eigenbasis
+EIG_RESIDUAL_TOL = 1e-8
+#: relative distance outside a pole region accepted (raised to the rounding floor of the poles)
+REGION_TOL = 1e-7
+#: relative excess over a gain or eta bound accepted (the metric is recomputed with numpy)
+BOUND_RTOL = 1e-6
+#: the floor and the cap of :func:`kappa2_agreement_tol`
+KAPPA2_TOL = 1e-6
+KAPPA2_TOL_MAX = 1e-2
+#: ``||X||_F / gap`` assumed by :func:`kappa2_agreement_tol` when the matrix is not at hand
+_DEFAULT_SPREAD = 100.0
 
 
 def relative_difference(x: NDArray, y: NDArray) -> float:
@@ -239,6 +296,81 @@ def cross_check(P: NDArray, P_other: NDArray, err: float, err_other: float, *, o
     return Check.at_most("cross_check", diff, tol,
                          f"||P - P_{other}||_F / max(||P||_F, ||P_{other}||_F); tolerance 4 x the sum of "
                          f"the two error estimates")
+
+
+# --------------------------------------------------------------------------- observer designs
+
+
+def eigen_spread(X: NDArray, poles: NDArray) -> float:
+    """``||X||_F / gap``, ``gap`` the smallest distance between two of ``poles`` (inf when two
+    coincide; 1 for a single pole): how strongly rounding moves the eigenvectors of ``X``."""
+    P = np.asarray(poles, dtype=complex).ravel()
+    if P.size < 2:
+        return 1.0
+    d = np.abs(P[:, None] - P[None, :])
+    gap = float(np.min(d[~np.eye(P.size, dtype=bool)]))
+    nx = float(np.linalg.norm(X))
+    return nx / gap if gap > 0 else float("inf")
+
+
+def kappa2_agreement_tol(kappa2: float, spread: float | None = None) -> float:
+    """Relative tolerance of ``|cond(Z) - kappa2| / kappa2`` between two unit-column eigenbases.
+
+    Two exact unit-column eigenbases of a matrix with distinct eigenvalues differ by column phases
+    only, so their condition numbers are equal; computed ones differ per column by about
+    ``eps ||X||_F / gap`` (first-order perturbation of an eigenvector), which kappa2 amplifies in the
+    condition number.  The tolerance is ``KAPPA2_TOL + 10 eps kappa2 spread`` with
+    ``spread = ||X||_F / gap`` (:func:`eigen_spread`; 100 when not given: the tolerance of a kappa2
+    computed without its matrix at hand, e.g. a bound), never more than ``KAPPA2_TOL_MAX`` (1 %).
+    """
+    s = _DEFAULT_SPREAD if spread is None else float(spread)
+    if not s == s:  # nan: no information, the cap
+        return KAPPA2_TOL_MAX
+    return float(min(KAPPA2_TOL_MAX, KAPPA2_TOL + 10.0 * _EPS * float(kappa2) * s))
+
+
+def observer_stability_check(poles: NDArray, discrete: bool, floor: float) -> Check:
+    """``stability``: max Re below ``-floor max(1, max |pole|)``, or spectral radius below
+    ``1 - floor`` (``floor``: the relative rounding floor of the poles,
+    :func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`)."""
+    P = np.asarray(poles, dtype=complex)
+    if discrete:
+        rho = float(np.max(np.abs(P))) if P.size else 0.0
+        return Check.at_most("stability", rho, 1.0 - floor,
+                             "spectral radius of A - LC < 1 beyond rounding (discrete time)")
+    mr = float(np.max(P.real)) if P.size else -1.0
+    tol = -floor * max(1.0, float(np.max(np.abs(P)))) if P.size else 0.0
+    return Check.at_most("stability", mr, tol, "max Re eig(A - LC) < 0 beyond rounding (continuous time)")
+
+
+def region_margin_check(region, poles: NDArray, floor: float) -> Check:
+    """``region_margin``: the poles inside ``region`` to ``max(REGION_TOL, floor) max(1, max |pole|)``."""
+    P = np.asarray(poles, dtype=complex)
+    scale = max(1.0, float(np.max(np.abs(P)))) if P.size else 1.0
+    return Check.at_most("region_margin", float(region.margin(P)), max(REGION_TOL, floor) * scale,
+                         "max signed distance of eig(A - LC) to the region (<= 0 inside; tolerance "
+                         "REGION_TOL or the rounding floor of the poles, relative)")
+
+
+def eig_residual_check(X: NDArray, Z: NDArray, zpoles: NDArray) -> Check:
+    """``eig_residual``: ``Z`` (columns) is an eigenbasis of ``X`` for ``zpoles``."""
+    res = float(np.linalg.norm(X @ Z - Z * np.asarray(zpoles)[None, :])) / max(
+        float(np.linalg.norm(X)) * float(np.linalg.norm(Z)), 1e-300)
+    return Check.at_most("eig_residual", res, EIG_RESIDUAL_TOL,
+                         "||(A - LC) Z - Z diag(poles)||_F / (||A - LC||_F ||Z||_F) for the solver's basis")
+
+
+def kappa2_agreement_check(kappa_solver: float, kappa_numpy: float, spread: float) -> Check:
+    """``kappa2_agreement``: the condition number of the solver's basis against ``metrics.kappa2``."""
+    return Check.at_most("kappa2_agreement", abs(kappa_solver - kappa_numpy) / kappa_numpy,
+                         kappa2_agreement_tol(kappa_numpy, spread),
+                         "cond(solver basis) vs metrics.kappa2 (numpy eigenvectors), relative; tolerance "
+                         "1e-6 + 10 eps kappa2 ||A - LC||_F / gap")
+
+
+def bound_check(name: str, value: float, bound: float, rtol: float, what: str) -> Check:
+    """``value <= bound (1 + rtol)`` (``gain_bound``, ``kappa2_bound``, ``eta_bound``)."""
+    return Check.at_most(name, value, bound * (1.0 + rtol), what)
 
 
 def _psd_part(X: NDArray) -> NDArray:

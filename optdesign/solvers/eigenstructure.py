@@ -60,7 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_int, as_matrix, as_poles, as_positive_float
-from ..errors import DimensionError, ValidationError
+from ..errors import DefectivePolesError, DimensionError, ValidationError
 
 __all__ = [
     "OBJECTIVES",
@@ -89,27 +89,6 @@ OBJECTIVES = ("kappa2", "kappa_fro", "eta")
 KAPPA2_CONTINUATION: tuple[int | None, ...] = (4, 64, 1024, 16384, None)
 
 Objective = Literal["kappa2", "kappa_fro", "eta"]
-
-
-class DefectivePolesError(ValidationError):
-    """A pole is requested more often than ``rank(C)``: ``A - L C`` would be defective.
-
-    The eigenspace of ``A - L C`` for a pole has dimension at most ``rank(C)``, so a larger
-    multiplicity forces a Jordan block: kappa2 is infinite for every gain.  Pass a separation
-    (:func:`spread_poles`) to get the nearest distinct-pole design instead.
-
-    Attributes
-    ----------
-    pole : complex
-    multiplicity : int
-    rank : int
-    """
-
-    def __init__(self, message: str, *, pole: complex, multiplicity: int, rank: int) -> None:
-        super().__init__(message)
-        self.pole = complex(pole)
-        self.multiplicity = int(multiplicity)
-        self.rank = int(rank)
 
 
 # --------------------------------------------------------------------------- pole sets
@@ -335,7 +314,7 @@ class FixedPoleModel:
     """Eigenvector coordinates -> gain, eigenbasis and objective, for one fixed pole set.
 
     The real coordinate vector ``x`` holds, in order, ``c_j`` (r entries) for every real pole,
-    then ``Re c_j`` and ``Im c_j`` for every pair (``j`` in the row order of :class:`_Slots`).
+    then ``Re c_j`` and ``Im c_j`` for every pair (``j`` in the row order of ``_Slots``).
 
     Parameters
     ----------

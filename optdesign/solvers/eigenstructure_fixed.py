@@ -79,6 +79,12 @@ class StartRecord:
         Why the last stage stopped.
     time : float
         CPU seconds.
+    L : (n, p) ndarray or None
+        The start's final gain (None when it has none), so that a caller can verify every start.
+    V : (n, n) ndarray of complex or None
+        Its unit-column eigenvector matrix (the engine's), when the engine has it.
+    poles : (n,) ndarray of complex or None
+        The poles of ``V``'s columns (region mode: the start's own final poles).
     """
 
     origin: str
@@ -89,6 +95,9 @@ class StartRecord:
     evaluations: int
     reason: str
     time: float
+    L: NDArray[np.float64] | None = field(default=None, repr=False)
+    V: NDArray[np.complex128] | None = field(default=None, repr=False)
+    poles: NDArray[np.complex128] | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -390,10 +399,10 @@ def _solve_starts(
         if not val <= v0[i]:  # never worse than the start (rounding in the last stage)
             x, val = x0, v0[i]
         try:
-            k2 = model.design(x)[2]
+            L, Vt, k2, _ = model.design(x)
         except np.linalg.LinAlgError:
-            k2 = math.inf
-        records.append(StartRecord(origin, k2, val, v0[i], its, evs, reason, share))
+            L, Vt, k2 = None, None, math.inf
+        records.append(StartRecord(origin, k2, val, v0[i], its, evs, reason, share, L, Vt, model.poles))
         if math.isfinite(val) and (best is None or val < best[0]):
             best = (val, i, x)
     return records, None if best is None else (best[1], best[2])
@@ -424,7 +433,7 @@ def _direct(model: FixedPoleModel, objective: str, t0: float, common: dict[str, 
         ) from exc
     val = model.metric(x, objective)
     origin = "unique" if unique else "unitary"
-    rec = StartRecord(origin, k2, val, val, 0, 1, "direct", time.process_time() - t0)
+    rec = StartRecord(origin, k2, val, val, 0, 1, "direct", time.process_time() - t0, L, Vt, model.poles)
     return PlacementOutcome(
         L, Vt, model.poles, k2, kf, objective, val, Status.SOLVED, what, 0, 1, (rec,), x, unique=unique,
         time=time.process_time() - t0, **common,
@@ -511,7 +520,7 @@ def masked_solve(
     Every start runs the continuation on ``f + sum_zero (y h + rho h^2 / 2)`` (``h = L_ij / s``,
     ``s`` the Frobenius norm of the start's gain), in lockstep; after every stage the multipliers
     step ``y += rho h`` and ``rho`` grows tenfold where the violation did not shrink fourfold; then
-    up to :data:`_MASK_ROUNDS` rounds of the last stage until ``max |h| <= MASK_TOL``.  The zeros are
+    up to ``_MASK_ROUNDS`` rounds of the last stage until ``max |h| <= MASK_TOL``.  The zeros are
     then set exactly; a start that does not get there is not a candidate (status ``not_found``
     when none does: the mask and the poles may be incompatible, which a local method cannot prove).
     """
@@ -557,7 +566,7 @@ def masked_solve(
         k2 = metrics.kappa2(eng.A - L @ eng.C) if ok else math.inf
         val = _metric_of_gain(eng, L, objective) if ok else math.inf
         why = reason if ok else f"mask violation {viol[i]:.1e}"
-        records.append(StartRecord(origin, k2, val, math.inf, 0, 0, why, 0.0))
+        records.append(StartRecord(origin, k2, val, math.inf, 0, 0, why, 0.0, L if ok else None))
         if ok and math.isfinite(val) and (best is None or val < best[0]):
             best = (val, i, L)
     records[0] = dataclasses.replace(records[0], iterations=its, evaluations=evs)

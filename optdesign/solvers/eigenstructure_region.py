@@ -759,7 +759,9 @@ def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
         sv = np.linalg.svd(best[2], compute_uv=False)
         k2 = float(sv[0] / sv[-1])
     reason = min(reasons, key=lambda r: r != "converged")
-    return StartRecord(st.origin, k2, val, v0, its, evs, reason, time.process_time() - ts), best, timed_out
+    design = (best[1], best[2], best[3]) if best is not None else (None, None, None)
+    rec = StartRecord(st.origin, k2, val, v0, its, evs, reason, time.process_time() - ts, *design)
+    return rec, best, timed_out
 
 
 def _region_order(model: RegionModel, poles: NDArray) -> NDArray[np.complex128]:

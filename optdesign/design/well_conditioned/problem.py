@@ -1,0 +1,515 @@
+"""The caller-held problem object of the well-conditioned observer: :class:`WellConditionedProblem`.
+
+Built once from a plant and the fixed choices (objective, structural zeros, bounds, starts, the NLP
+settings) -- validation, the placement engine (:class:`EigenstructureEngine`, the pole-independent
+part of the eigenstructure parametrization), and the IPOPT NLPs only when a constraint needs them,
+each built once per pole structure and re-solved with new parameters.  :meth:`~WellConditionedProblem.solve`
+answers for fixed poles or a region, optionally warm-started from a previous design: the engine
+route first (:mod:`~optdesign.design.well_conditioned.engine_route`), the NLP route
+(:mod:`~optdesign.design.well_conditioned.nlp_route`) where the engine does not handle a
+constraint or its design does not verify.  No hidden caches: everything re-used lives on the problem
+object, and the same call gives the same answer whatever ran before in the process.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import partial
+from typing import Any, Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..._deadline import Deadline, as_time_limit
+from ..._progress import Progress, as_progress
+from ..._validate import as_bool, as_int, as_poles, as_positive_float
+from ...errors import DimensionError, ValidationError
+from ...formulate.well_conditioned import NLPScaling, PoleStructure, build_observer_nlp, check_objective
+from ...model.coerce import as_plant
+from ...model.plant import Plant
+from ...model.regions import Disk, HalfPlane, Intersection, Region, Sector, stability_region
+from ...results import Certificate, SolverStats, Status
+from ...solvers.eigenstructure import EigenstructureEngine
+from .engine_route import ENGINE, engine_fixed, engine_region
+from .evaluation import (
+    Evaluated,
+    attains,
+    check_region_stable,
+    check_target_stable,
+    design_outcome,
+    evaluate_candidate,
+    objective_lower_bound,
+)
+from .nlp_route import ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
+from .results import ObserverDesign, StartRecord, n_converged, no_design
+from .starts import fixed_starts, region_starts
+
+__all__ = ["WellConditionedProblem", "Objective", "check_gain_mask", "check_region", "kappa2_bound",
+           "result_from"]
+
+Objective = Literal["kappa2", "kappa_fro", "eta"]
+
+#: the bounds a solve may change (``opti.parameter`` s of the NLPs)
+_BOUNDS = ("max_gain", "kappa2_max", "eta_max")
+
+
+def check_gain_mask(gain_mask: Any, n: int, p: int, name: str = "gain_mask") -> NDArray[np.bool_] | None:
+    """The boolean mask of the free entries of ``L`` (n, p), or None.
+
+    Raises
+    ------
+    ValidationError, DimensionError
+        Not a boolean (0/1) array of shape (n, p), or no free entry.
+    """
+    if gain_mask is None:
+        return None
+    what = f"{name} must be a boolean mask of shape ({n}, {p}) (True = free entry of L)"
+    try:
+        m = np.asarray(gain_mask)
+    except (ValueError, TypeError):  # ragged nests
+        raise ValidationError(f"{what}; found a ragged or non-numeric {type(gain_mask).__name__}") from None
+    if m.dtype.kind not in "biuf":
+        raise ValidationError(f"{what}; found dtype {m.dtype}")
+    if m.shape != (n, p):
+        raise DimensionError(f"{name} (mask of free entries of L) must have shape ({n}, {p}); "
+                             f"found {m.shape}")
+    if m.dtype != bool:
+        if not np.all(np.isin(m, (0, 1))):
+            raise ValidationError(f"{name} must be a boolean mask (True = free entry of L, False = zero)")
+        m = m.astype(bool)
+    if not m.any():
+        raise ValidationError(f"{name} has no free entry: L would be zero (nothing to design)")
+    return m
+
+
+def check_region(region: Any) -> Region:
+    """``region`` if it is a :class:`~optdesign.regions.Region`.
+
+    Raises
+    ------
+    ValidationError
+        Anything else.
+    """
+    if not isinstance(region, Region):
+        raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
+    return region
+
+
+def kappa2_bound(kappa2_max: Any) -> float | None:
+    """A bound on kappa2: None, or a number >= 1 (kappa2 >= 1 always)."""
+    if kappa2_max is None:
+        return None
+    kappa2_max = as_positive_float("kappa2_max", kappa2_max)
+    if kappa2_max < 1:
+        raise ValidationError(f"kappa2_max must be >= 1 (kappa2 >= 1 always); found {kappa2_max!r}")
+    return kappa2_max
+
+
+def _region_parts(region: Region) -> tuple[Region | None, dict[str, float]]:
+    """The NLP's parametric pieces of a region -- ``HalfPlane(alpha)`` (decay), a sector at the origin
+    (damping), a disk at the origin (radius) -- and the rest (a fixed constraint), so that a sweep over
+    those parameters re-solves one NLP."""
+    members = list(region.members) if isinstance(region, Intersection) else [region]
+    params: dict[str, float] = {}
+    rest: list[Region] = []
+    for m in members:
+        if isinstance(m, HalfPlane) and "decay" not in params:
+            params["decay"] = float(m.alpha)
+        elif isinstance(m, Sector) and m.apex == 0.0 and "damping" not in params:
+            params["damping"] = float(m.damping)
+        elif isinstance(m, Disk) and m.center == 0.0 and "radius" not in params:
+            params["radius"] = float(m.radius)
+        else:
+            rest.append(m)
+    fixed = None if not rest else rest[0] if len(rest) == 1 else Intersection(*rest)
+    return fixed, params
+
+
+def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evaluated], *, objective: str,
+                target: NDArray | None, region: Region | None, deadline: Deadline, planned: int,
+                route: str, kalman: dict[str, Any] | None = None) -> ObserverDesign:
+    """The design of a multi-start run: the best verified start (:func:`~.evaluation.design_outcome`)."""
+    if not evaluated:  # the time ran out before any start could run
+        reason = f"time limit of {deadline.limit:g} s reached before any of the {planned} starts could run"
+        return no_design(plant, objective, Status.TIME_LIMIT, reason, None, target=target, region=region,
+                         backend="ipopt" if route == "nlp" else ENGINE, **(kalman or {}))
+    (obj, idx, m, v, cand), status, msg = design_outcome(records, evaluated, objective, deadline=deadline,
+                                                         planned=planned)
+    bound = objective_lower_bound(objective, plant.n)
+    if status.is_solved and len(records) < planned and attains(bound, obj, v, cand):
+        msg += (f"; stopped after {len(records)} of {planned} starts: {objective} = {bound:g} is its lower "
+                "bound (a global optimum)")
+    elif status.is_solved and attains(bound, obj, v, cand) and cand.native == "direct":
+        msg += f"; {objective} = {bound:g} is its lower bound (a global optimum)"
+    stats = SolverStats(
+        backend=cand.backend, native_status=cand.native,
+        time=float(sum(r.time for r in records)), iterations=int(sum(r.iterations for r in records)),
+        extra={"starts": len(records), "planned_starts": planned, "converged": n_converged(records),
+               "best_start": idx, "objective": obj, "route": route},
+    )
+    return ObserverDesign(
+        L=cand.L, poles=m["poles"], kappa2=m["kappa2"], eta=m["eta"], kappa_fro=m["kappa_fro"],
+        gain_norm=m["gain_norm"], objective=objective, status=status, message=msg, solver_stats=stats,
+        verification=v, starts=tuple(records), V=m["V"], target_poles=target, region=region, plant=plant,
+        **(kalman or {}),
+    )
+
+
+class WellConditionedProblem:
+    """The well-conditioned observer question for one plant, held by the caller and solved many times.
+
+    ``WellConditionedProblem(plant, ...).solve(...)`` is :func:`well_conditioned_observer`; a sweep
+    holds one problem and passes the previous answer as ``warm_start``.  Built once: validation of
+    every fixed choice, the placement engine (cheap: one SVD of ``C``; its null-space bases are
+    cached per pole value), and -- only when a constraint needs IPOPT -- the NLPs, one per pole
+    structure, re-solved with new parameter values (bounds, decay, damping, radius).
+
+    Parameters
+    ----------
+    plant : Plant, python-control StateSpace or scipy StateSpace / lti / dlti
+        ``A`` (n, n), ``C`` (p, n); continuous, or discrete when ``dt`` is set.
+    objective : {"kappa2", "kappa_fro", "eta"}
+    poles, region
+        The default question of :meth:`solve` (fixed poles, or poles free in a region; give one).
+    gain_mask : (n, p) array_like of bool, optional
+        Free entries of ``L`` (False = structural zero).
+    max_gain, kappa2_max, eta_max : float, optional
+        Bounds ``||L||_2 <= max_gain``, ``kappa2 <= kappa2_max``, ``eta <= eta_max`` (a solve may
+        change their values).
+    starts : int, default 8
+    seed : int, default 0
+    nlp_solver : {"ipopt"}
+    scaling : bool, default True
+        Kappa-preserving scaling of the NLPs.
+    options : dict, optional
+        IPOPT options (string keys) of the NLP route, checked by IPOPT up front.
+    allow_unstable : bool, default False
+        Fixed poles: accept unstable poles.
+
+    Raises
+    ------
+    ValidationError, DimensionError, NotConjugateClosedError, NotObservableError
+        As :func:`well_conditioned_observer`.
+
+    Examples
+    --------
+    >>> from optdesign import Plant
+    >>> prob = WellConditionedProblem(Plant([[0, 1], [2, -1]], [[1, 0]]), starts=1)
+    >>> [round(prob.solve(poles=[-2 * s, -3 * s]).kappa2, 4) for s in (1, 2)]
+    [6.1623, 6.3667]
+    """
+
+    def __init__(self, plant: Plant | Any, *, objective: Objective = "kappa2", poles: ArrayLike | None = None,
+                 region: Region | None = None, gain_mask: ArrayLike | None = None,
+                 max_gain: float | None = None, kappa2_max: float | None = None,
+                 eta_max: float | None = None, starts: int = 8, seed: int = 0, nlp_solver: str = "ipopt",
+                 scaling: bool = True, options: dict[str, Any] | None = None,
+                 allow_unstable: bool = False) -> None:
+        plant = as_plant(plant)
+        check_objective(objective)
+        if not isinstance(nlp_solver, str) or nlp_solver != "ipopt":
+            raise ValidationError(f"nlp_solver must be 'ipopt' (CasADi/IPOPT is the NLP backend); found "
+                                  f"{nlp_solver!r}")
+        self.plant, self.objective = plant, objective
+        self.starts = as_int("starts", starts, 1)
+        self.seed = as_int("seed", seed, 0)
+        self.scaling = as_bool("scaling", scaling)
+        self.mask = check_gain_mask(gain_mask, plant.n, plant.p)
+        self.bounds = self._bounds(max_gain=max_gain, kappa2_max=kappa2_max, eta_max=eta_max)
+        self.options = ipopt_options(options)
+        if region is not None and poles is not None:
+            raise ValidationError("give either poles (fixed) or region (free poles), not both")
+        if not isinstance(allow_unstable, (bool, np.bool_)):
+            raise ValidationError(f"allow_unstable must be True or False; found {allow_unstable!r}")
+        self.allow_unstable = bool(allow_unstable)
+        self.poles = None if poles is None else self._target(poles)
+        self.region = None if region is None else self._check_region_mode(region, self.bounds)
+        self.engine = EigenstructureEngine(plant.A, plant.C)
+        self._nlps: dict[tuple, Any] = {}
+
+    # ------------------------------------------------------------------ validation
+    @staticmethod
+    def _bounds(**values: Any) -> dict[str, float | None]:
+        mg, em = values["max_gain"], values["eta_max"]
+        return {"max_gain": None if mg is None else as_positive_float("max_gain", mg),
+                "kappa2_max": kappa2_bound(values["kappa2_max"]),
+                "eta_max": None if em is None else as_positive_float("eta_max", em)}
+
+    def _target(self, poles: ArrayLike) -> NDArray[np.complex128]:
+        self.plant.require_observable(what="well-conditioned observer design with fixed poles")
+        target = as_poles("poles", poles, self.plant.n)
+        if not self.allow_unstable:
+            check_target_stable(target, self.plant.is_discrete)
+        return target
+
+    def _check_region_mode(self, region: Any, bounds: dict[str, float | None]) -> Region:
+        check_region(region)
+        if self.allow_unstable:
+            raise ValidationError("allow_unstable applies to fixed poles only; a region must lie in the "
+                                  "stability region")
+        check_region_stable(region, self.plant.is_discrete)
+        if not region.bounded and bounds["max_gain"] is None:
+            raise ValidationError(
+                f"the pole region {region!r} is unbounded and no max_gain was given: kappa2 and eta can "
+                "keep improving as poles (and ||L||) grow without bound; give max_gain or intersect the "
+                "region with a Disk, e.g. region & Disk(0, R)"
+            )
+        return region
+
+    def _solve_bounds(self, overrides: dict[str, Any]) -> dict[str, float | None]:
+        given = {k: v for k, v in overrides.items() if v is not None}
+        if not given:
+            return dict(self.bounds)
+        return {**self.bounds, **self._bounds(**{k: given.get(k) for k in _BOUNDS})}
+
+    def _scaling(self, pole_scale: float) -> NLPScaling:
+        n, p = self.plant.n, self.plant.p
+        return NLPScaling.for_plant(self.plant, pole_scale, balance=False) if self.scaling else \
+            NLPScaling.identity(n, p)
+
+    def _nlp(self, key: tuple, build: Callable[[], Any], values: dict[str, float]) -> Any:
+        """The NLP of ``key`` (built once, held by the problem), its parameters set to ``values``."""
+        nlp = self._nlps.get(key)
+        if nlp is None:
+            nlp = self._nlps[key] = build()
+        if values:
+            nlp.set_parameters(**values)
+        return nlp
+
+    def _fixed_nlp_getter(self, bounds: dict[str, float | None],
+                          sc: NLPScaling) -> Callable[[PoleStructure], Any]:
+        active = {k: v for k, v in bounds.items() if v is not None}
+
+        def get(st: PoleStructure):
+            key = ("fixed", st, sc.omega, tuple(sorted(active)))
+            return self._nlp(key, lambda: build_observer_nlp(self.plant, st, fixed_poles=True,
+                                                             objective=self.objective, scaling=sc,
+                                                             mask=self.mask, **active), active)
+
+        return get
+
+    def _region_nlp_getter(self, region: Region, bounds: dict[str, float | None],
+                           sc: NLPScaling) -> Callable[[PoleStructure], Any]:
+        active = {k: v for k, v in bounds.items() if v is not None}
+        fixed, params = _region_parts(region)
+        values = {**active, **params}
+
+        def get(st: PoleStructure):
+            key = ("region", st, sc.omega, tuple(sorted(active)), repr(fixed), tuple(sorted(params)))
+            return self._nlp(key, lambda: build_observer_nlp(self.plant, st, fixed_poles=False,
+                                                             objective=self.objective, region=fixed,
+                                                             scaling=sc, mask=self.mask, **values), values)
+
+        return get
+
+    # ------------------------------------------------------------------ solving
+    def solve(self, poles: ArrayLike | None = None, region: Region | None = None, *, warm_start: Any = None,
+              time_limit: float | Deadline | None = None, progress: bool | None = None,
+              starts: int | None = None, seed: int | None = None, max_gain: float | None = None,
+              kappa2_max: float | None = None, eta_max: float | None = None) -> ObserverDesign:
+        """The best-conditioned observer for fixed ``poles`` or poles free in ``region``.
+
+        Parameters
+        ----------
+        poles : (n,) array_like of complex, optional
+        region : Region, optional
+            Give one (or neither: the problem's own, else the stability region).
+        warm_start : ObserverDesign or (n, p) array_like, optional
+            A previous design (e.g. the previous point of a sweep) or a gain: one more start, run
+            from the engine's last continuation stages (region mode: its poles moved inside the new
+            region).
+        time_limit : float or Deadline, optional
+            Seconds of wall time (or a budget shared with the caller); see
+            :func:`well_conditioned_observer`.
+        progress : bool or None
+            Report the starts on stderr (None: only on a terminal).
+        starts, seed : int, optional
+            Override the problem's for this solve (``starts=0`` with a ``warm_start``: the warm start
+            alone).
+        max_gain, kappa2_max, eta_max : float, optional
+            Override the problem's bounds for this solve (the NLPs re-solve with the new values).
+
+        Returns
+        -------
+        ObserverDesign
+        """
+        deadline = time_limit if isinstance(time_limit, Deadline) else Deadline(as_time_limit(time_limit))
+        progress = as_progress(progress)
+        lowest = 0 if warm_start is not None else 1
+        n_starts = self.starts if starts is None else as_int("starts", starts, lowest)
+        seed = self.seed if seed is None else as_int("seed", seed, 0)
+        bounds = self._solve_bounds({"max_gain": max_gain, "kappa2_max": kappa2_max, "eta_max": eta_max})
+        warm = _warm_gain(warm_start, self.plant)
+        if region is not None and poles is not None:
+            raise ValidationError("give either poles (fixed) or region (free poles), not both")
+        if poles is not None:
+            target = self._target(poles)
+        elif region is None and self.poles is not None:
+            target = self.poles
+        else:
+            target = None
+        if target is not None:
+            return self._fixed(target, bounds, n_starts, seed, deadline, warm, progress)
+        if region is None:
+            region = self.region if self.region is not None else stability_region(self.plant.is_discrete)
+        region = self._check_region_mode(region, bounds)
+        return self._free(region, bounds, n_starts, seed, deadline, warm, progress)
+
+    def _repeated_pole_proof(self, target: NDArray) -> ObserverDesign | None:
+        """The infeasible result of a fixed pole set that no diagonalizable ``A - LC`` (or finite eta)
+        has, with its proof; None if there is none."""
+        plant, objective = self.plant, self.objective
+        rank = self.engine.rank
+        vals, counts = np.unique(np.round(target, 10), return_counts=True)
+        k = int(np.argmax(counts))
+        if counts[k] > rank:
+            reason = (
+                f"pole {vals[k]} is requested {counts[k]} times but rank(C) = {rank}: the eigenspace of "
+                f"A - LC for it has dimension <= rank(C), so A - LC would be defective (kappa2 = inf)"
+            )
+            cert = Certificate("multiplicity_exceeds_rank", "multiplicity exceeds rank(C)",
+                               pole=complex(vals[k]), multiplicity=int(counts[k]), rank_C=rank)
+            return no_design(plant, objective, Status.INFEASIBLE, reason, cert, target=target)
+        if objective == "eta" and counts[k] > 1:
+            cert = Certificate("repeated_pole_eta", "repeated pole with objective eta", pole=complex(vals[k]))
+            return no_design(plant, objective, Status.INFEASIBLE,
+                             "eta is infinite for repeated poles (zero eigenvalue gap)", cert, target=target)
+        return None
+
+    def _fixed(self, target: NDArray, bounds: dict[str, float | None], n_starts: int, seed: int,
+               deadline: Deadline, warm: NDArray | None, progress: bool | None) -> ObserverDesign:
+        """Fixed poles: the engine (all starts in lockstep), IPOPT for the bounds or as a fallback."""
+        proof = self._repeated_pole_proof(target)
+        if proof is not None:
+            return proof
+        plant, objective = self.plant, self.objective
+        evaluate = partial(evaluate_candidate, plant, target=target, region=None,
+                           stable=not self.allow_unstable, mask=self.mask, **bounds)
+        records: list[StartRecord] = []
+        evaluated: list[Evaluated] = []
+        use_nlp = any(v is not None for v in bounds.values())
+        planned = 0
+        route = "nlp" if use_nlp else "engine"
+        with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
+                      unit="start") as bar:
+            if not use_nlp:
+                records, evaluated = engine_fixed(self.engine, target, objective, starts=max(n_starts, 1),
+                                                  seed=seed, deadline=deadline, mask=self.mask,
+                                                  evaluate=evaluate, warm_start=warm)
+                bar.update(len(records), note=_note(objective, evaluated))
+                planned = max(n_starts + (warm is not None), len(records))
+            if use_nlp or _needs_fallback(evaluated, deadline):
+                route = "nlp" if use_nlp else "engine+nlp"
+                sc = self._scaling(float(np.max(np.abs(target))))
+                st = PoleStructure.of(target)
+                rng = np.random.default_rng(seed)
+                specs: list[tuple] = list(fixed_starts(plant, target, max(n_starts, 1), rng, st))
+                if warm is not None:
+                    specs.insert(0, ("warm start", warm, st, target, True))
+                planned += len(specs)
+                runner = nlp_fixed_runner(self._fixed_nlp_getter(bounds, sc), target, objective, self.options,
+                                          lambda c: bool(evaluate(c)[1].passed), deadline)
+                more_r, more_e = solve_starts(specs, runner, objective, evaluate, deadline,
+                                              objective_lower_bound(objective, plant.n), bar, len(records))
+                records, evaluated = records + more_r, evaluated + more_e
+        return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
+                           deadline=deadline, planned=planned, route=route)
+
+    def _unobservable_outside(self, region: Region) -> ObserverDesign | None:
+        unobs = self.plant.unobservable_modes()
+        if not unobs.size:
+            return None
+        dist = region.distance(unobs)
+        if not np.any(dist > 1e-9 * max(1.0, float(np.max(np.abs(unobs))))):
+            return None
+        k = int(np.argmax(dist))
+        reason = (f"the unobservable mode {unobs[k]:.6g} of (C, A) is an eigenvalue of A - LC for every L "
+                  f"and lies outside the region (distance {dist[k]:.3g})")
+        cert = Certificate("unobservable_mode_outside_region", "unobservable mode outside the region",
+                           modes=unobs, distance=dist)
+        return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region)
+
+    def _free(self, region: Region, bounds: dict[str, float | None], n_starts: int, seed: int,
+              deadline: Deadline, warm: NDArray | None, progress: bool | None) -> ObserverDesign:
+        """Poles free in ``region``: the engine start by start, IPOPT for what it does not handle or as a
+        fallback."""
+        proof = self._unobservable_outside(region)
+        if proof is not None:
+            return proof
+        plant, objective = self.plant, self.objective
+        evaluate = partial(evaluate_candidate, plant, target=None, region=region, mask=self.mask, **bounds)
+        rng = np.random.default_rng(seed)
+        specs = region_starts(plant, region, n_starts, rng, self.mask) if n_starts else []
+        warm_spec = None
+        if warm is not None:
+            Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
+            warm_spec = ("warm start", warm, PoleStructure.of(Pw, tol=1e-6), Pw, True)
+        use_nlp = (any(v is not None for v in bounds.values()) or self.mask is not None
+                   or objective not in ("kappa2", "kappa_fro"))
+        bound = objective_lower_bound(objective, plant.n)
+        records: list[StartRecord] = []
+        evaluated: list[Evaluated] = []
+        planned = 0
+        route = "nlp" if use_nlp else "engine"
+        with Progress(len(specs) + (warm is not None), "well-conditioned observer", enabled=progress,
+                      unit="start") as bar:
+            if not use_nlp:
+                eng_specs = [(o, L0, P0, False) for o, L0, _, P0 in specs]
+                if warm_spec is not None:
+                    eng_specs.insert(0, (warm_spec[0], warm_spec[1], warm_spec[3], True))
+                planned = len(eng_specs)
+                records, evaluated = engine_region(self.engine, region, objective, eng_specs, seed=seed,
+                                                   deadline=deadline, evaluate=evaluate, lower_bound=bound,
+                                                   progress=bar)
+            if use_nlp or _needs_fallback(evaluated, deadline):
+                route = "nlp" if use_nlp else "engine+nlp"
+                planned += len(specs) + (warm_spec is not None)
+                try:
+                    x0 = abs(float(region.interior_point()))
+                except Exception:  # noqa: BLE001 - any failure: fall back on the plant's scale
+                    x0 = 0.0
+                sc = self._scaling(x0)
+                nlp_specs = ([] if warm_spec is None else [warm_spec]) + [s + (False,) for s in specs]
+                runner = nlp_region_runner(plant, region, objective, self.options,
+                                           self._fixed_nlp_getter(bounds, sc),
+                                           self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
+                                           mask=self.mask)
+                more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
+                                              len(records))
+                records, evaluated = records + more_r, evaluated + more_e
+        return result_from(plant, records, evaluated, objective=objective, target=None, region=region,
+                           deadline=deadline, planned=planned, route=route)
+
+    def __repr__(self) -> str:
+        what = ("poles" if self.poles is not None else f"region {self.region!r}" if self.region is not None
+                else "the stability region")
+        return (f"WellConditionedProblem(n={self.plant.n}, p={self.plant.p}, objective={self.objective!r}, "
+                f"{what}, starts={self.starts}, NLPs built: {len(self._nlps)})")
+
+
+def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
+    """The NLP route after the engine: when no engine start verified -- with time left, or without a
+    single finite gain to answer with (the NLP route's first start always runs, as the verb promises)."""
+    if any(e[3].passed for e in evaluated):
+        return False
+    return not deadline.expired or not any(np.all(np.isfinite(e[4].L)) for e in evaluated)
+
+
+def _note(objective: str, evaluated: list[Evaluated]) -> str:
+    vals = [e[0] for e in evaluated if e[3].passed]
+    return f"best {objective} {min(vals):.6g}" if vals else "no verified design yet"
+
+
+def _warm_gain(warm_start: Any, plant: Plant) -> NDArray[np.float64] | None:
+    """The gain of a warm start (a previous design or an (n, p) array); None when it has no finite gain."""
+    if warm_start is None:
+        return None
+    L = getattr(warm_start, "L", warm_start)
+    try:
+        L = np.array(L, dtype=float)
+    except (TypeError, ValueError):
+        raise ValidationError(f"warm_start must be a design (with a gain L) or an ({plant.n}, {plant.p}) "
+                              f"gain; found {type(warm_start).__name__}") from None
+    if L.shape != (plant.n, plant.p):
+        raise DimensionError(f"warm_start gain must have shape ({plant.n}, {plant.p}); found {L.shape}")
+    return L if np.all(np.isfinite(L)) else None
