@@ -31,7 +31,7 @@ def test_every_package_is_listed_in_pyproject():
         if "__pycache__" not in p.parts
     }
     missing = on_disk - listed
-    assert not missing, f"add these packages to [tool.setuptools] packages in pyproject.toml: {sorted(missing)}"
+    assert not missing, f"add to [tool.setuptools] packages in pyproject.toml: {sorted(missing)}"
     assert "optdesign._problem_data" in listed
 
 

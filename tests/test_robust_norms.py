@@ -45,7 +45,7 @@ def _sweep(A, B, C, D, dt, count=4000):
 @pytest.mark.parametrize("discrete", [False, True])
 def test_hinf_against_a_dense_sweep_and_slycot(rng, discrete):
     control = pytest.importorskip("control")
-    pytest.importorskip("slycot", reason="python-control's H-infinity norm needs slycot (the test extra has it)")
+    pytest.importorskip("slycot", reason="python-control's H-infinity norm needs slycot (in the test extra)")
     dt = 0.1 if discrete else None
     agree = 0
     for trial in range(30):

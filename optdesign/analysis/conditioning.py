@@ -13,9 +13,9 @@ evaluated to ``~ n eps`` times the size of its terms, which ``||Omega^{-1}||`` a
 :func:`rounding_response` estimates that amplification for perturbations of rounding size and
 sign pattern (:func:`lyapunov_inverse_norm`: the norm-wise worst case, pessimistic for badly
 scaled data), and :func:`optdesign.classical.riccati.filter_are_error` combines the two: an
-*a posteriori* forward error estimate that follows the answer at hand -- a solver that loses digits on a badly scaled
-problem shows a large residual and a large estimate, whatever the CPU -- instead of a bound
-tuned to one machine.
+*a posteriori* forward error estimate that follows the answer at hand -- a solver that loses
+digits on a badly scaled problem shows a large residual and a large estimate, whatever the CPU --
+instead of a bound tuned to one machine.
 
 References
 ----------

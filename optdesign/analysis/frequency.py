@@ -44,9 +44,10 @@ def as_gain(plant: Plant, L: ArrayLike) -> NDArray[np.float64]:
 
 def frequency_points(plant: Plant, omega: NDArray[np.float64]) -> NDArray[np.complex128]:
     """``s = j w`` (continuous) or ``z = exp(j w dt)`` (discrete) for frequencies ``w`` in rad/s."""
-    if plant.is_discrete:
-        return np.exp(1j * omega * plant.dt)
-    return 1j * omega
+    dt = plant.dt
+    if dt is not None:
+        return np.exp(1j * omega * dt)
+    return 1j * omega  # type: ignore[return-value]  # stubs: float64 array * 1j is typed complexfloating[Any]
 
 
 def frequency_grid(
@@ -112,7 +113,7 @@ def frequency_grid(
     mags = mags[mags > 1e-12 * max(1.0, float(np.max(mags, initial=0.0)))]
     lo, hi = (float(np.min(mags)), float(np.max(mags))) if mags.size else (1.0, 1.0)
     lo, hi = math.log10(lo) - 3.0, math.log10(hi) + 3.0
-    parts = [np.logspace(lo, hi, int(np.ceil((hi - lo) * ppd)) + 1), [0.0]]
+    parts: list[ArrayLike] = [np.logspace(lo, hi, int(np.ceil((hi - lo) * ppd)) + 1), [0.0]]
     for z in lam:
         if abs(z.imag) > 0:
             parts.append(abs(z.imag) + max(abs(z.real), 1e-12 * abs(z)) * _CLUSTER)
@@ -224,7 +225,7 @@ def adaptive_minimize(
         if dl.expired:
             complete = False
             break
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, k - 1)]
+        a, b = grid[max(int(i) - 1, 0)], grid[min(int(i) + 1, k - 1)]
         if not b > a:
             continue
         use_log = log and a > 0

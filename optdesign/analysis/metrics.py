@@ -158,7 +158,7 @@ def _unit_eigvecs(X: NDArray) -> tuple[NDArray[np.complex128], NDArray[np.comple
 class _Spectrum:
     w: NDArray[np.complex128]  # eigenvalues
     V: NDArray[np.complex128]  # unit-column eigenvectors
-    Vinv: NDArray[np.complex128] | None  # None when V is (numerically) singular
+    Vinv: NDArray[np.complexfloating] | None  # None when V is (numerically) singular
     gap: float  # min computed |w_i - w_j| (inf for n = 1)
     coincident: bool  # some pair is numerically coincident
     departure: float  # ||strict upper triangle of the complex Schur factor||_F

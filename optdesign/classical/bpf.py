@@ -317,7 +317,8 @@ def cayley(M: ArrayLike, h: float) -> NDArray[np.float64]:
     M = as_square("M", M)
     h = as_positive_float("h", h)
     eye = np.eye(M.shape[0])
-    return np.linalg.solve((eye + 0.5 * h * M).T, (eye - 0.5 * h * M).T).T
+    X = np.linalg.solve((eye + 0.5 * h * M).T, (eye - 0.5 * h * M).T).T
+    return X  # type: ignore[return-value, unused-ignore]  # stubs (py >= 3.11): solve(float64) is floating
 
 
 def bpf_transition(M: ArrayLike, t_final: float, m: int) -> NDArray[np.float64]:
@@ -604,5 +605,5 @@ def bpf_riccati(M: ArrayLike, P0: ArrayLike, t_final: float, m: int,
             P[k] = _sym(Pk) if symmetrize else Pk
             phi = phi @ step                                     # (4.25)
             k += 1
-    return BPFRiccati(t=(np.arange(k) + 0.5) * h, P=P[:k], asymmetry=asym[:k], h=h,
+    return BPFRiccati(t=(np.arange(k, dtype=np.float64) + 0.5) * h, P=P[:k], asymmetry=asym[:k], h=h,
                       restart_every=None if seg >= m else seg, restarts=restarts, complete=k == m)

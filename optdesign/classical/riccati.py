@@ -660,9 +660,9 @@ def _unexcited_boundary_modes(A: NDArray, F: NDArray, discrete: bool) -> NDArray
     return np.asarray(out, dtype=complex)
 
 
-def _require_noise_reaches_boundary_modes(plant: Plant) -> None:
+def _require_noise_reaches_boundary_modes(plant: Plant, Q: NDArray[np.float64]) -> None:
     """(A, G Q^1/2) must have no uncontrollable mode on the imaginary axis / unit circle."""
-    lam, V = np.linalg.eigh(plant.Q)
+    lam, V = np.linalg.eigh(Q)
     # drop rounding-level eigenvalues of Q: their square roots (~sqrt(eps)) would fake excitation
     keep = lam > 1e3 * plant.m * _EPS * max(float(np.max(np.abs(lam))), np.finfo(float).tiny)
     F = plant.G @ (V[:, keep] * np.sqrt(lam[keep])) if np.any(keep) else np.zeros((plant.n, 1))
@@ -731,11 +731,11 @@ def filter_are(
     """
     if method not in ("scipy", "hamiltonian"):
         raise ValidationError(f"method must be 'scipy' or 'hamiltonian'; found {method!r}")
-    plant.require_noise_model()
+    Q, R = plant.noise_covariances()
     plant.require_observable(detectable_ok=True, what="a stabilizing Kalman filter")
     W = plant.process_noise()
-    _require_noise_reaches_boundary_modes(plant)
-    A, C, R = plant.A, plant.C, plant.R
+    _require_noise_reaches_boundary_modes(plant, Q)
+    A, C = plant.A, plant.C
     try:
         if method == "scipy":
             solve = (scipy.linalg.solve_discrete_are if plant.is_discrete

@@ -365,10 +365,10 @@ def _solve_modal_are(Lam: NDArray, CM: NDArray, R: NDArray, Qt: NDArray, discret
 class _State:
     """Running sums of the sequential method."""
 
-    def __init__(self, plant: Plant):
+    def __init__(self, plant: Plant, R: NDArray[np.float64]):
         self.A = plant.A.copy()
         self.C = plant.C
-        self.R = plant.R.copy()
+        self.R = R.copy()
         self.discrete = plant.is_discrete
         n, p = plant.n, plant.p
         self.L = np.zeros((n, p))
@@ -605,7 +605,7 @@ def _plan(eigs: NDArray, target: NDArray):
                 ra.remove(z)
                 rt.remove(w)
                 break
-    plan = []
+    plan: list[tuple[str, tuple[complex, ...], tuple[complex, ...]]] = []  # (kind, moved, targets)
     for z in ca:
         if ct:
             w = ct.pop(0)
@@ -700,7 +700,8 @@ def solheim(plant: Plant, poles: ArrayLike, *, complex_to_real: str = "paper") -
     """
     if complex_to_real not in COMPLEX_TO_REAL:
         raise ValidationError(f"complex_to_real must be one of {COMPLEX_TO_REAL}; found {complex_to_real!r}")
-    if plant.R is None:
+    R = plant.R
+    if R is None:
         raise ValidationError("solheim: the plant has no R; the sequential method needs the "
                               "measurement-noise covariance R")
     target = as_poles("poles", poles, plant.n)
@@ -713,7 +714,7 @@ def solheim(plant: Plant, poles: ArrayLike, *, complex_to_real: str = "paper") -
             f"found {', '.join(_fmt(z) for z in bad)}")
     if disc and np.any(target == 0):
         raise ValidationError("solheim: a discrete-time target pole at 0 needs an infinite process noise")
-    st = _State(plant)
+    st = _State(plant, R)
     for kind, moved, tgt in _order(_plan(np.linalg.eigvals(plant.A), target)):
         if kind == "r2r":
             _real_step(st, float(moved[0].real), float(tgt[0].real))
@@ -729,11 +730,11 @@ def solheim(plant: Plant, poles: ArrayLike, *, complex_to_real: str = "paper") -
                                 "(the paper: trial and error)")
         else:
             _pair_diagonal(st, moved, tgt)
-    return _finish(plant, target, st)
+    return _finish(plant, R, target, st)
 
 
-def _finish(plant: Plant, target: NDArray, st: _State) -> SolheimResult:
-    A, C, R = plant.A, plant.C, plant.R
+def _finish(plant: Plant, R: NDArray[np.float64], target: NDArray, st: _State) -> SolheimResult:
+    A, C = plant.A, plant.C
     L, Q, P = st.L, 0.5 * (st.Q + st.Q.T), 0.5 * (st.P + st.P.T)
     poles = _sort_poles(np.linalg.eigvals(A - L @ C))
     perr = pole_error(poles, target)

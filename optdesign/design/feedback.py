@@ -38,7 +38,7 @@ van der Sluis, A., "Condition numbers and equilibration of matrices", Numer. Mat
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -467,7 +467,7 @@ class InverseLQRResult(DesignResult):
                 f"success={self.success})")
 
 
-def _lqr_structure(structure: str, pl: Plant) -> tuple[NDArray | None, str]:
+def _lqr_structure(structure: str, pl: Plant) -> tuple[NDArray | None, Literal["full", "diagonal", "input"]]:
     """(G of the dual, kalman_for_poles structure) of an LQR weight structure."""
     structure = as_str("structure", structure, LQR_STRUCTURES)
     n = pl.n
@@ -479,9 +479,10 @@ def _lqr_structure(structure: str, pl: Plant) -> tuple[NDArray | None, str]:
     return Ct, "input" if structure == "output" else "diagonal"
 
 
-def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None, structure: str = "full",
-                  objective: str = "min_trace", Q_nominal: ArrayLike | None = None, **options: Any
-                  ) -> InverseLQRResult:
+def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
+                  structure: Literal["full", "diagonal", "output", "output_diagonal"] = "full",
+                  objective: Literal["min_trace", "nearest", "feasibility"] = "min_trace",
+                  Q_nominal: ArrayLike | None = None, **options: Any) -> InverseLQRResult:
     r"""Inverse LQR: a state weight ``Q >= 0`` whose LQR closed loop ``A - B K`` has these poles.
 
     :func:`~optdesign.design.inverse_kalman.kalman_for_poles` on the dual plant ``(A', B')`` with

@@ -340,7 +340,13 @@ def _van_loan(A: NDArray, W: NDArray, dt: float) -> tuple[NDArray, NDArray]:
     return Phi, 0.5 * (Qd + Qd.T)
 
 
-def _solve(method: str, A, C0, C1, W, R, h, m, N) -> dict[str, Any]:
+#: The validated delayed-output system ``(A, C0, C1, W, R, h)``.
+_System = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                NDArray[np.float64], float]
+
+
+def _solve(method: str, A: NDArray[np.float64], C0: NDArray[np.float64], C1: NDArray[np.float64],
+           W: NDArray[np.float64], R: NDArray[np.float64], h: float, m: int, N: int) -> dict[str, Any]:
     """The finite-dimensional filter of one order; every failure is a :class:`RiccatiError`."""
     try:
         if method == "pade":
@@ -454,7 +460,9 @@ def _solve_sample(A, C0, C1, W, R, h, N):
                 stable=stable)
 
 
-def _validate(A, C0, C1, h, Q, R, G):
+def _validate(A: ArrayLike, C0: ArrayLike, C1: ArrayLike, h: float, Q: ArrayLike, R: ArrayLike,
+              G: ArrayLike | None) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
+                                            float, NDArray[np.float64], NDArray[np.float64]]:
     A = as_square("A", A)
     n = A.shape[0]
     C0 = as_array("C0", C0, (0, 1, 2))
@@ -462,11 +470,11 @@ def _validate(A, C0, C1, h, Q, R, G):
     p = C0.shape[0]
     C1 = as_matrix("C1", C1, (p, n))
     h = as_positive_float("h", h)
-    G = np.eye(n) if G is None else as_matrix("G", G, (n, None))
-    Q = check_psd("Q", as_square("Q", Q, G.shape[1]))
-    R = check_pd("R", as_square("R", R, p))
-    W = G @ Q @ G.T
-    return A, C0, C1, h, 0.5 * (W + W.T), R
+    Gm = np.eye(n) if G is None else as_matrix("G", G, (n, None))
+    Qm = check_psd("Q", as_square("Q", Q, Gm.shape[1]))
+    Rm = check_pd("R", as_square("R", R, p))
+    W = Gm @ Qm @ Gm.T
+    return A, C0, C1, h, 0.5 * (W + W.T), Rm
 
 
 def output_delay_kalman(
@@ -597,7 +605,7 @@ def _options(
     return method, N, N, extrapolate
 
 
-def _solve_with_estimate(method: str, m: int, N: int, extrapolate: bool, system: tuple, deadline: Deadline
+def _solve_with_estimate(method: str, m: int, N: int, extrapolate: bool, system: _System, deadline: Deadline
                          ) -> tuple[dict[str, Any], dict[str, Any] | None, str]:
     """The filter of the requested order and a coarser one (the convergence estimate, or the second
     half of the Richardson step).  The coarser solve is skipped once ``deadline`` has expired: the

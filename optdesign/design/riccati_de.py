@@ -69,6 +69,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -202,7 +203,11 @@ def _as_steps(value) -> int | None:
     return int(value)
 
 
-def _as_t_eval(t_eval, t_final: float) -> NDArray[np.float64] | None:
+@overload
+def _as_t_eval(t_eval: None, t_final: float) -> None: ...
+@overload
+def _as_t_eval(t_eval: ArrayLike, t_final: float) -> NDArray[np.float64]: ...
+def _as_t_eval(t_eval: ArrayLike | None, t_final: float) -> NDArray[np.float64] | None:
     if t_eval is None:
         return None
     try:
@@ -328,12 +333,12 @@ def riccati_de(
     tol_v = DEFAULT_TOL[method] if tol is None else as_positive_float("tol", tol)
     post = {"estimate_error": as_bool("estimate_error", estimate_error),
             "steady_state": as_bool("steady_state", steady_state)}
-    if plant.is_discrete:
+    if plant.dt is not None:
         if method != "transition":
             raise ValidationError(
                 f"method {method!r} applies to continuous-time plants; plant has dt = {plant.dt:g}: its "
                 f"Riccati difference equation is solved exactly by method='transition'")
-        return _discrete(plant, P0, t_final, steps, t_eval, tol_v, post, clock)
+        return _discrete(plant, plant.dt, P0, t_final, steps, t_eval, tol_v, post, clock)
     t_eval = _as_t_eval(t_eval, t_final)
     if method != "bpf" and steps is not None and t_eval is not None:
         raise ValidationError(f"give steps or t_eval, not both (method={method!r} returns P at t_eval)")
@@ -343,7 +348,7 @@ def riccati_de(
 def _continuous(plant: Plant, P0: NDArray, t_final: float, method: str, steps: int | None,
                 t_eval: NDArray | None, tol: float, post: dict, clock: Deadline) -> RiccatiTrajectory:
     W = plant.process_noise()
-    M = filter_hamiltonian(plant.A, plant.C, W, plant.R)
+    M = filter_hamiltonian(plant.A, plant.C, W, plant.noise_covariances()[1])
     status, message = Status.SOLVED, ""
     asym = 0.0
     if method == "bpf":
@@ -550,9 +555,9 @@ class _OutOfTime:
         self.t_last = t
         return self.t_stop - t
 # ------------------------------------------------------------------ discrete time
-def _discrete(plant: Plant, P0: NDArray, t_final: float, steps: int | None, t_eval, tol: float,
-              post: dict, clock: Deadline) -> RiccatiTrajectory:
-    dt = float(plant.dt)
+def _discrete(plant: Plant, dt: float, P0: NDArray, t_final: float, steps: int | None, t_eval,
+              tol: float, post: dict, clock: Deadline) -> RiccatiTrajectory:
+    dt = float(dt)
     N = int(round(t_final / dt))
     if N < 1 or abs(N * dt - t_final) > 1e-9 * t_final:
         raise ValidationError(f"t_final must be a positive multiple of dt = {dt:g} for a discrete plant; "
@@ -570,7 +575,7 @@ def _discrete(plant: Plant, P0: NDArray, t_final: float, steps: int | None, t_ev
             raise ValidationError(f"t_eval must be multiples of dt = {dt:g} for a discrete plant; found "
                                   f"{te[bad][0]:g}")
         idx = k.astype(int)
-    A, C, R = plant.A, plant.C, plant.R
+    A, C, (_, R) = plant.A, plant.C, plant.noise_covariances()
     W = plant.process_noise()
     t0 = time.perf_counter()
     Pj = _dre(A, C, W, R, P0, idx, joseph=True, clock=clock)
@@ -623,7 +628,7 @@ def _dre(A, C, W, R, P0, idx, *, joseph: bool, clock: Deadline) -> NDArray:
 
 # ------------------------------------------------------------------ result
 def _gains(plant: Plant, P: NDArray) -> NDArray:
-    C, R = plant.C, plant.R
+    C, (_, R) = plant.C, plant.noise_covariances()
     if plant.is_discrete:
         A = plant.A
         out = np.empty((P.shape[0], plant.n, plant.p))

@@ -570,7 +570,7 @@ class RobustNLP:
         nx, ng = self.n_x, self.n_g
         nlp = self
 
-        class _Fun(ca.Callback):  # type: ignore[name-defined, misc]
+        class _Fun(ca.Callback):  # type: ignore[name-defined]  # ca: the module import_casadi returns
             def __init__(self, name: str, kind: str):
                 ca.Callback.__init__(self)
                 self.kind = kind

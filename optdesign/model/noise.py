@@ -171,7 +171,7 @@ def _off_circle(c: NDArray, z: NDArray, tol: float) -> list[tuple[complex, float
     return bad
 
 
-def _rebuild(cls: type, state: dict[str, Any]) -> NoiseModel:
+def _rebuild(cls: type[NoiseModel], state: dict[str, Any]) -> NoiseModel:
     """Unpickle an immutable noise model (used by ``__reduce__``)."""
     obj = object.__new__(cls)
     for k, v in state.items():
@@ -199,6 +199,11 @@ class NoiseModel:
     """
 
     __slots__ = ("coefficients", "dt", "label", "_roots")
+    # set once by __init__ (object.__setattr__: instances are immutable); declared for type checkers
+    coefficients: NDArray[np.float64]
+    dt: float | None
+    label: str
+    _roots: NDArray[np.complex128]
 
     def __init__(self, coefficients: ArrayLike, *, dt: float | None = None, label: str = "polynomial",
                  tol: float = UNIT_CIRCLE_TOL, roots: ArrayLike | None = None) -> None:
@@ -297,7 +302,8 @@ class NoiseModel:
         e1 = np.zeros((1, r))
         e1[0, 0] = 1.0
         Ip = np.eye(int(p))
-        return np.kron(comp, Ip), np.kron(er, Ip), np.kron(e1, Ip)
+        N, M, Gamma = np.kron(comp, Ip), np.kron(er, Ip), np.kron(e1, Ip)
+        return N, M, Gamma  # type: ignore[return-value]  # stubs: kron of float64 is floating[Any]
 
     # --------------------------------------------------------------- signals
     def annihilate(self, signal: ArrayLike) -> NDArray[np.float64]:
@@ -452,6 +458,8 @@ class Sinusoid(NoiseModel):
     """
 
     __slots__ = ("omega",)
+    omega: float
+    dt: float  # a sinusoid's polynomial depends on the sampling period: always given
 
     def __init__(self, frequency: float | None = None, dt: float | None = None, *,
                  omega: float | None = None) -> None:

@@ -6,7 +6,7 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_array, as_matrix, as_positive_float, as_square, check_pd, check_psd
 from ..errors import BackendUnavailableError, NotObservableError, SolverError, ValidationError
@@ -14,9 +14,8 @@ from ..errors import BackendUnavailableError, NotObservableError, SolverError, V
 __all__ = ["Plant"]
 
 
-def _readonly(X: NDArray | None) -> NDArray | None:
-    if X is not None:
-        X.setflags(write=False)
+def _readonly(X: NDArray[Any]) -> NDArray[Any]:
+    X.setflags(write=False)
     return X
 
 
@@ -59,7 +58,7 @@ def _unobservable_modes(A: NDArray, C: NDArray, tol: float) -> NDArray[np.comple
     return np.linalg.eigvals(F[k:, k:]).astype(complex)
 
 
-@dataclass(frozen=True, eq=False, repr=False)
+@dataclass(frozen=True, eq=False, repr=False, init=False)
 class Plant:
     r"""A linear time-invariant plant seen by a state estimator.
 
@@ -119,41 +118,43 @@ class Plant:
 
     A: NDArray[np.float64]
     C: NDArray[np.float64]
-    G: NDArray[np.float64] | None = None
+    G: NDArray[np.float64]  # always set: the identity when not given
     Q: NDArray[np.float64] | None = None
     R: NDArray[np.float64] | None = None
     dt: float | None = None
     name: str | None = None
     B: NDArray[np.float64] | None = None
 
-    def __post_init__(self) -> None:
-        A = as_square("A", self.A)
-        n = A.shape[0]
+    def __init__(self, A: ArrayLike, C: ArrayLike, G: ArrayLike | None = None, Q: ArrayLike | None = None,
+                 R: ArrayLike | None = None, dt: float | None = None, name: str | None = None,
+                 B: ArrayLike | None = None) -> None:
+        A_ = as_square("A", A)
+        n = A_.shape[0]
         if n == 0:
             raise ValidationError("A must have at least one state; found shape (0, 0)")
-        C = as_array("C", self.C, (0, 1, 2))
-        C = as_matrix("C", C, (1, n) if C.ndim == 1 else (None, n))
-        p = C.shape[0]
+        C_ = as_array("C", C, (0, 1, 2))
+        C_ = as_matrix("C", C_, (1, n) if C_.ndim == 1 else (None, n))
+        p = C_.shape[0]
         if p == 0:
             raise ValidationError("C must have at least one output row; found shape (0, n)")
-        Q = None if self.Q is None else as_square("Q", self.Q)
-        if self.G is None:
-            m = n if Q is None else Q.shape[0]
+        Q_ = None if Q is None else as_square("Q", Q)
+        if G is None:
+            m = n if Q_ is None else Q_.shape[0]
             if m != n:
                 raise ValidationError(
                     f"G is required when Q is not n x n: Q is {m} x {m}, A is {n} x {n}"
                 )
-            G = np.eye(n)
+            G_ = np.eye(n)
         else:
-            G = as_matrix("G", self.G, (n, None))
-            m = G.shape[1]
-        Q = None if Q is None else check_psd("Q", as_square("Q", Q, m))
-        R = None if self.R is None else check_pd("R", as_square("R", self.R, p))
-        dt = None if self.dt is None else as_positive_float("dt", self.dt)
-        B = None if self.B is None else as_matrix("B", self.B, (n, None))
-        if self.name is not None and not isinstance(self.name, str):
-            raise ValidationError(f"name must be a string; found {type(self.name).__name__}")
-        for k, v in dict(A=A, C=C, G=G, Q=Q, R=R, dt=dt, B=B).items():
+            G_ = as_matrix("G", G, (n, None))
+            m = G_.shape[1]
+        Q_ = None if Q_ is None else check_psd("Q", as_square("Q", Q_, m))
+        R_ = None if R is None else check_pd("R", as_square("R", R, p))
+        dt_ = None if dt is None else as_positive_float("dt", dt)
+        B_ = None if B is None else as_matrix("B", B, (n, None))
+        if name is not None and not isinstance(name, str):
+            raise ValidationError(f"name must be a string; found {type(name).__name__}")
+        for k, v in dict(A=A_, C=C_, G=G_, Q=Q_, R=R_, dt=dt_, name=name, B=B_).items():
             object.__setattr__(self, k, _readonly(v) if isinstance(v, np.ndarray) else v)
 
     # ------------------------------------------------------------------ shape
@@ -190,19 +191,44 @@ class Plant:
         ValidationError
             If Q was not given.
         """
-        self.require_noise_model(need_R=False)
-        W = self.G @ self.Q @ self.G.T
+        Q = self.Q
+        if Q is None:
+            raise self._missing_noise_model(["Q"])
+        W = self.G @ Q @ self.G.T
         return 0.5 * (W + W.T)
+
+    def noise_covariances(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``(Q, R)``, the noise covariances a Kalman design needs, both given.
+
+        Returns
+        -------
+        Q : (m, m) ndarray
+            Process-noise covariance.
+        R : (p, p) ndarray
+            Measurement-noise covariance.
+
+        Raises
+        ------
+        ValidationError
+            Q or R was not given (the message names which).
+        """
+        Q, R = self.Q, self.R
+        if Q is None or R is None:
+            raise self._missing_noise_model([k for k, v in (("Q", Q), ("R", R)) if v is None])
+        return Q, R
 
     def require_noise_model(self, need_R: bool = True) -> None:
         """Raise a ValidationError naming what is missing for a Kalman design."""
         missing = [k for k in (("Q", "R") if need_R else ("Q",)) if getattr(self, k) is None]
         if missing:
-            label = f" {self.name!r}" if self.name else ""
-            raise ValidationError(
-                f"plant{label} has no {' and no '.join(missing)}: a Kalman filter needs the "
-                f"process-noise covariance Q and the measurement-noise covariance R"
-            )
+            raise self._missing_noise_model(missing)
+
+    def _missing_noise_model(self, missing: list[str]) -> ValidationError:
+        label = f" {self.name!r}" if self.name else ""
+        return ValidationError(
+            f"plant{label} has no {' and no '.join(missing)}: a Kalman filter needs the "
+            f"process-noise covariance Q and the measurement-noise covariance R"
+        )
 
     # ----------------------------------------------------------- observability
     def observability_matrix(self) -> NDArray[np.float64]:

@@ -281,7 +281,7 @@ class Region(ABC):
 
     # ------------------------------------------------------------ per-shape primitives
     @abstractmethod
-    def _signed_distance(self, z: NDArray[np.complex128]) -> NDArray[np.float64]:
+    def _signed_distance(self, z: NDArray[np.complexfloating]) -> NDArray[np.float64]:
         """Exact signed distance to the boundary (negative inside) of validated points."""
 
     @abstractmethod
@@ -411,9 +411,10 @@ class Region(ABC):
 
     def constraint_functions(self) -> list[Callable[[Any, Any], Any]]:
         """The expressions of :meth:`constraints` as separate callables ``g_k(re, im)``."""
-        return [
-            (lambda re, im, _k=k: self.constraints(re, im)[_k]) for k in range(self.n_constraints)
-        ]
+        def component(k: int) -> Callable[[Any, Any], Any]:
+            return lambda re, im: self.constraints(re, im)[k]
+
+        return [component(k) for k in range(self.n_constraints)]
 
     @property
     def bounded(self) -> bool:
@@ -528,7 +529,7 @@ class Region(ABC):
         rho = -float(self._signed_distance(np.array([complex(x0)]))[0])
         tau = 1e-3 * rho
 
-        def accept(z: NDArray[np.complex128]) -> NDArray[np.complex128]:
+        def accept(z: NDArray[np.complexfloating]) -> NDArray[np.complexfloating]:
             return z[self._signed_distance(z) < -tau]
 
         reals: list[complex] = []

@@ -8,13 +8,15 @@ import time
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .._backends import import_casadi
+from ..errors import ValidationError
 from ..results import SolverStats, Status
 from .report import SolverReport
 from .status import map_status
 
-__all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "DEFAULT_IPOPT_OPTIONS"]
+__all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "DEFAULT_IPOPT_OPTIONS", "check_ipopt_options"]
 
 #: Quiet, reasonably tight IPOPT defaults.  Override per call.
 DEFAULT_IPOPT_OPTIONS: dict[str, Any] = {
@@ -36,6 +38,32 @@ def _error_line(exc: BaseException) -> str:
     if not lines:
         return repr(exc)
     return re.sub(r"^.*?\.(?:cpp|hpp):\d+:\s*", "", lines[-1]) or lines[-1]
+
+
+def check_ipopt_options(options: dict[str, Any]) -> None:
+    """Refuse ``options`` (a dict with string keys) that CasADi or IPOPT do not accept (unknown
+    name, wrong type, invalid value) up front, by configuring IPOPT for a one-variable problem
+    with them (a few ms): a bad option is the caller's error, not a failed start.
+
+    Raises
+    ------
+    ValidationError
+        Naming ``options`` and CasADi's / IPOPT's reason.
+    """
+    ca = import_casadi()
+    opts = {**DEFAULT_IPOPT_OPTIONS, **options}
+    plugin = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
+    plugin["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
+    plugin["ipopt"].update({"print_level": 0, "sb": "yes"})  # (x0 = 0 is optimal: no iteration)
+    plugin["print_time"] = False
+    x = ca.MX.sym("x")
+    try:
+        ca.nlpsol("options_check", "ipopt", {"x": x, "f": x * x}, plugin)(x0=0.0)
+    except (RuntimeError, TypeError, NotImplementedError) as exc:
+        raise ValidationError(
+            f"options must be IPOPT / CasADi options that IPOPT accepts (e.g. {{'ipopt.max_iter': 200}}); "
+            f"found {options!r}: {_error_line(exc)}"
+        ) from None
 
 
 def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool = True) -> SolverReport:
@@ -152,4 +180,8 @@ def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] 
                         iterations=int(st["iter_count"]) if "iter_count" in st else None,
                         extra={"objective": obj, **(extra or {}), **({"error": error} if error else {})})
     msg = f"ipopt: {native}" + (f" ({error})" if error else "")
-    return SolverReport(status=status, stats=stats, value=lambda _=None: xopt, objective=obj, message=msg)
+
+    def value(_expr: Any = None) -> NDArray[np.float64]:
+        return xopt
+
+    return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)

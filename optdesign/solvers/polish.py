@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from ..formulate.inverse_kalman import (
     fixed_gain_maps,
+    noise_input,
     tril_index,
 )
 
@@ -200,23 +201,23 @@ def spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None,
     Gauss-Newton on ``Q = Gm V V' Gm'`` over candidate ranks (``diagonal``: a linear solve on
     the support).  Returns ``(Wdec, residual)`` or None."""
     best = None
+    Gm = np.eye(np.asarray(W0).shape[0]) if structure == "full" else noise_input(structure, G)
     if structure == "diagonal":
         w0 = np.maximum(np.ravel(W0), 0.0)
         wmax = max(float(np.max(w0)), 1e-300)
         for mk in dict.fromkeys(tuple(w0 > tau * wmax) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-3)):
             act = np.flatnonzero(np.array(mk))
-            M = np.column_stack([E @ vec_f(np.outer(G[:, i], G[:, i])) for i in act]) if act.size else \
+            M = np.column_stack([E @ vec_f(np.outer(Gm[:, i], Gm[:, i])) for i in act]) if act.size else \
                 np.zeros((E.shape[0], 0))
             d = w0[act]
             for _ in range(3):
                 d = d + min_norm_lstsq(M, -(M @ d + off)) if act.size else d
             res = float(np.linalg.norm(M @ d + off)) / (1.0 + float(np.linalg.norm(off)))
             if np.all(d > 0) and (best is None or res < best[1]):
-                wd = np.zeros(G.shape[1])
+                wd = np.zeros(Gm.shape[1])
                 wd[act] = d
                 best = (wd, res)
         return best
-    Gm = np.eye(np.asarray(W0).shape[0]) if structure == "full" else G
     lam, U = np.linalg.eigh(sym(np.asarray(W0, dtype=float)))
     lam, U = lam[::-1], U[:, ::-1]
     lmax = max(float(lam[0]), 1e-300)

@@ -15,7 +15,7 @@ Each start keeps its own inverse-Hessian approximation and line search and stops
 No Hessian is ever formed: one evaluation is one value and one gradient (measured in issue 13:
 an exact Lagrangian Hessian of the CasADi formulation cost 50-390x a gradient).
 
-Stopping rules (first met wins), reported per start in :attr:`QNResult.reason`:
+Stopping rules (first met wins), reported per start in ``QNResult.reason``:
 
 * ``"converged"``: the relative decrease of ``f`` over the last ``window`` iterations is below
   ``ftol`` (nonsmooth functions: the gradient need not vanish), or ``||g||_inf <= gtol``;

@@ -23,7 +23,8 @@ class SolverReport:
         Backend name, native status, time, iterations.
     value : callable
         ``value(expr) -> ndarray``: the value of a decision expression at the returned point
-        (the last iterate when the solver failed, so callers can still inspect it).
+        (the last iterate when the solver failed, so callers can still inspect it); for a
+        problem in vector form (``nlpsol``), ``value()`` is the whole decision vector.
     objective : float
         Objective value at the returned point (nan if unavailable).
     message : str
@@ -32,6 +33,6 @@ class SolverReport:
 
     status: Status
     stats: SolverStats
-    value: Callable[[Any], Any]
+    value: Callable[..., Any]
     objective: float = float("nan")
     message: str = ""

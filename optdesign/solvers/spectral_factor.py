@@ -345,7 +345,7 @@ class FactorProblem:
         return self.blocks.residual(self.qdec(V, t), g)
 
     def jac(self, x: NDArray) -> NDArray[np.float64]:
-        """Jacobian of :meth:`c` ((ng_rows, nx))."""
+        """Jacobian of ``c`` ((ng_rows, nx))."""
         bl = self.blocks
         V, t, g = self.unpack(x)
         k, r, p = bl.k, self.rank, bl.p

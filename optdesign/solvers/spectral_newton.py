@@ -304,7 +304,7 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
 
     Each iteration: the null space Z of the residual Jacobian and the tangent rows, least-squares
     multipliers, the reduced Hessian ``Z' H Z`` of the Lagrangian, the trust-region step of
-    ``Z' grad f`` and ``Z'HZ`` (:func:`_reduced_step`: the Newton step where Z'HZ is positive
+    ``Z' grad f`` and ``Z'HZ`` (``_reduced_step``: the Newton step where Z'HZ is positive
     definite and the step fits in the radius), the retraction (chord method, else
     :func:`project`) and an Armijo line search on the Lagrangian (f alone is sensitive to the
     retraction's tolerance in the normal directions); the radius grows after full steps and
@@ -385,7 +385,7 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
 
     Each step is the minimum-norm normal step ``dn`` (``J dn = -c``, the tangent rows kept) plus the
     tangential step of the trust-region subproblem of ``Z'(grad f + H dn)`` and ``Z'HZ``
-    (:func:`_reduced_step`: negative curvature is followed, not flipped), with a filter line
+    (``_reduced_step``: negative curvature is followed, not flipped), with a filter line
     search on ``(theta, f)``, ``theta = ||c||`` (Waechter & Biegler's rules, simplified: a trial
     point is accepted when the filter does not dominate it and it reduces theta or f by a margin
     of theta, or -- where the step is a descent direction that dominates the infeasibility -- when

@@ -15,6 +15,7 @@ from ...classical.placement import place_observer, pole_error
 from ...classical.riccati import filter_are
 from ...errors import ValidationError
 from ...formulate.inverse_kalman import (
+    noise_input,
     psd_part,
 )
 from ...model.plant import Plant
@@ -46,7 +47,8 @@ def noise_of(structure: str, G: NDArray | None, Wdec: NDArray) -> tuple[NDArray,
     if structure == "full":
         return sym(Wdec), None
     Qw = np.diag(np.asarray(Wdec).ravel()) if structure == "diagonal" else sym(Wdec)
-    return sym(G @ Qw @ G.T), Qw
+    Gm = noise_input(structure, G)
+    return sym(Gm @ Qw @ Gm.T), Qw
 
 
 def project_psd(X: NDArray) -> NDArray:

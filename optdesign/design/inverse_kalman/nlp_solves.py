@@ -30,7 +30,7 @@ def modal_start(F: NDArray, blocks: list) -> tuple[NDArray, NDArray]:
     initial pole variables (re per real block, (re, im) per pair)."""
     from scipy.optimize import linear_sum_assignment
 
-    n = F.shape[0]
+    n: int = F.shape[0]
     lam, V = np.linalg.eig(F)
     cand = [k for k in range(n) if lam[k].imag >= -1e-12 * max(1.0, abs(lam[k]))]
     cost = np.zeros((len(blocks), len(cand)))
@@ -48,7 +48,7 @@ def modal_start(F: NDArray, blocks: list) -> tuple[NDArray, NDArray]:
         i0 = pos[b]
         if b in assigned:
             k = cand[assigned[b]]
-            v, lk = V[:, k], lam[k]
+            v, lk = V[:, k], complex(lam[k])
         else:  # fewer eigenvalue groups than blocks: a random vector and the target itself
             v, lk = rng.standard_normal(n) + 1j * rng.standard_normal(n), z
         if size == 1:
@@ -115,14 +115,14 @@ def spectral_solve(plant, target, structure, objective, Qn, W0, terms, *, option
     scale = max(1.0, float(np.linalg.norm(Wm)))
     if not soft and structure in FAST_STRUCTURES and objective in FAST_OBJECTIVES \
             and derivatives == "closed_form":
-        nlp = build_spectral_nlpsol(plant.A, plant.C, np.asarray(plant.R, dtype=float), target,
-                                    dt=plant.dt, structure=structure, G=plant.G, objective=objective,
-                                    Q_nominal=Qn, W0=W0, scale=scale, terms=terms)
+        fast = build_spectral_nlpsol(plant.A, plant.C, np.asarray(plant.R, dtype=float), target,
+                                     dt=plant.dt, structure=structure, G=plant.G, objective=objective,
+                                     Q_nominal=Qn, W0=W0, scale=scale, terms=terms)
         opts = {"ipopt.max_iter": 500}
         opts.update(options or {})
-        rep = solve_nlpsol(nlp.nlp, nlp.x0, nlp.lbg, nlp.ubg, opts, plugin=nlp.options,
+        rep = solve_nlpsol(fast.nlp, fast.x0, fast.lbg, fast.ubg, opts, plugin=fast.options,
                            extra={"derivatives": "closed form"})
-        Wd = nlp.decision(rep.value())
+        Wd = fast.decision(rep.value())
         if structure == "full":
             return rep, sym(Wd), None
         return rep, sym(plant.G @ Wd @ plant.G.T), sym(Wd)

@@ -176,10 +176,10 @@ class InverseKalmanResult(DesignResult):
                  f"structure={self.structure}, status={self.status.value}, success={self.success}",
                  f"  target poles: {', '.join(_fmt(z) for z in self.target_poles)}",
                  f"  {self.message}"]
-        if self.L is not None:
-            with np.printoptions(precision=6, linewidth=100):
-                lines.append("  L = " + np.array2string(self.L, prefix="  L = "))
-                lines.append("  Q = " + np.array2string(self.Q, prefix="  Q = "))
+        with np.printoptions(precision=6, linewidth=100):
+            for name, X in (("L", self.L), ("Q", self.Q)):
+                if X is not None:
+                    lines.append(f"  {name} = " + np.array2string(X, prefix=f"  {name} = "))
         if self.certificate is not None:
             lines.append(f"  certificate: {self.certificate}")
         lines.append("  verification:")

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._deadline import Deadline
+from ...errors import SolverError
 from ...formulate.inverse_kalman import (
     build_fixed_gain_sdp,
 )
@@ -144,6 +145,8 @@ def sdp_fixed_gain(plant: Plant, L: NDArray, R: NDArray, structure: str, objecti
         if rep.status.is_solved or rep.status.is_infeasible or rep.status == Status.UNBOUNDED \
                 or deadline.expired:
             break
+    if rep is None or sdp is None:  # pragma: no cover - sdp_attempts yields the first solver or raises
+        raise SolverError("the fixed-gain SDP was not attempted: no SDP solver to try", backend="cvxpy")
     rep.stats.extra["attempts"] = attempts
     rep.stats.extra["whitened"] = T is not None
     if not rep.status.is_solved or sdp.P.value is None:

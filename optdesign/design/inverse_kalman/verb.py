@@ -252,9 +252,9 @@ class InverseKalmanProblem:
                        f"Kalman filter is stable")
             return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
                                 make_stats("none", t=dl.elapsed))
-        cert = identity_certificate(plant, target)
-        if cert is not None:
-            return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert.reason}", cert,
+        identity = identity_certificate(plant, target)
+        if identity is not None:
+            return empty_result(common, Status.INFEASIBLE, f"infeasible: {identity.reason}", identity,
                                 make_stats("analytic", t=dl.elapsed))
         if self.objective == "min_trace" and open_loop_target(plant, target, self.tol):
             return zero_noise_design(plant, target, common, self.tol, dl)

@@ -28,10 +28,24 @@ def check_options(structure: str, objective: str, G: NDArray | None, Q_nominal: 
     """The option checks every builder shares (structure, objective, G, ``Q_nominal``)."""
     check_choice("structure", structure, structures)
     check_choice("objective", objective, objectives)
-    if structure != "full" and G is None:
-        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    if structure != "full":
+        noise_input(structure, G)
     if nominal_needed and objective == "nearest" and Q_nominal is None:
         raise ValidationError("objective='nearest' needs Q_nominal")
+
+
+def noise_input(structure: str, G: NDArray | None) -> NDArray:
+    """The noise input matrix G of a structure that goes through it (``"input"``,
+    ``"diagonal"``: ``Q = G Qw G'``).
+
+    Raises
+    ------
+    ValidationError
+        G is None.
+    """
+    if G is None:
+        raise ValidationError(f"structure={structure!r} needs the noise input matrix G")
+    return G
 
 
 def require_terms(A: NDArray, C: NDArray, poles: NDArray, dt: float | None, terms: list | None) -> list:

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 
 from ..._backends import import_cvxpy
 from ...errors import ValidationError
-from .common import check_options
+from .common import check_options, noise_input
 
 
 # ------------------------------------------------------------------------------ SDP
@@ -117,20 +117,22 @@ def noise_structure_and_objective(cp, Q, structure: str, G: NDArray | None, obje
     ``cons``; returns ``(Qw, t, objective)`` (``Qw`` None for ``"full"``, ``t`` the margin
     variable of ``"feasibility"`` or None).
     """
-    Qw = t = None
+    Qw: Any = None
+    t: Any = None
     if structure == "full":
         dec = Q
     else:
-        m = G.shape[1]
+        Gm = noise_input(structure, G)
+        m = Gm.shape[1]
         if structure == "input":
             Qw = cp.Variable((m, m), symmetric=True, name="Qw")
             dec = Qw
         else:
             Qw = cp.Variable(m, name="qw")
             dec = cp.diag(Qw)
-        D = Q - G @ dec @ G.T
+        D = Q - Gm @ dec @ Gm.T
         cons += [cp.upper_tri(D) == 0, cp.diag(D) == 0]
-    metric = structure == "full" and T is not None
+    metric = T if structure == "full" else None  # the physical metric of the decision covariance
     if objective == "feasibility":
         t = cp.Variable(name="t")
         if structure == "diagonal":
@@ -138,8 +140,8 @@ def noise_structure_and_objective(cp, Q, structure: str, G: NDArray | None, obje
         else:
             k = dec.shape[0]
             N = np.eye(k)
-            if metric:  # T Q T' >= t I  <=>  Q >= t T^-1 T^-T
-                Ti = np.linalg.inv(T)
+            if metric is not None:  # T Q T' >= t I  <=>  Q >= t T^-1 T^-T
+                Ti = np.linalg.inv(metric)
                 N = 0.5 * (Ti @ Ti.T + (Ti @ Ti.T).T)
             cons.append(dec - t * N >> 0)
         return Qw, t, cp.Maximize(t)
@@ -149,8 +151,8 @@ def noise_structure_and_objective(cp, Q, structure: str, G: NDArray | None, obje
             return Qw, t, cp.Minimize(cp.trace(Q))
         M = T.T @ T
         return Qw, t, cp.Minimize(cp.trace((0.5 * (M + M.T)) @ Q))
-    if metric:
-        return Qw, t, cp.Minimize(cp.norm(T @ dec @ T.T - nominal, "fro"))
+    if metric is not None:
+        return Qw, t, cp.Minimize(cp.norm(metric @ dec @ metric.T - nominal, "fro"))
     return Qw, t, cp.Minimize(cp.norm(dec - nominal, "fro"))
 
 
@@ -224,7 +226,7 @@ def build_fixed_gain_sdp(
     cons += [gres == 0, cp.upper_tri(D) == 0, cp.diag(D) == 0]
     nominal = None
     if objective == "nearest":
-        k = n if structure == "full" else G.shape[1]
+        k = n if structure == "full" else noise_input(structure, G).shape[1]
         nominal = params["Q_nominal"] = cp.Parameter((k, k), symmetric=True, name="Q_nominal")
     Qw, t, obj = noise_structure_and_objective(cp, Q, structure, G, objective, nominal, cons,
                                                 None if T is None else np.asarray(T, dtype=float))

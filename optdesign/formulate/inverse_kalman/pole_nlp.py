@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._backends import import_casadi
-from .common import block_matrix, check_options, modal_blocks, tril_index
+from .common import block_matrix, check_options, modal_blocks, noise_input, tril_index
 
 
 # ------------------------------------------------------------------------------ NLP
@@ -92,12 +92,13 @@ def casadi_noise(ca, opti, structure: str, n: int, G: NDArray | None, t):
     vector, Q, Qw (None for ``"full"``) and the decision covariance (Q or Qw).
     """
     if structure == "diagonal":
-        Fvec = opti.variable(G.shape[1])
+        Gm = noise_input(structure, G)
+        Fvec = opti.variable(Gm.shape[1])
         opti.subject_to(Fvec >= (t if t is not None else 0))
         Qw = ca.densify(ca.diag(Fvec))
-        Gd = ca.DM(G)
+        Gd = ca.DM(Gm)
         return Fvec, Fvec, ca.mtimes(ca.mtimes(Gd, Qw), Gd.T), Qw, Qw
-    k = n if structure == "full" else G.shape[1]
+    k = n if structure == "full" else noise_input(structure, G).shape[1]
     F, Fvec = lower_factor(ca, opti, k)
     Qdec = ca.mtimes(F, F.T)
     if t is not None:

@@ -11,7 +11,15 @@ from numpy.typing import NDArray
 
 from ..._backends import import_casadi, import_cvxpy
 from ...errors import ValidationError
-from .common import check_options, chol_factor, null_vector_start, psd_part, require_terms, tril_index
+from .common import (
+    check_options,
+    chol_factor,
+    noise_input,
+    null_vector_start,
+    psd_part,
+    require_terms,
+    tril_index,
+)
 from .fixed_gain import noise_structure_and_objective
 from .pole_nlp import casadi_noise, casadi_objective
 
@@ -117,7 +125,8 @@ def build_spectral_nlp(
     opti = ca.Opti()
     t = opti.variable() if objective == "feasibility" else None
     Gd = None if G is None else ca.DM(G)
-    k = n if structure == "full" else G.shape[1]
+    Gm = np.eye(n) if structure == "full" else noise_input(structure, G)  # Q = Gm Qdec Gm'
+    k = Gm.shape[1]
     F, Fvec, Q, Qw, Qdec = casadi_noise(ca, opti, structure, n, G, t)
     # initial values
     Q0 = None
@@ -126,7 +135,7 @@ def build_spectral_nlp(
         if structure == "diagonal":
             q0 = np.maximum(W0.ravel(), 0.0) / s
             opti.set_initial(Fvec, q0)
-            Q0 = G @ np.diag(q0) @ G.T
+            Q0 = Gm @ np.diag(q0) @ Gm.T
         else:
             Wp = psd_part(W0) / s
             if t is not None:
@@ -134,7 +143,7 @@ def build_spectral_nlp(
                 opti.set_initial(t, t0)
                 Wp = Wp - t0 * np.eye(k)
             opti.set_initial(Fvec, chol_factor(Wp)[tril_index(k)])
-            Q0 = Wp if structure == "full" else G @ Wp @ G.T
+            Q0 = Wp if structure == "full" else Gm @ Wp @ Gm.T
     Rs = R / s
 
     def qmul(a):

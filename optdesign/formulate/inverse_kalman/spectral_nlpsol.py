@@ -126,6 +126,7 @@ class _Layout:
         quad: list = []    # normalizations: ([(i, j, a), ...], const) with c = sum a x_i x_j + const
         nx = nF
         groups: dict[tuple[float, float], list] = {}
+        cols: tuple[NDArray[np.integer], ...]  # the columns of w: (wr,) or (wr, wi)
         for size, z, G1, G2, wgt in terms:
             if size == 1:
                 H1 = wgt * (G1.real @ Gd) + 0j
