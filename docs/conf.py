@@ -32,7 +32,7 @@ extensions = [
     "optdesign_docs",
 ]
 
-exclude_patterns = ["_build", "TODO.md", "README.md", "**/_generated"]
+exclude_patterns = ["_build", "README.md", "**/_generated"]
 templates_path: list[str] = []
 root_doc = "index"
 optdesign_examples_dir = "../examples"

@@ -150,7 +150,7 @@ def spread_poles(poles: ArrayLike, rank: int, separation: float) -> NDArray[np.c
     Examples
     --------
     >>> spread_poles([-1.0, -1.0, -3.0], 1, 1e-2).round(6)
-    array([-3.  +0.j  , -0.99+0.j  , -1.01+0.j  ])
+    array([-3.  +0.j, -1.01+0.j, -0.99+0.j])
     """
     P = as_poles("poles", poles)
     rank = as_int("rank", rank, 1)
