@@ -27,6 +27,7 @@ from .errors import (
     NotPositiveSemidefiniteError,
     NotSymmetricError,
     OptDesignError,
+    ProblemFileError,
     ProblemNotFoundError,
     RiccatiError,
     SolverError,
@@ -122,6 +123,7 @@ __all__ = [
     "BackendUnavailableError",
     "RiccatiError",
     "ProblemNotFoundError",
+    "ProblemFileError",
     *_LAZY,
 ]
 

@@ -32,6 +32,7 @@ __all__ = [
     "BackendUnavailableError",
     "RiccatiError",
     "ProblemNotFoundError",
+    "ProblemFileError",
 ]
 
 
@@ -166,3 +167,8 @@ class ProblemNotFoundError(OptDesignError, KeyError):
 
     def __str__(self) -> str:  # KeyError quotes its message; keep it readable
         return str(self.args[0]) if self.args else ""
+
+
+class ProblemFileError(ValidationError):
+    """A user's problem file that is missing, unreadable or has a bad field (the message names the
+    file and the field)."""

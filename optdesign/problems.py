@@ -61,7 +61,7 @@ from typing import Any
 import numpy as np
 
 from ._validate import as_matrix, as_poles, as_positive_float, as_square, as_str
-from .errors import ProblemNotFoundError, ValidationError
+from .errors import ProblemFileError, ProblemNotFoundError, ValidationError
 from .model.plant import Plant
 
 if sys.version_info >= (3, 11):
@@ -325,11 +325,6 @@ def describe(name: str | os.PathLike) -> str:
 
 
 # --------------------------------------------------------------------------- a user's problem file
-
-
-class ProblemFileError(ValidationError):
-    """A user's problem file that is missing, unreadable or has a bad field (the message names the
-    file and the field)."""
 
 
 #: the plant's matrices in a problem file, and the other fields of the minimal form
