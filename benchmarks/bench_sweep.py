@@ -1,18 +1,20 @@
 """Sweep benchmark: parameter re-use vs rebuilding, and a 1,000-point sweep on a local pool and on Dask.
 
 Run:  python benchmarks/bench_sweep.py [--problem compleib_dis2] [--subset 40] [--alphas 40 --zetas 25]
-                                        [--no-dask] [--out benchmarks/results/sweep.md]
+                                        [--b-alphas 40] [--no-dask] [--out benchmarks/results/sweep.md]
 
 A. Time per point, one process, the same points (a block of the grid), for
-   1. the public verb ``well_conditioned_observer(plant, region=..., starts=2)`` per point (builds its
-      NLPs for every call and configures IPOPT before every solve),
-   2. ``RegionSweepDesigner(reuse=False, warm_start=False)``: the sweep algorithm, NLP rebuilt per point,
-   3. ``RegionSweepDesigner(reuse=True, warm_start=False)``: NLP built once, cold start per point,
+   1. the public verb ``well_conditioned_observer(plant, region=..., starts=2)`` per point (a new
+      problem for every call: the placement engine, IPOPT only as a fallback),
+   2. ``RegionSweepDesigner(reuse=False, warm_start=False)``: the sweep algorithm (its
+      ``WellConditionedProblem`` on the NLP route), a new problem (NLPs rebuilt) per point,
+   3. ``RegionSweepDesigner(reuse=True, warm_start=False)``: one problem, NLPs built once, cold starts,
    4. ``RegionSweepDesigner()`` (default): re-use + warm start from the previous point + one placement start,
    5. ``RegionSweepDesigner(placement="fallback")``: re-use + warm start, placement only when needed;
    with the IPOPT iterations, the success rate and kappa2 against the best found by any variant.
-B. The full grid (alpha x damping sector, 1,000 points by default) with the default designer on a local
-   process pool of 2 workers and on a 2-worker Dask LocalCluster: wall time, throughput, identical results.
+B. The grid (alpha x damping sector, 1,000 points by default; ``--b-alphas`` alphas) with the default
+   designer on a local process pool of 2 workers and on a 2-worker Dask LocalCluster: wall time,
+   throughput, identical results.
 
 Numbers, not pass/fail; written as a markdown table (default ``benchmarks/results/sweep.md``).
 """
@@ -48,17 +50,18 @@ def verb_point(problem: str, alpha: float, zeta: float):
 
 
 def timed_serial(fn, points):
-    """Run fn over points in this process; per-point wall times and the results."""
-    times, results = [], []
+    """Run fn over points in this process; per-point wall and CPU times and the results."""
+    times, cpu, results = [], [], []
     for p in points:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             r = fn(**p)
         except Exception as exc:  # noqa: BLE001 - counted as a failure
             r = exc
         times.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
         results.append(r)
-    return np.array(times), results
+    return np.array(times), np.array(cpu), results
 
 
 def part_a(problem: str, points: list[dict]) -> tuple[list[dict], dict]:
@@ -79,20 +82,21 @@ def part_a(problem: str, points: list[dict]) -> tuple[list[dict], dict]:
     for name, designer in variants:
         clear_cache()
         if designer is None:
-            times, res = timed_serial(lambda alpha, zeta: verb_point(problem, alpha, zeta), points)
+            times, cpu, res = timed_serial(lambda alpha, zeta: verb_point(problem, alpha, zeta), points)
         else:
             session = designer.start_chunk()  # one chunk: the warm start runs along the points
-            times, res = timed_serial(session, points)
+            times, cpu, res = timed_serial(session, points)
         ok = np.array([not isinstance(r, Exception) and r.success for r in res])
         k = np.array([r.kappa2 if not isinstance(r, Exception) and r.success else np.nan for r in res])
         its = np.array([0 if isinstance(r, Exception) else r.solver_stats.iterations for r in res],
                        dtype=float)
         k2[name] = k
         rows.append({"variant": name, "median_ms": 1e3 * np.median(times), "mean_ms": 1e3 * np.mean(times),
+                     "cpu_median_ms": 1e3 * np.median(cpu), "cpu_total_s": float(np.sum(cpu)),
                      "first_ms": 1e3 * times[0], "iters": float(np.mean(its)), "success": int(ok.sum()),
                      "n": len(points)})
-        print(f"  {name}: median {1e3 * np.median(times):.0f} ms/point, {ok.sum()}/{len(points)} "
-              "verified", flush=True)
+        print(f"  {name}: median {1e3 * np.median(times):.0f} ms/point (CPU {1e3 * np.median(cpu):.0f}), "
+              f"{ok.sum()}/{len(points)} verified", flush=True)
     best = np.nanmin(np.vstack(list(k2.values())), axis=0)
     for r in rows:
         k = k2[r["variant"]]
@@ -141,6 +145,7 @@ def main(argv=None) -> int:
     ap.add_argument("--subset", type=int, default=40, help="points of part A (a block of consecutive points)")
     ap.add_argument("--alphas", type=int, default=40)
     ap.add_argument("--zetas", type=int, default=25)
+    ap.add_argument("--b-alphas", type=int, default=None, help="alphas of part B (default: --alphas)")
     ap.add_argument("--no-dask", action="store_true")
     ap.add_argument("--skip-a", action="store_true")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "sweep.md"))
@@ -166,31 +171,33 @@ def main(argv=None) -> int:
     if not args.skip_a:
         print(f"A. per-point cost on {len(subset)} points", flush=True)
         rows, extra = part_a(args.problem, subset)
-        base = rows[0]["median_ms"]
+        base = rows[0]["cpu_median_ms"]
         lines += [
             f"## A. Time per point, one process, {len(subset)} consecutive points "
             f"(alpha {subset[0]['alpha']:.3g}..{subset[-1]['alpha']:.3g}, every zeta)",
             "",
-            "| variant | median ms/point | mean ms/point | first point ms | speed-up (median) | IPOPT "
-            "iterations/point "
+            "| variant | median ms/point | mean ms/point | first point ms | median CPU ms/point "
+            "| total CPU s | speed-up (median CPU) | IPOPT iterations/point "
             "| verified | kappa2 within 0.1% of the best | worst kappa2 / best |",
-            "|---|---|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in rows:
             lines.append(f"| {r['variant']} | {r['median_ms']:.0f} | {r['mean_ms']:.0f} | "
-                         f"{r['first_ms']:.0f} | "
-                         f"{base / r['median_ms']:.1f}x | {r['iters']:.0f} | {r['success']}/{r['n']} | "
+                         f"{r['first_ms']:.0f} | {r['cpu_median_ms']:.0f} | {r['cpu_total_s']:.1f} | "
+                         f"{base / r['cpu_median_ms']:.1f}x | {r['iters']:.0f} | {r['success']}/{r['n']} | "
                          f"{r['within_1e-3']}/{r['n']} | {r['worst_ratio']:.4g} |")
         lines += [
             "",
             f"Building the NLP and configuring IPOPT (CasADi `Opti` + `nlpsol`, one pole structure) takes "
-            f"{extra['build_configure_ms']:.0f} ms (median of 5). The public verb pays it for every call and "
-            "pole structure, and reconfigures IPOPT before each of the 5 continuation stages of every "
-            "start; "
-            f"the sweep designer pays it once per worker and pole structure, then only sets "
-            f"`opti.parameter` values (decay, damping, radius) and re-solves.",
+            f"{extra['build_configure_ms']:.0f} ms (median of 5). The sweep designer's problem object "
+            "(`WellConditionedProblem`, NLP route) pays it once per worker and pole structure, then only "
+            "sets `opti.parameter` values (decay, damping, radius, bounds) and re-solves; with "
+            "`reuse=False` every point builds a new problem. The public verb answers with the placement "
+            "engine (IPOPT only as a fallback).",
             "",
         ]
+    if args.b_alphas is not None:
+        points = grid(alpha=np.linspace(0.5, 3.0, args.b_alphas), zeta=np.linspace(0.9, 0.2, args.zetas))
     print(f"B. {len(points)} points on a local pool and on Dask", flush=True)
     runs = part_b(args.problem, points, args.zetas, not args.no_dask)
     ref = runs[0]["table"]

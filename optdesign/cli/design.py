@@ -39,7 +39,7 @@ from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Sector
 from ..results import Verification
-from ..studies.designers import _gain_values, place_baseline
+from ..studies.designers import gain_values, place_baseline
 from ..studies.reproduce import PAPERS, paper_id, reproduce_all
 from ..studies.spec import format_region, load_spec, parse_poles, parse_region, require_matplotlib, run_spec
 from .common import (
@@ -396,7 +396,7 @@ def cmd_design(args: argparse.Namespace) -> int:
     L = getattr(res, "L", None)
     vals: dict[str, Any] = {}
     if L is not None and np.all(np.isfinite(L)):
-        vals = _gain_values(plant, L)
+        vals = gain_values(plant, L)
     out.update(status=str(getattr(res.status, "value", res.status)), success=bool(res.success),
                message=res.message, L=L, poles=_sorted(getattr(res, "poles", None)),
                kappa2=vals.get("kappa2"), eta=vals.get("eta"), gain_norm=vals.get("gain_norm"),

@@ -5,31 +5,37 @@ with one point of a grid (``designer(alpha=1.5, zeta=0.6)``) and that returns a 
 (with ``status``, ``success`` and a ``record()`` of scalar metrics).
 
 :class:`RegionSweepDesigner` is the workhorse of region studies ("how does the best kappa2 change
-with the decay rate and the damping sector?").  Its CasADi problem
-(:func:`optdesign.formulate.well_conditioned.build_observer_nlp`) is built **once per worker
-process** (and pole structure), with the decay rate ``alpha``, the damping ratio ``zeta``, the
-radius and the bounds ``max_gain`` / ``kappa2_max`` / ``eta_max`` as ``opti.parameter`` s; IPOPT
-is configured once, and every point only sets the parameter values and re-solves:
+with the decay rate and the damping sector?").  It holds a
+:class:`~optdesign.design.well_conditioned.WellConditionedProblem`
+(:meth:`~RegionSweepDesigner.design_problem`: one per configuration and worker thread, kept across
+the points and chunks the worker runs), and every point is one
+:meth:`~optdesign.design.well_conditioned.WellConditionedProblem.solve` on it with the point's region
+(``region & HalfPlane(alpha) & Sector.from_damping(zeta) & Disk(0, radius)``) and bounds.  The
+problem builds its NLPs once per pole structure, with the decay rate, the damping ratio, the radius
+and the bounds as ``opti.parameter`` s, and re-solves them with every point's values (the designer
+fixes the NLP scaling, ``pole_scale``, so that its points share the NLPs):
 
-* a *warm start* from the previous point's solution (same chunk of the sweep, see
-  :mod:`optdesign.studies.sweep`), solved at the final stage of the kappa2 continuation only, and
+* a *warm start* from the previous point's verified design (same chunk of the sweep, see
+  :mod:`optdesign.studies.sweep`; the last stage of the continuation only) -- its gain itself is a
+  candidate too, so when the region gets looser (or a bound weaker) along a chunk the answer never
+  gets worse.  Order the last axis of a grid from the tightest to the loosest region (e.g. ``zeta``
+  descending) to get this monotonicity; the NLP is non-convex and independent local solves can
+  otherwise land in different local optima at neighbouring points;
 * ``starts`` *placement starts*: the first at the open-loop poles moved into the point's region
   (:func:`~optdesign.design.well_conditioned.naive_poles`), the others at poles sampled in the
-  region (complex-pair patterns first), each with a robust placement (scipy YT) for the initial
-  gain and the full continuation -- so a point never depends on a warm start alone;
-* the previous point's design itself, when it is feasible for this point (a looser region or a
-  weaker bound): so along a chunk that loosens the constraints, the answer never gets worse.
-  Order the last axis of a grid from the tightest to the loosest region (e.g. ``zeta``
-  descending) to get this monotonicity; the NLP is non-convex and independent local solves can
-  otherwise land in different local optima at neighbouring points.
+  region (complex-pair patterns first; ``kalman_start=False`` of the problem), each with a robust
+  placement (scipy YT) for the initial gain and the full continuation -- so a point never depends
+  on a warm start alone.  The problem runs IPOPT for every point (``route="nlp"``): on DIS2 the
+  placement engine's region route found worse local optima from these starts (kappa2 1.12 against
+  1.05 at ``alpha = 3, zeta = 0.55``, even with 8 starts).
 
-Every candidate is verified independently of the solver, by the well-conditioned verb's own
-checks (stability and the signed distance of the poles of ``A - L C`` to the point's region, with
-numpy; the solver's eigenbasis against :func:`optdesign.metrics.kappa2`; the bounds), and the
-best verified candidate is returned as an :class:`~optdesign.design.well_conditioned.ObserverDesign`.
-A point whose region reaches outside the stability region is refused, as the verb refuses it.
-``reuse=False`` rebuilds the NLP for every point (same algorithm): the benchmark
-``benchmarks/bench_sweep.py`` measures the difference.
+Every candidate is verified independently of the solver, by the problem's checks (stability and the
+signed distance of the poles of ``A - L C`` to the point's region, with numpy; the solver's
+eigenbasis against :func:`optdesign.metrics.kappa2`; the bounds), and the best verified candidate
+is returned as an :class:`~optdesign.design.well_conditioned.ObserverDesign`.  A point whose region
+reaches outside the stability region is refused, as the verb refuses it.  ``reuse=False`` builds a
+new problem (and NLPs) for every point (same algorithm): the benchmark ``benchmarks/bench_sweep.py``
+measures the difference.
 
 :class:`KalmanNoiseDesigner` (axes ``q``, ``r``: noise-ratio studies) and
 :class:`PoleTargetDesigner` (axes ``scale``, ``shift`` of a target pole set: where does a
@@ -53,13 +59,15 @@ from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any, ClassVar
+from typing import Any, ClassVar, get_args
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import as_time_limit
+from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
+from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
+from ..design.well_conditioned.problem import Objective
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
@@ -74,6 +82,7 @@ __all__ = [
     "place_baseline",
     "DESIGNERS",
     "SWEEP_IPOPT_OPTIONS",
+    "gain_values",
     "clear_cache",
 ]
 
@@ -87,6 +96,9 @@ SWEEP_IPOPT_OPTIONS: dict[str, Any] = {
 }
 
 _CACHE_SIZE = 8
+
+#: the sweepable bounds (keyword arguments of :meth:`WellConditionedProblem.solve`)
+_BOUNDS = ("max_gain", "kappa2_max", "eta_max")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -151,7 +163,7 @@ def _finite_number(name: str, v: Any, where: str = "") -> float:
     return float(v)
 
 
-# --------------------------------------------------------------------------- per-worker cache
+# --------------------------------------------------------------------------- per-worker problems
 
 _local = threading.local()
 
@@ -164,45 +176,11 @@ def _cache() -> OrderedDict:
 
 
 def clear_cache() -> None:
-    """Forget the NLPs built by designers in this thread (tests, benchmarks)."""
+    """Forget the problem objects (and their NLPs) held by the region designers in this thread."""
     _cache().clear()
 
 
-class _Workspace:
-    """The NLPs of one designer configuration (one per pole structure), each built once; an NLP's
-    IPOPT instance is configured at its first solve (``nlp.solver_ready``) and re-used after."""
-
-    def __init__(self, build, options: dict[str, Any]) -> None:
-        self._build = build
-        self.options = options
-        self.nlps: dict[Any, Any] = {}
-
-    @property
-    def builds(self) -> int:
-        """NLPs built so far."""
-        return len(self.nlps)
-
-    def get(self, structure):
-        if structure not in self.nlps:
-            self.nlps[structure] = self._build(structure)
-        return self.nlps[structure]
-
-
 # --------------------------------------------------------------------------- region designer
-
-
-@dataclass(frozen=True)
-class _Cand:
-    origin: str
-    structure: Any
-    L: NDArray
-    basis: tuple[NDArray, NDArray] | None
-    status: Status
-    native: str
-    message: str
-    iterations: int
-    time: float
-    snapshot: dict[str, NDArray] | None
 
 
 @dataclass(frozen=True)
@@ -242,12 +220,14 @@ class RegionSweepDesigner:
         Start from the previous point's solution (within a chunk of the sweep).
     placement : {"always", "fallback"}
         ``"always"``: every point also runs the ``starts`` placement starts (robust: a point does
-        not depend on the warm start alone); ``"fallback"``: only when there is no warm start or
-        it fails verification (first point of a chunk) -- much faster along smooth paths, but it
+        not depend on the warm start alone); ``"fallback"``: a solve from the warm start alone
+        first, the placement starts only when there is no warm start or its solve does not succeed
+        (first point of a chunk) -- much faster along smooth paths, but it
         follows one local optimum along the chunk (measured in ``benchmarks/results/sweep.md``).
     reuse : bool, default True
-        Keep the built NLPs in a per-process cache and re-solve them; False rebuilds them for
-        every point (for benchmarks).
+        Solve every point on one problem object per worker thread (:meth:`design_problem`), so that
+        its NLPs are built once and re-solved; False builds a new problem for every point (for
+        benchmarks).
     pole_scale : float, optional
         Time scale of the NLP scaling (default: ``radius`` if given, else the magnitude of the
         fixed region's deepest real point, else the largest of the spectral radius of ``A``,
@@ -255,8 +235,8 @@ class RegionSweepDesigner:
     options : dict, optional
         IPOPT options merged over :data:`SWEEP_IPOPT_OPTIONS`.
     initial_gain : (n, p) array_like, optional
-        A known good gain (e.g. an unconstrained optimum): every point also starts from it
-        (final continuation stage only, like the warm start).
+        A known good gain (e.g. an unconstrained optimum): the warm start of every point that has
+        no previous verified design to start from (the first point of a chunk).
     time_limit : float, optional
         Seconds of wall time per point (None: no limit).  IPOPT gets the time left; no start
         after the point's first begins once it is spent; the point then has status
@@ -300,9 +280,6 @@ class RegionSweepDesigner:
                                       "eta_max": "eta_max"}
 
     def __post_init__(self) -> None:
-        from ..formulate.well_conditioned import check_objective
-
-        check_objective(self.objective)
         if self.region is not None and not isinstance(self.region, Region):
             raise ValidationError("region must be an optdesign.regions.Region; found "
                                   f"{type(self.region).__name__}")
@@ -315,14 +292,9 @@ class RegionSweepDesigner:
         self._check_values(self.defaults(), where="")
         if self.pole_scale is not None:
             as_positive_float("pole_scale", self.pole_scale)
-        if self.options is not None:
-            from ..design.well_conditioned import check_ipopt_options
-
-            opts = as_options("options", self.options)
-            for k, v in opts.items():
-                if isinstance(v, bool) or not isinstance(v, (str, int, float)):
-                    raise ValidationError(f"options: {k!r} must map to a string or a number; found {v!r}")
-            check_ipopt_options(opts)
+        for k, v in as_options("options", self.options).items():
+            if isinstance(v, bool) or not isinstance(v, (str, int, float)):
+                raise ValidationError(f"options: {k!r} must map to a string or a number; found {v!r}")
         as_time_limit(self.time_limit)
         plant = _plant_of(self.problem, self.plant, "RegionSweepDesigner")
         if self.initial_gain is not None:
@@ -337,6 +309,7 @@ class RegionSweepDesigner:
                                       f"{L0.shape}")
             L0.setflags(write=False)
             object.__setattr__(self, "initial_gain", L0)
+        self.design_problem()  # the objective and the IPOPT options, checked by the problem's constructor
 
     # ------------------------------------------------------------------ configuration
     def defaults(self) -> dict[str, float]:
@@ -381,6 +354,11 @@ class RegionSweepDesigner:
         """Validate a point without solving (unknown keys, values, empty or unstable region)."""
         self.region_for(**point)
 
+    def seed_for(self, **point: Any) -> list[int]:
+        """The seed of a point's solve: ``seed`` and the point's values (a numpy ``SeedSequence``
+        entropy), so that a point's random starts do not depend on where or when it runs."""
+        return _point_seed(self.seed, point)
+
     def region_for(self, **point: float) -> Region:
         """The pole region of a point (validated), as used for verification.
 
@@ -400,8 +378,6 @@ class RegionSweepDesigner:
         return {**self.defaults(), **self._check_values(point, where=" in the point")}
 
     def _region_of(self, vals: Mapping[str, float]) -> Region:
-        from ..design.well_conditioned import check_region_stable
-
         plant = self._plant()
         members: list[Region] = []
         if self.region is not None:
@@ -423,45 +399,45 @@ class RegionSweepDesigner:
         check_region_stable(reg, plant.is_discrete)
         return reg
 
-    # ------------------------------------------------------------------ workspace
-    def _workspace(self, plant: Plant, params: frozenset[str]) -> _Workspace:
-        from ..formulate.well_conditioned import NLPScaling, build_observer_nlp
+    # ------------------------------------------------------------------ problem object
+    def design_problem(self) -> WellConditionedProblem:
+        """The :class:`~optdesign.design.well_conditioned.WellConditionedProblem` the points are solved on.
 
-        fixed_region = self.region
-        if fixed_region is None and not ({"alpha", "zeta", "radius"} & params):
-            fixed_region = stability_region(plant.is_discrete)
+        ``reuse=True``: one problem per configuration (plant, objective, pole scale, options, starts,
+        seed) and thread, held across the points and chunks that the thread (a worker process of a
+        pool) runs -- its NLPs are built once per pole structure and re-solved with every point's
+        values; ``reuse=False``: a new problem (rebuilt NLPs) on every call.
+        """
+        plant = self._plant()
         omega = self._omega(plant)
-        sc = NLPScaling.for_plant(plant, omega, balance=False)
-        opts = dict(SWEEP_IPOPT_OPTIONS)
-        opts.update(self.options or {})
-        start = {self.AXES[k]: 1.0 for k in params}  # placeholders: every point sets its values
-        if "damping" in start:
-            start["damping"] = 0.5
+        opts = {**SWEEP_IPOPT_OPTIONS, **(self.options or {})}
 
-        def build(structure):
-            return build_observer_nlp(plant, structure, fixed_poles=False, objective=self.objective,
-                                      region=fixed_region, scaling=sc, **start)
+        def build() -> WellConditionedProblem:
+            objective: Any = self.objective  # (validated by the constructor)
+            return WellConditionedProblem(plant, objective=objective, starts=self.starts, seed=self.seed,
+                                          options=opts, pole_scale=omega, route="nlp", kalman_start=False)
 
-        key = (_plant_key(plant), self.objective, repr(fixed_region), params, omega,
-               tuple(sorted((k, repr(v)) for k, v in opts.items())))
         if not self.reuse:
-            return _Workspace(build, opts)
+            return build()
+        # (repr: the key is formed before the constructor has validated the objective)
+        key = (_plant_key(plant), repr(self.objective), omega, self.starts, self.seed,
+               tuple(sorted((k, repr(v)) for k, v in opts.items())))
         cache = _cache()
-        ws = cache.get(key)
-        if ws is None:
-            ws = cache[key] = _Workspace(build, opts)
+        prob = cache.get(key)
+        if prob is None:
+            prob = cache[key] = build()
             while len(cache) > _CACHE_SIZE:
                 cache.popitem(last=False)
         else:
             cache.move_to_end(key)
-        return ws
+        return prob
 
     # ------------------------------------------------------------------ calls
     def start_chunk(self) -> _RegionSession:
         """A callable for one chunk of a sweep: carries the warm start from point to point."""
         return _RegionSession(self)
 
-    def __call__(self, **point: float):
+    def __call__(self, **point: float) -> ObserverDesign:
         """Design for one point (no warm start: a fresh session)."""
         return _RegionSession(self)(**point)
 
@@ -471,164 +447,37 @@ class _RegionSession:
 
     def __init__(self, designer: RegionSweepDesigner) -> None:
         self.d = designer
-        #: the sweepable parameters of the previous point and its chosen (solved, verified) candidate
+        #: the sweepable parameters of the previous point and its verified design
         self.prev_params: frozenset[str] | None = None
-        self.prev_cand: _Cand | None = None
+        self.prev: ObserverDesign | None = None
 
-    def __call__(self, **point: float):
-        from .._deadline import Deadline
-        from ..design.well_conditioned import (
-            Candidate,
-            ObserverDesign,
-            StartRecord,
-            design_outcome,
-            evaluate_candidate,
-            naive_poles,
-            placement_start,
-            solve_nlp,
-            start_real_count,
-        )
-        from ..formulate.well_conditioned import PoleStructure, random_gain_for_poles
-
+    def __call__(self, **point: float) -> ObserverDesign:
+        """The design of one point on the designer's problem object (:meth:`WellConditionedProblem.solve`)."""
         d = self.d
-        deadline = Deadline(d.time_limit)  # the point's budget
+        deadline = Deadline(as_time_limit(d.time_limit))  # the point's budget, shared by its solves
         vals = d._point_values(point)  # validates the point
         region = d._region_of(vals)
-        plant = d._plant()
-        plant.require_observable(what="well-conditioned observer design")
         params = frozenset(vals)
-        ws = d._workspace(plant, params)
-        builds0 = ws.builds
-        nlp_values = {d.AXES[k]: v for k, v in vals.items()}
-        bounds = {k: vals.get(k) for k in ("max_gain", "kappa2_max", "eta_max")}
-        rng = np.random.default_rng(_point_seed(d.seed, point))
-
-        def evaluate(c: _Cand):
-            """The verb's independent checks (numpy/scipy) and metrics of a candidate."""
-            Z, zp = c.basis if c.basis is not None else (None, None)
-            cand = Candidate(c.L, Z, zp, c.status, c.native, c.message, c.iterations, c.time)
-            return evaluate_candidate(plant, cand, target=None, region=region, mask=None, **bounds)
-
-        def verified(c: _Cand | None) -> bool:
-            return c is not None and Status(c.status).is_solved and evaluate(c)[1].passed
-
-        cands: list[_Cand | None] = []
-
-        def may_start() -> bool:
-            """No new start once the point's time is spent -- except the point's first one."""
-            return not deadline.expired or all(c is None for c in cands)
-
-        def run(origin: str, structure, init, final_only: bool) -> _Cand | None:
-            """One start through the NLP's continuation (its last stage only with ``final_only``);
-            None when the point's time ran out before it could start."""
-            if not may_start():
-                return None
-            nlp = ws.get(structure)
-            nlp.set_parameters(**nlp_values)
-            init(nlp)
-            stages, set_stage = nlp.continuation()
-            best: _Cand | None = None
-            hist: list[_Cand] = []
-            good = None
-            for J in stages[-1:] if final_only else stages:
-                if hist and deadline.expired:
-                    break
-                if J is not None:
-                    set_stage(J)
-                if good is not None:
-                    nlp.warm_start(good)
-                rep = solve_nlp(nlp, ws.options, deadline)
-                try:
-                    basis = nlp.basis(rep.value)
-                except (ValueError, np.linalg.LinAlgError, FloatingPointError):
-                    basis = None
-                snap = nlp.snapshot(rep.value)
-                c = _Cand(origin, structure, nlp.gain(rep.value), basis, rep.status, rep.stats.native_status,
-                          rep.message, int(rep.stats.iterations or 0), float(rep.stats.time), snap)
-                hist.append(c)
-                if evaluate(c)[1].passed:
-                    good = snap
-                    best = c
-                elif J is not None and good is None:
-                    init(nlp)  # a failed early stage: continue the continuation from the start
-            chosen = best if best is not None else hist[-1]
-            return dataclasses.replace(chosen, iterations=sum(h.iterations for h in hist),
-                                       time=sum(h.time for h in hist))
-
-        same_params = self.prev_params == params
-        warm_ok = False
-        planned = 0
-        if d.warm_start and same_params:
-            prev = self.prev_cand
-            planned += 1
-            cands.append(run("warm start", prev.structure, lambda nlp, s=prev.snapshot: nlp.warm_start(s),
-                             True))
-            warm_ok = verified(cands[-1])
-        if d.initial_gain is not None:
-            L0 = d.initial_gain
-            st0 = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
-            planned += 1
-            cands.append(run("initial gain", st0, lambda nlp, L0=L0: nlp.set_initial_gain(L0), True))
-            warm_ok = warm_ok or verified(cands[-1])
-        tail: list[_Cand] = []
-        if d.warm_start and same_params:
-            # the previous point's design as it is: when the region got looser (or a bound weaker) it is
-            # still feasible, and the point's answer can then only be as good or better
-            kept = dataclasses.replace(self.prev_cand, origin="previous point's design",
-                                       message="kept from the previous point (no solve)", iterations=0,
-                                       time=0.0)
-            if evaluate(kept)[1].passed:
-                tail.append(kept)
-        n_place = d.starts if (d.placement == "always" or not warm_ok) else 0
-        planned += n_place
-        for k in range(n_place):
-            if not may_start():
-                break
-            # start 0: YT at the open-loop poles moved into the region (the verb's baseline); then
-            # poles sampled in the region, complex-pair patterns first (start_real_count)
-            if k == 0:
-                P0, origin = naive_poles(plant, region), "naive poles + YT"
-            else:
-                P0 = region.sample_poles(plant.n, rng, n_real=start_real_count(plant.n, k - 1))
-                origin = "region sample + YT"
-            structure = PoleStructure.of(P0)
-            L0 = placement_start(plant, P0, "YT")
-            if L0 is None:
-                try:
-                    L0 = random_gain_for_poles(plant, P0, rng)
-                    origin = "region sample + random assignment"
-                except (np.linalg.LinAlgError, ValueError):
-                    L0 = np.zeros((plant.n, plant.p))
-                    origin = "region sample, zero gain"
-            cands.append(run(origin, structure, lambda nlp, L0=L0: nlp.set_initial_gain(L0), False))
-
-        ran = [c for c in cands if c is not None] + tail
-        evaluated = []
-        records = []
-        for i, c in enumerate(ran):
-            m, v = evaluate(c)
-            obj = float(m[d.objective])
-            records.append(StartRecord(i, c.origin, c.status, v.passed, m["kappa2"], m["eta"], m["gain_norm"],
-                                       obj, c.iterations, c.time, c.message))
-            evaluated.append((obj, i, m, v, c))
-
-        # the verb's ranking and status: solved and verified first, then verified, then by objective;
-        # no verified design -> not_found (local evidence), the point's time spent -> time_limit
-        (obj, idx, m, v, c), status, msg = design_outcome(records, evaluated, d.objective, deadline=deadline,
-                                                          planned=planned + len(tail))
-        if v.passed and c.snapshot is not None and Status(c.status).is_solved:
-            self.prev_params, self.prev_cand = params, c
-        converged = sum(1 for r in records if r.verified and Status(r.status).is_solved)
-        stats = SolverStats(backend="ipopt", native_status=c.native, time=float(sum(r.time for r in records)),
-                            iterations=int(sum(r.iterations for r in records)),
-                            extra={"starts": len(records), "converged": converged, "best_start": idx,
-                                   "best_origin": c.origin, "objective": obj,
-                                   "nlp_builds": ws.builds - builds0})
-        return ObserverDesign(L=c.L, poles=m["poles"], kappa2=m["kappa2"], eta=m["eta"],
-                              kappa_fro=m["kappa_fro"],
-                              gain_norm=m["gain_norm"], objective=d.objective, status=status, message=msg,
-                              solver_stats=stats, verification=v, starts=tuple(records), V=m["V"],
-                              region=region, extra={"point": dict(point), "best_origin": c.origin})
+        problem = d.design_problem()
+        builds0 = problem.nlp_builds
+        warm: Any = self.prev if d.warm_start and self.prev_params == params else None
+        if warm is None:
+            warm = d.initial_gain
+        kw: dict[str, Any] = {"region": region, "seed": d.seed_for(**point), "time_limit": deadline,
+                              **{k: vals.get(k) for k in _BOUNDS}}
+        res = None
+        if d.placement == "fallback" and warm is not None:  # the warm start alone first
+            res = problem.solve(warm_start=warm, starts=0, **kw)
+        if res is None or not (res.success or deadline.expired):  # (a spent budget: the warm start's answer)
+            res = problem.solve(warm_start=warm, starts=d.starts, **kw)
+        if res.verification.passed and np.all(np.isfinite(res.L)):
+            self.prev_params, self.prev = params, res
+        best = res.solver_stats.extra.get("best_start")
+        origin = next((r.origin for r in res.starts if r.index == best), None)
+        stats = dataclasses.replace(res.solver_stats, extra={**res.solver_stats.extra, "best_origin": origin,
+                                                             "nlp_builds": problem.nlp_builds - builds0})
+        return dataclasses.replace(res, solver_stats=stats,
+                                   extra={**res.extra, "point": dict(point), "best_origin": origin})
 
 
 # --------------------------------------------------------------------------- generic point result
@@ -658,7 +507,21 @@ class DesignPoint(ResultMixin):
         return {"status": Status(self.status).value, "success": self.success, **self.values}
 
 
-def _gain_values(plant: Plant, L: NDArray | None) -> dict[str, float]:
+def gain_values(plant: Plant, L: NDArray | None) -> dict[str, float]:
+    """The scalar metrics of a gain that a study tabulates.
+
+    Parameters
+    ----------
+    plant : Plant
+    L : (n, p) ndarray or None
+        Observer gain (error dynamics ``A - L C``).
+
+    Returns
+    -------
+    dict
+        ``kappa2``, ``eta``, ``gain_norm`` (``||L||_2``), ``max_real_pole`` and ``max_abs_pole`` of
+        ``A - L C`` (NaN, without ``max_abs_pole``, for a missing or non-finite gain).
+    """
     nan = float("nan")
     if L is None or not np.all(np.isfinite(L)):
         return {"kappa2": nan, "eta": nan, "gain_norm": nan, "max_real_pole": nan}
@@ -818,7 +681,7 @@ class KalmanNoiseDesigner:
         q = as_positive_float("q", q)
         r = as_positive_float("r", r)
         kf = kalman(plant.replace(Q=q * plant.Q, R=r * plant.R), method=self.method)
-        vals = _gain_values(plant, kf.L)
+        vals = gain_values(plant, kf.L)
         vals["residual"] = float(kf.residual)
         vals["solver_time"] = float(kf.solver_stats.time)
         return DesignPoint(kf, vals, kf.status, kf.message, kf.verification)
@@ -872,7 +735,6 @@ class PoleTargetDesigner:
     def __post_init__(self) -> None:
         from ..design.inverse_kalman import METHODS as INVERSE_METHODS
         from ..design.inverse_kalman import OBJECTIVES as INVERSE_OBJECTIVES
-        from ..formulate.well_conditioned import OBJECTIVES as WC_OBJECTIVES
 
         if not isinstance(self.method, str) or self.method not in self.METHODS:
             raise ValidationError(f"method must be one of {', '.join(self.METHODS)}; found {self.method!r}")
@@ -880,7 +742,8 @@ class PoleTargetDesigner:
             raise ValidationError(f"inverse_method must be one of {', '.join(INVERSE_METHODS)}; found "
                                   f"{self.inverse_method!r}")
         if self.objective is not None:
-            allowed = {"inverse": INVERSE_OBJECTIVES, "well_conditioned": WC_OBJECTIVES}.get(self.method, ())
+            allowed = {"inverse": INVERSE_OBJECTIVES,
+                       "well_conditioned": get_args(Objective)}.get(self.method, ())
             if not isinstance(self.objective, str) or self.objective not in allowed:
                 raise ValidationError(f"objective must be one of {', '.join(allowed) or '(none)'} for method "
                                       f"{self.method!r}; found {self.objective!r}")
@@ -915,7 +778,7 @@ class PoleTargetDesigner:
         target = self.target(scale=scale, shift=shift)
         if self.method == "place":
             res = place_baseline(plant, target)
-            vals = _gain_values(plant, res.L)
+            vals = gain_values(plant, res.L)
             vals["pole_error"] = res.record()["pole_error"]
         elif self.method == "inverse":
             from ..design.inverse_kalman import kalman_for_poles, sdp_reuse
@@ -923,7 +786,7 @@ class PoleTargetDesigner:
             kw = {"objective": self.objective} if self.objective else {}
             with sdp_reuse(self.reuse):
                 res = kalman_for_poles(plant, target, method=self.inverse_method, seed=self.seed, **kw)
-            vals = _gain_values(plant, res.L)
+            vals = gain_values(plant, res.L)
             vals["pole_error"] = float(res.pole_error)
             vals["trace_Q"] = float(np.trace(res.Q)) if res.Q is not None else float("nan")
             vals["certificate"] = res.certificate.kind if res.certificate is not None else None
@@ -933,13 +796,14 @@ class PoleTargetDesigner:
 
             kw = {"objective": self.objective} if self.objective else {}
             res = well_conditioned_observer(plant, poles=target, starts=self.starts, seed=self.seed, **kw)
-            vals = _gain_values(plant, res.L)
+            vals = gain_values(plant, res.L)
             vals["solver_time"] = float(res.solver_stats.time)
         return DesignPoint(res, vals, res.status, res.message, res.verification)
 
 
 #: study verbs (``design`` in a study spec) -> designer class and fixed keyword for it
-DESIGNERS: dict[str, tuple[type, dict[str, Any]]] = {
+_Designer = type[RegionSweepDesigner | KalmanNoiseDesigner | PoleTargetDesigner]
+DESIGNERS: dict[str, tuple[_Designer, dict[str, Any]]] = {
     "well_conditioned": (RegionSweepDesigner, {}),
     "kalman": (KalmanNoiseDesigner, {}),
     "inverse": (PoleTargetDesigner, {"method": "inverse"}),

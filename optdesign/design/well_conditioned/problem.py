@@ -13,7 +13,8 @@ object, and the same call gives the same answer whatever ran before in the proce
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import dataclasses
+from collections.abc import Callable, Sequence
 from functools import partial
 from typing import Any, Literal
 
@@ -185,6 +186,30 @@ class WellConditionedProblem:
         IPOPT options (string keys) of the NLP route, checked by IPOPT up front.
     allow_unstable : bool, default False
         Fixed poles: accept unstable poles.
+    pole_scale : float, optional
+        The pole scale of the NLPs' scaling (> 0).  None (default): from each solve's poles or
+        region (the largest target pole modulus, or the modulus of the region's interior point).
+        A sweep over regions fixes it, so that its points re-solve the same NLPs (the scaling is
+        part of an NLP's key); with it set, the decay / damping / radius of a region are NLP parameters
+        (one NLP for every region of that shape), without it each region's constraints are built as
+        they are.
+    route : {"auto", "nlp", "engine"}, default "auto"
+        Region mode.  ``"auto"``: IPOPT (the NLPs' continuation) from every start, then -- for kappa2
+        / kappa_fro without bounds or structural zeros -- one placement-engine start from IPOPT's best
+        design, the better of the two kept (never worse than IPOPT alone).  ``"nlp"``: IPOPT only (the
+        algorithm of the sweep designer, which warm-starts IPOPT along a sweep).  ``"engine"``: the
+        placement engine from every start, IPOPT only where it does not handle the question or as a
+        fallback -- several times faster, but measured worse on some plants (a random n = 3 plant:
+        kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646), better on others (AC7: 22.45 vs
+        22.81).  Fixed poles always use the engine (IPOPT for bounds and structural zeros).
+    kalman_start : bool, default True
+        Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
+        first samples poles in the region (complex-pair patterns first).
+
+    Attributes
+    ----------
+    nlp_builds : int
+        The NLPs built so far (one per pole structure, scaling and set of active bounds).
 
     Raises
     ------
@@ -196,7 +221,7 @@ class WellConditionedProblem:
     >>> from optdesign import Plant
     >>> prob = WellConditionedProblem(Plant([[0, 1], [2, -1]], [[1, 0]]), starts=1)
     >>> [round(prob.solve(poles=[-2 * s, -3 * s]).kappa2, 4) for s in (1, 2)]
-    [6.1623, 6.3667]
+    [6.1623, 16.0623]
     """
 
     def __init__(self, plant: Plant | Any, *, objective: Objective = "kappa2", poles: ArrayLike | None = None,
@@ -204,7 +229,8 @@ class WellConditionedProblem:
                  max_gain: float | None = None, kappa2_max: float | None = None,
                  eta_max: float | None = None, starts: int = 8, seed: int = 0, nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
-                 allow_unstable: bool = False) -> None:
+                 allow_unstable: bool = False, pole_scale: float | None = None,
+                 route: Literal["auto", "nlp", "engine"] = "auto", kalman_start: bool = True) -> None:
         plant = as_plant(plant)
         check_objective(objective)
         if not isinstance(nlp_solver, str) or nlp_solver != "ipopt":
@@ -225,7 +251,17 @@ class WellConditionedProblem:
         self.poles = None if poles is None else self._target(poles)
         self.region = None if region is None else self._check_region_mode(region, self.bounds)
         self.engine = EigenstructureEngine(plant.A, plant.C)
+        self.pole_scale = None if pole_scale is None else as_positive_float("pole_scale", pole_scale)
+        if not isinstance(route, str) or route not in ("auto", "nlp", "engine"):
+            raise ValidationError(f"route must be 'auto', 'nlp' or 'engine'; found {route!r}")
+        self.route = route
+        self.kalman_start = as_bool("kalman_start", kalman_start)
         self._nlps: dict[tuple, Any] = {}
+
+    @property
+    def nlp_builds(self) -> int:
+        """The NLPs built so far by this problem (each is re-solved, never rebuilt)."""
+        return len(self._nlps)
 
     # ------------------------------------------------------------------ validation
     @staticmethod
@@ -264,6 +300,8 @@ class WellConditionedProblem:
 
     def _scaling(self, pole_scale: float) -> NLPScaling:
         n, p = self.plant.n, self.plant.p
+        if self.pole_scale is not None:
+            pole_scale = self.pole_scale
         return NLPScaling.for_plant(self.plant, pole_scale, balance=False) if self.scaling else \
             NLPScaling.identity(n, p)
 
@@ -291,7 +329,11 @@ class WellConditionedProblem:
     def _region_nlp_getter(self, region: Region, bounds: dict[str, float | None],
                            sc: NLPScaling) -> Callable[[PoleStructure], Any]:
         active = {k: v for k, v in bounds.items() if v is not None}
-        fixed, params = _region_parts(region)
+        # a sweep (pole_scale fixed) re-solves one NLP whose decay / damping / radius are parameters; a
+        # single design builds the region's constraints as they are (the formulation of the verb before
+        # the problem objects: measured on COMPleib AC17, the parametric form ends in another basin,
+        # kappa2 1.675 instead of 1.646)
+        fixed, params = _region_parts(region) if self.pole_scale is not None else (region, {})
         values = {**active, **params}
 
         def get(st: PoleStructure):
@@ -305,8 +347,9 @@ class WellConditionedProblem:
     # ------------------------------------------------------------------ solving
     def solve(self, poles: ArrayLike | None = None, region: Region | None = None, *, warm_start: Any = None,
               time_limit: float | Deadline | None = None, progress: bool | None = None,
-              starts: int | None = None, seed: int | None = None, max_gain: float | None = None,
-              kappa2_max: float | None = None, eta_max: float | None = None) -> ObserverDesign:
+              starts: int | None = None, seed: int | Sequence[int] | None = None,
+              max_gain: float | None = None, kappa2_max: float | None = None,
+              eta_max: float | None = None) -> ObserverDesign:
         """The best-conditioned observer for fixed ``poles`` or poles free in ``region``.
 
         Parameters
@@ -325,7 +368,8 @@ class WellConditionedProblem:
             Report the starts on stderr (None: only on a terminal).
         starts, seed : int, optional
             Override the problem's for this solve (``starts=0`` with a ``warm_start``: the warm start
-            alone).
+            alone).  ``seed`` may also be a sequence of integers >= 0 (the entropy of a numpy
+            ``SeedSequence``, e.g. a seed and the values of a sweep point).
         max_gain, kappa2_max, eta_max : float, optional
             Override the problem's bounds for this solve (the NLPs re-solve with the new values).
 
@@ -337,7 +381,7 @@ class WellConditionedProblem:
         progress = as_progress(progress)
         lowest = 0 if warm_start is not None else 1
         n_starts = self.starts if starts is None else as_int("starts", starts, lowest)
-        seed = self.seed if seed is None else as_int("seed", seed, 0)
+        seed = self.seed if seed is None else _as_seed(seed)
         bounds = self._solve_bounds({"max_gain": max_gain, "kappa2_max": kappa2_max, "eta_max": eta_max})
         warm = _warm_gain(warm_start, self.plant)
         if region is not None and poles is not None:
@@ -376,7 +420,7 @@ class WellConditionedProblem:
                              "eta is infinite for repeated poles (zero eigenvalue gap)", cert, target=target)
         return None
 
-    def _fixed(self, target: NDArray, bounds: dict[str, float | None], n_starts: int, seed: int,
+    def _fixed(self, target: NDArray, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
                deadline: Deadline, warm: NDArray | None, progress: bool | None) -> ObserverDesign:
         """Fixed poles: the engine (all starts in lockstep), IPOPT for the bounds or as a fallback."""
         proof = self._repeated_pole_proof(target)
@@ -387,14 +431,16 @@ class WellConditionedProblem:
                            stable=not self.allow_unstable, mask=self.mask, **bounds)
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []
-        use_nlp = any(v is not None for v in bounds.values())
+        # structural zeros go to IPOPT too: the engine's augmented Lagrangian for masks can stop worse
+        # (pp_byers5 with 3 zeros: kappa2 406.7 vs IPOPT's 355.4, benchmarks/results/placement.md sec. 8)
+        use_nlp = any(v is not None for v in bounds.values()) or self.mask is not None
         planned = 0
         route = "nlp" if use_nlp else "engine"
         with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if not use_nlp:
                 records, evaluated = engine_fixed(self.engine, target, objective, starts=max(n_starts, 1),
-                                                  seed=seed, deadline=deadline, mask=self.mask,
+                                                  seed=_int_seed(seed), deadline=deadline, mask=self.mask,
                                                   evaluate=evaluate, warm_start=warm)
                 bar.update(len(records), note=_note(objective, evaluated))
                 planned = max(n_starts + (warm is not None), len(records))
@@ -415,6 +461,18 @@ class WellConditionedProblem:
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
                            deadline=deadline, planned=planned, route=route)
 
+    def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator) -> list:
+        """The starts of region mode (:func:`~.starts.region_starts`; without its Kalman start 1 when
+        ``kalman_start`` is False: sampled poles instead)."""
+        if not n_starts:
+            return []
+        if self.kalman_start:
+            return region_starts(self.plant, region, n_starts, rng, self.mask)
+        specs = region_starts(self.plant, region, n_starts + 1, rng, self.mask)  # (its Kalman start 1
+        if specs[1][0] == "Kalman gain (Q = I)":  # draws nothing from rng: the samples stay the same)
+            del specs[1]
+        return specs[:n_starts]
+
     def _unobservable_outside(self, region: Region) -> ObserverDesign | None:
         unobs = self.plant.unobservable_modes()
         if not unobs.size:
@@ -429,7 +487,7 @@ class WellConditionedProblem:
                            modes=unobs, distance=dist)
         return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region)
 
-    def _free(self, region: Region, bounds: dict[str, float | None], n_starts: int, seed: int,
+    def _free(self, region: Region, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
               deadline: Deadline, warm: NDArray | None, progress: bool | None) -> ObserverDesign:
         """Poles free in ``region``: the engine start by start, IPOPT for what it does not handle or as a
         fallback."""
@@ -439,13 +497,14 @@ class WellConditionedProblem:
         plant, objective = self.plant, self.objective
         evaluate = partial(evaluate_candidate, plant, target=None, region=region, mask=self.mask, **bounds)
         rng = np.random.default_rng(seed)
-        specs = region_starts(plant, region, n_starts, rng, self.mask) if n_starts else []
+        specs = self._region_starts(region, n_starts, rng)
         warm_spec = None
         if warm is not None:
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
             warm_spec = ("warm start", warm, PoleStructure.of(Pw, tol=1e-6), Pw, True)
-        use_nlp = (any(v is not None for v in bounds.values()) or self.mask is not None
-                   or objective not in ("kappa2", "kappa_fro"))
+        engine_ok = (not any(v is not None for v in bounds.values()) and self.mask is None
+                     and objective in ("kappa2", "kappa_fro"))
+        use_nlp = self.route != "engine" or not engine_ok
         bound = objective_lower_bound(objective, plant.n)
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []
@@ -458,7 +517,8 @@ class WellConditionedProblem:
                 if warm_spec is not None:
                     eng_specs.insert(0, (warm_spec[0], warm_spec[1], warm_spec[3], True))
                 planned = len(eng_specs)
-                records, evaluated = engine_region(self.engine, region, objective, eng_specs, seed=seed,
+                records, evaluated = engine_region(self.engine, region, objective, eng_specs,
+                                                   seed=_int_seed(seed),
                                                    deadline=deadline, evaluate=evaluate, lower_bound=bound,
                                                    progress=bar)
             if use_nlp or _needs_fallback(evaluated, deadline):
@@ -477,14 +537,55 @@ class WellConditionedProblem:
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
                 records, evaluated = records + more_r, evaluated + more_e
+            if self.route == "auto" and engine_ok and use_nlp and not deadline.expired:
+                more_r, more_e = self._engine_polish(region, objective, evaluated, seed, deadline, bound)
+                if more_r:
+                    planned += 1
+                    route = "nlp+engine"
+                records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=None, region=region,
                            deadline=deadline, planned=planned, route=route)
+
+    def _engine_polish(self, region: Region, objective: str, evaluated: list[Evaluated], seed: Any,
+                       deadline: Deadline, bound: float | None) -> tuple[list[StartRecord], list[Evaluated]]:
+        """One placement-engine start from the best verified design so far (its gain and poles); nothing
+        when there is none or it attains the objective's lower bound."""
+        good = [e for e in evaluated if e[3].passed and np.all(np.isfinite(e[4].L))]
+        if not good:
+            return [], []
+        best = min(good, key=lambda e: e[0])
+        if attains(bound, best[0], best[3], best[4]):
+            return [], []
+        L0 = np.asarray(best[4].L, dtype=float)
+        P0 = np.linalg.eigvals(self.plant.A - L0 @ self.plant.C)
+        evaluate = partial(evaluate_candidate, self.plant, target=None, region=region, mask=None,
+                           max_gain=None, kappa2_max=None, eta_max=None)
+        recs, evs = engine_region(self.engine, region, objective,
+                                  [("engine from the best design", L0, P0, True)], seed=_int_seed(seed),
+                                  deadline=deadline, evaluate=evaluate, lower_bound=bound)
+        k = len(evaluated)
+        return ([dataclasses.replace(r, index=k + i) for i, r in enumerate(recs)],
+                [(e[0], k + i, e[2], e[3], e[4]) for i, e in enumerate(evs)])
 
     def __repr__(self) -> str:
         what = ("poles" if self.poles is not None else f"region {self.region!r}" if self.region is not None
                 else "the stability region")
         return (f"WellConditionedProblem(n={self.plant.n}, p={self.plant.p}, objective={self.objective!r}, "
                 f"{what}, starts={self.starts}, NLPs built: {len(self._nlps)})")
+
+
+def _as_seed(seed: Any) -> int | list[int]:
+    """A seed: an integer >= 0, or a non-empty sequence of them (SeedSequence entropy)."""
+    if isinstance(seed, (list, tuple)):
+        if not seed:
+            raise ValidationError("seed must be an integer >= 0 or a non-empty sequence of them; found ()")
+        return [as_int(f"seed[{i}]", v, 0) for i, v in enumerate(seed)]
+    return as_int("seed", seed, 0)
+
+
+def _int_seed(seed: int | list[int]) -> int:
+    """One integer seed (for the placement engine) from a seed or a SeedSequence entropy."""
+    return seed if isinstance(seed, int) else int(np.random.SeedSequence(seed).generate_state(1)[0])
 
 
 def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
