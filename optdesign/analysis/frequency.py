@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -152,6 +153,18 @@ def _evaluate(f: Callable[[NDArray], NDArray], grid: NDArray, deadline: Deadline
     return np.concatenate(out) if out else np.zeros(0)
 
 
+@overload
+def adaptive_minimize(
+    f: Callable[[NDArray[np.float64]], NDArray[np.float64]], grid: NDArray[np.float64], *,
+    n_refine: int = ..., log: bool = ..., xatol: float = ..., values: NDArray[np.float64] | None = ...,
+    deadline: Deadline | float | None = ..., full_output: Literal[False] = ...,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+@overload
+def adaptive_minimize(
+    f: Callable[[NDArray[np.float64]], NDArray[np.float64]], grid: NDArray[np.float64], *,
+    n_refine: int = ..., log: bool = ..., xatol: float = ..., values: NDArray[np.float64] | None = ...,
+    deadline: Deadline | float | None = ..., full_output: Literal[True],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]: ...
 def adaptive_minimize(
     f: Callable[[NDArray[np.float64]], NDArray[np.float64]],
     grid: NDArray[np.float64],

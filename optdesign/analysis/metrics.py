@@ -53,6 +53,7 @@ non-normal matrices", Numer. Math. 4 (1962) 24-40.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 import scipy.linalg
@@ -201,6 +202,12 @@ def _spectrum(X: NDArray, tol: float | None) -> _Spectrum:
     return _Spectrum(w, V, Vinv, gap, coincident, dep)
 
 
+@overload
+def eigenvector_matrix(X: ArrayLike, *, return_eigenvalues: Literal[False] = ...
+                       ) -> NDArray[np.complex128]: ...
+@overload
+def eigenvector_matrix(X: ArrayLike, *, return_eigenvalues: Literal[True]
+                       ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]: ...
 def eigenvector_matrix(
     X: ArrayLike, *, return_eigenvalues: bool = False
 ) -> NDArray[np.complex128] | tuple[NDArray[np.complex128], NDArray[np.complex128]]:

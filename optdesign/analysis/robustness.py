@@ -271,7 +271,7 @@ def innovation_covariance(
     A, C = plant.A, plant.C
     if np.linalg.cond(A) < 1e8:
         T0 = np.eye(plant.p) - C @ np.linalg.solve(A, L)
-        return np.linalg.solve(T0, R), "T(0)^-1 R"
+        return np.asarray(np.linalg.solve(T0, R), dtype=np.float64), "T(0)^-1 R"
     if plant.Q is None:
         raise ValidationError(
             f"A is singular (cond {np.linalg.cond(A):.3g}), so the innovation covariance V = CPC' + R is "
@@ -538,7 +538,7 @@ def circle_condition(
         tol = as_positive_float("tol", tol, allow_zero=True)
     grid = frequency_grid(plant, L) if omega is None else np.unique(as_frequencies("omega", omega))
     eigA = np.linalg.eigvals(plant.A)
-    if plant.is_discrete:
+    if plant.dt is not None:  # discrete
         boundary = eigA[np.abs(np.abs(eigA) - 1.0) < 1e-9]
         scale = 1.0 / plant.dt
     else:
@@ -825,14 +825,17 @@ def filter_margins(
                  "e.g. the uniform delta*I in all channels")
         notes.append("R is not diagonal: the per-channel gain/phase statement of seed 002 Theorem 2 "
                      "does not apply")
-    head = (disc, stable, R_diag, circ, implied, (glo, ghi), gpm, scope)
     margins = np.full((6, p), np.nan)  # gain lower/upper, phase, phase crossover, disk, circle disk
+    def result(radius: float, complete: bool) -> FilterMargins:  # the rows of margins in field order
+        lo, up, pm, pc, dm, cdm = margins
+        return FilterMargins(disc, stable, R_diag, circ, implied, (glo, ghi), gpm, scope, radius, lo, up, pm,
+                             pc, dm, cdm, tuple(notes), complete=complete)
     if not stable:
         notes.append("A - L C is unstable: margins of an unstable loop are not defined (NaN)")
-        return FilterMargins(*head, float("nan"), *margins, tuple(notes), complete=circ.complete)
+        return result(float("nan"), circ.complete)
     grid = frequency_grid(plant, L) if seed is None else np.unique(seed)
     grid = np.union1d(grid, circ.omega)
-    if disc:
+    if plant.dt is not None:  # discrete
         grid = grid[grid <= math.pi / plant.dt]
     grid = np.unique(grid)
     pts_of = lambda w: frequency_points(plant, np.asarray(w, dtype=float))  # noqa: E731
@@ -853,15 +856,15 @@ def filter_margins(
         radius = 1.0 / float(-np.min(v)) if complete else radius
     Mgrid = M_of(grid) if complete else None
     for i in range(p):
-        if not complete or deadline.expired:
+        if Mgrid is None or deadline.expired:
             complete = False
             break
-        margins[:, i] = _channel_margins(M_of, grid, Mgrid[:, i, i], i, plant.dt if disc else None)
+        margins[:, i] = _channel_margins(M_of, grid, Mgrid[:, i, i], i, plant.dt)  # dt None: continuous
     if not complete:
         done = int(np.sum(np.isfinite(margins[4])))
         notes.append(f"time_limit {deadline.limit:g} s reached: margins computed for {done} of {p} channel(s)"
                      + ("" if np.isfinite(radius) else ", no multiloop radius") + " (the rest are NaN)")
-    return FilterMargins(*head, radius, *margins, tuple(notes), complete=complete)
+    return result(radius, complete)
 
 
 def _channel_margins(M_of: Callable[[NDArray], NDArray], grid: NDArray, Mg: NDArray, i: int,

@@ -122,7 +122,7 @@ from .._validate import as_matrix, as_options, as_poles
 from ..classical.placement import place_observer, pole_error
 from ..errors import DimensionError, NotObservableError, ValidationError
 from ..model.coerce import as_plant
-from ..model.noise import NoiseModel
+from ..model.noise import NoiseModel, cluster_roots
 from ..model.plant import Plant
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
 
@@ -152,12 +152,18 @@ def _fmt(z: complex) -> str:
 
 def _check_plant(plant: Any, what: str) -> Plant:
     plant = as_plant(plant)
-    if not plant.is_discrete:
+    _sampling_period(plant, what)
+    return plant
+
+
+def _sampling_period(plant: Plant, what: str) -> float:
+    """``plant.dt``; ValidationError naming ``what`` for a continuous-time plant."""
+    if plant.dt is None:
         raise ValidationError(
             f"{what} needs a discrete-time plant (Plant(..., dt=T)): the noise models are polynomials in "
             "the shift operator q (seed 003 is discrete time); found a continuous-time plant"
         )
-    return plant
+    return plant.dt
 
 
 def _check_noise(noise: Any, plant: Plant) -> NoiseModel:
@@ -166,18 +172,17 @@ def _check_noise(noise: Any, plant: Plant) -> NoiseModel:
             "noise must be an optdesign.noise model (Step(), Sinusoid(f, dt), Polynomial(c), or a sum); "
             f"found {type(noise).__name__}"
         )
-    if noise.dt is not None and not math.isclose(noise.dt, plant.dt, rel_tol=1e-9):
+    dt = _sampling_period(plant, "the noise model")
+    if noise.dt is not None and not math.isclose(noise.dt, dt, rel_tol=1e-9):
         raise ValidationError(
-            f"noise model {noise.label!r} was built for dt={noise.dt:g} but the plant has dt={plant.dt:g}; "
+            f"noise model {noise.label!r} was built for dt={noise.dt:g} but the plant has dt={dt:g}; "
             "its q-polynomial depends on the sampling period"
         )
     return noise
 
 
 def _distinct_modes(noise: NoiseModel) -> list[complex]:
-    from ..model.noise import _cluster_roots
-
-    return [z for z, _ in _cluster_roots(noise.modes)]
+    return [z for z, _ in cluster_roots(noise.modes)]
 
 
 def _require_full_row_rank_C(plant: Plant, noise: NoiseModel, what: str) -> None:
@@ -204,8 +209,13 @@ def default_poles(plant: Plant, noise: NoiseModel, count: int | None = None) -> 
     Returns
     -------
     (count,) ndarray of complex
+
+    Raises
+    ------
+    ValidationError
+        ``plant`` is continuous time.
     """
-    dt = float(plant.dt)
+    dt = _sampling_period(plant, "default_poles")
     count = plant.n + noise.order * plant.p if count is None else int(count)
     zs = np.concatenate([np.linalg.eigvals(plant.A), noise.modes])
     zs = zs[np.abs(zs) > 1e-12]
@@ -242,10 +252,11 @@ def _coupling(plant: Plant, noise: NoiseModel, coupling: Any) -> tuple[NDArray[n
     return E, "given"
 
 
-def _pbh_margin(Aa: NDArray, Ca: NDArray, modes: list[complex]) -> tuple[float, complex | None]:
-    """min over ``modes`` of sigma_min([z I - Aa; Ca]) / max(1, ||Aa||, ||Ca||), and the worst mode."""
+def _pbh_margin(Aa: NDArray, Ca: NDArray, modes: list[complex]) -> tuple[float, complex]:
+    """min over ``modes`` of sigma_min([z I - Aa; Ca]) / max(1, ||Aa||, ||Ca||), and the worst mode
+    (``(inf, nan)`` without modes)."""
     scale = max(1.0, np.linalg.norm(Aa, 2), np.linalg.norm(Ca, 2))
-    worst, arg = np.inf, None
+    worst, arg = np.inf, complex(np.nan, np.nan)
     I = np.eye(Aa.shape[0])
     for z in modes:
         s = np.linalg.svd(np.vstack([z * I - Aa, Ca.astype(complex)]), compute_uv=False)[-1] / scale
@@ -457,7 +468,8 @@ class GeneralizedObserver(ResultMixin):
     def _transfer(self, z: complex) -> NDArray[np.complex128]:
         """(z I - F)^{-1} [-H; M], shape (n + r p, p)."""
         Bd = np.vstack([-self.H, self.M]).astype(complex)
-        return np.linalg.solve(z * np.eye(self.augmented.shape[0]) - self.augmented, Bd)
+        return np.asarray(np.linalg.solve(z * np.eye(self.augmented.shape[0]) - self.augmented, Bd),
+                          dtype=np.complex128)
 
     def error_gain(self, z: complex) -> NDArray[np.complex128]:
         """Transfer from the output noise ``delta`` to the state error ``x - xh`` at ``z``, shape (n, p).
@@ -1060,10 +1072,13 @@ def simulate_observer(
     ValidationError, DimensionError
         Bad shapes, a continuous-time plant, u without B, non-finite data.
     """
+    gen: GeneralizedObserver | None = None
+    rej: NoiseRejectingObserver | None = None
+    Lg: NDArray[np.float64] | None = None
     if isinstance(observer, GeneralizedObserver):
-        kind, model = "generalized", observer.plant
+        gen, kind, model = observer, "generalized", observer.plant
     elif isinstance(observer, NoiseRejectingObserver):
-        kind, model = "noise_rejecting", observer.plant
+        rej, kind, model = observer, "noise_rejecting", observer.plant
     else:
         if plant is None:
             raise ValidationError("a plain gain L needs plant=...; or pass a GeneralizedObserver / "
@@ -1094,32 +1109,32 @@ def simulate_observer(
             U = U.reshape(-1, 1)
         if U.shape != (T, true.B.shape[1]):
             raise DimensionError(f"u must have shape ({T}, {true.B.shape[1]}); found {np.shape(u)}")
-    if kind == "generalized":
-        q = observer.N.shape[0]
-    elif kind == "noise_rejecting":
-        q = observer.N.shape[0]
+    if gen is not None:
+        q = gen.N.shape[0]
+    elif rej is not None:
+        q = rej.N.shape[0]
     else:
         q = 0
     X, XH = np.zeros((T, n)), np.zeros((T, n))
     Y, EPS = np.zeros((T, p)), np.zeros((T, p))
     Z = np.zeros((T, q))
-    DH = np.zeros((T, p)) if kind == "noise_rejecting" else None
-    z = np.zeros(q)
+    DH = np.zeros((T, p))  # the noise estimate Gamma z (noise-rejecting observer only)
+    z: NDArray[np.float64] = np.zeros(q)
     A, C = model.A, model.C
     for k in range(T):
         y = true.C @ x + d[k]
         X[k], XH[k], Y[k], Z[k] = x, xh, y, z
         EPS[k] = y - C @ xh
         uk = None if U is None else U[k]
-        if kind == "generalized":
-            xh, z = observer.step(xh, z, y, uk)
-        elif kind == "noise_rejecting":
-            DH[k] = observer.Gamma @ z
-            xa = observer.step(np.concatenate([xh, z]), y, uk)
+        if gen is not None:
+            xh, z = gen.step(xh, z, y, uk)
+        elif rej is not None:
+            DH[k] = rej.Gamma @ z
+            xa = rej.step(np.concatenate([xh, z]), y, uk)
             xh, z = xa[:n], xa[n:]
-        else:
+        elif Lg is not None:
             xh = A @ xh + Lg @ (y - C @ xh) + (0.0 if uk is None else model.B @ uk)
         x = true.A @ x + (0.0 if uk is None else true.B @ uk)
-    t = np.arange(T) * float(true.dt)
+    t = np.arange(T, dtype=np.float64) * _sampling_period(true, "simulate_observer")
     return ObserverSimulation(t=t, x=X, xhat=XH, y=Y, delta=d.copy(), eps=EPS, internal=Z,
-                              noise_estimate=DH, kind=kind, C=np.array(C))
+                              noise_estimate=DH if rej is not None else None, kind=kind, C=np.array(C))

@@ -85,7 +85,7 @@ from numpy.typing import NDArray
 
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
-from ..classical.riccati import AREErrorEstimate, filter_are, filter_are_error, filter_are_residual
+from ..classical.riccati import AREErrorEstimate, AREResult, filter_are, filter_are_error, filter_are_residual
 from ..errors import OptDesignError, RiccatiError
 from ..model.plant import Plant
 from ..results import Check
@@ -213,7 +213,7 @@ def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "") -> C
                           f"smallest eigenvalue of {label} / ||{label}|| (it must be PSD)")
 
 
-def independent_are(plant: Plant):
+def independent_are(plant: Plant) -> AREResult:
     """The Riccati solve used to verify a design: the Hamiltonian Schur method (independent of
     scipy's QZ, which produces L and P on the NLP path), scipy's if that one fails.  No residual
     test here: an inaccurate re-solve shows up as a measured difference."""
@@ -229,6 +229,7 @@ def _gain_tolerance(plant: Plant, L: NDArray, P: NDArray, err_p: float, err_are:
     rounding of the gain formula, 10 n eps cond(R or S)) ||P|| ||dL/dP||``, relative to
     ``max(1, ||L||)``; capped at :data:`FORWARD_ERROR_TOL`."""
     C, R = plant.C, plant.R
+    assert R is not None, "called after an independent filter_are of this plant, which needs its R"
     n = plant.n
     if plant.is_discrete:
         S = C @ P @ C.T + R
@@ -253,7 +254,7 @@ def forward_error_check(err: AREErrorEstimate) -> Check:
 
 
 def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: str = "the returned Q",
-                   resolve: bool = True) -> tuple[list[Check], object | None, AREErrorEstimate]:
+                   resolve: bool = True) -> tuple[list[Check], AREResult | None, AREErrorEstimate]:
     """The checks that ``(L, P, Q)`` is a steady-state Kalman filter of ``plant`` (with its R):
     ``riccati_residual``, ``forward_error``, ``Q_min_eig``, ``P_min_eig`` and (``resolve``)
     ``are_resolve_gain`` -- an independent Riccati solve with Q must return L.

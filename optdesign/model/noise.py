@@ -63,7 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._validate import as_array, as_int, as_positive_float, as_real
 from ..errors import DimensionError, NotFiniteError, ValidationError
 
-__all__ = ["NoiseModel", "Step", "Sinusoid", "Polynomial", "UNIT_CIRCLE_TOL"]
+__all__ = ["NoiseModel", "Step", "Sinusoid", "Polynomial", "UNIT_CIRCLE_TOL", "cluster_roots"]
 
 #: Default tolerance on ``| |z| - 1 |`` for the roots of a noise polynomial.
 UNIT_CIRCLE_TOL = 1e-6
@@ -113,11 +113,24 @@ def _check_coefficients(name: str, coefficients: ArrayLike) -> NDArray[np.float6
     return c / c[0]
 
 
-def _cluster_roots(roots: ArrayLike, tol: float = 1e-4) -> list[tuple[complex, int]]:
+def cluster_roots(roots: ArrayLike, tol: float = 1e-4) -> list[tuple[complex, int]]:
     """Group numerically equal roots: ``[(mean root, multiplicity), ...]``.
 
     A root of multiplicity ``k`` is computed only to about ``eps^(1/k)`` (1e-5 for k = 3), so
     the default relative tolerance is 1e-4; the mean of a cluster is accurate to rounding.
+
+    Parameters
+    ----------
+    roots : (k,) array_like of complex
+        The roots (any shape; raveled), e.g. the computed roots of a noise polynomial.
+    tol : float, optional
+        Relative tolerance: ``z`` joins a cluster when ``|z - mean| <= tol * max(1, |z|)``.
+
+    Returns
+    -------
+    list of (complex, int)
+        One ``(mean root, multiplicity)`` per cluster, in order of first appearance; the
+        multiplicities sum to the number of roots.
     """
     out: list[list[complex]] = []
     for z in np.asarray(roots, dtype=complex).ravel():
@@ -382,7 +395,7 @@ class NoiseModel:
             )
         dt = self.dt if self.dt is not None else other.dt
         merged: dict[complex, int] = {}
-        for z, m in _cluster_roots(self._roots) + _cluster_roots(other._roots):
+        for z, m in cluster_roots(self._roots) + cluster_roots(other._roots):
             for key in merged:
                 if abs(key - z) <= 1e-6 * max(1.0, abs(z)):
                     merged[key] = max(merged[key], m)

@@ -34,11 +34,13 @@ Pre-specified Eigenvalues" (seed 000), eq (20)-(45), Examples 1-2, appendix.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .. import problems
-from ..analysis.robustness import return_difference
+from ..analysis.robustness import resolve_R, return_difference
 from ..classical.placement import pole_error
 from ..classical.riccati import filter_are, hamiltonian_are
 from ..classical.solheim import solheim
@@ -108,6 +110,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
 
     # ------------------------------------------------------------------ Example 1
     p1 = problems.load("chang_lee_1984_ex1")
+    assert p1.plant is not None, "the library problem chang_lee_1984_ex1 has a plant"
     plant1 = p1.plant.replace(Q=None, G=None)
     ref1 = p1.references
     s1 = solheim(plant1, p1.targets["poles"])
@@ -141,11 +144,13 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
                          f"P = {fmt(are1.P)} (appendix: P = P_1 + P_2)"))
     fam = example1_family()
     members = {}
-    for obj, kw in (("min_trace", {}), ("feasibility", {}), ("nearest", {"Q_nominal": np.eye(2)})):
-        r = kalman_for_poles(plant1, p1.targets["poles"], objective=obj, **kw)
+    objectives: list[tuple[Literal["min_trace", "feasibility", "nearest"], NDArray[np.float64] | None]] = [
+        ("min_trace", None), ("feasibility", None), ("nearest", np.eye(2))]
+    for obj, Q_nominal in objectives:
+        r = kalman_for_poles(plant1, p1.targets["poles"], objective=obj, Q_nominal=Q_nominal)
         members[obj] = r
         rows.append(ReproRow(e, f"SDP ({obj}{', to I' if obj == 'nearest' else ''}): P22, Q", None,
-                             f"P22 = {r.P[1, 1]:.6g}, Q = {fmt(r.Q)}", None,
+                             f"P22 = {np.nan if r.P is None else r.P[1, 1]:.6g}, Q = {fmt(r.Q)}", None,
                              f"pole error of the re-solved ARE "
                              f"{r.verification['are_resolve_poles'].value:.1e}"))
     rows.append(ReproRow(e, "family of Q (P22 free)", None,
@@ -155,6 +160,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     # ------------------------------------------------------------------ Example 2
     p2 = problems.load("chang_lee_1984_ex2")
     plant2, ref2 = p2.plant, p2.references
+    assert plant2 is not None, "the library problem chang_lee_1984_ex2 has a plant"
     s2 = solheim(plant2, p2.targets["poles"])
     st1, st2 = s2.steps
     pr1, pr2 = ref2["steps_printed"]
@@ -172,7 +178,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     T0 = np.asarray(pr1["T_printed"])
     Lam0 = np.linalg.solve(T0, plant2.A @ T0)
     CT0 = plant2.C @ T0
-    Pt_paper_q = hamiltonian_are(Lam0.T, CT0.T, pr1["q_tilde_printed"] * np.eye(2), plant2.R)
+    Pt_paper_q = hamiltonian_are(Lam0.T, CT0.T, pr1["q_tilde_printed"] * np.eye(2),
+                                 resolve_R(plant2, None, "the printed-T check"))
     rows.append(ReproRow(e, "step 1: P~ (eq 29, printed q~, printed T)", fmt(pr1["P_tilde_printed"]),
                          fmt(Pt_paper_q), False, "the printed P~ does not solve eq (29): residual 56.9"))
     rows.append(ReproRow(e, "step 1: poles of A_1", fmt(pr1["poles_next_printed"]),
@@ -196,8 +203,9 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     rows.append(ReproRow(e, "ARE poles of the printed Q'", fmt(ref2["poles_printed"]), fmt(are_p.poles, 5),
                          False, "the printed Q' and K are inconsistent"))
     nlp2 = kalman_for_poles(plant2, p2.targets["poles"])
+    trace2 = np.nan if nlp2.Q is None else float(np.trace(nlp2.Q))
     rows.append(ReproRow(e, "NLP (min trace over L and Q)", None, f"Q = {fmt(nlp2.Q)}, L = {fmt(nlp2.L)}",
-                         None, f"trace {np.trace(nlp2.Q):.5g} vs sequential {np.trace(s2.Q):.5g}; pole error "
+                         None, f"trace {trace2:.5g} vs sequential {np.trace(s2.Q):.5g}; pole error "
                          f"{nlp2.verification['are_resolve_poles'].value:.1e}"))
     rows.append(ReproRow("eq (39)", "s^2 coefficient for poles -r +- j delta", "2(r^2 - delta^2)",
                          "2(delta^2 - r^2)", False,

@@ -31,6 +31,7 @@ measure" (seed 001), eq (1)-(31), Examples 1-3, Fig. 1-4.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.linalg
@@ -58,7 +59,7 @@ __all__ = ["reproduce", "real_schur_eta", "aircraft_design"]
 
 _TITLE = "Design of the Well-Conditioned Observer Using the Non-normality Measure"
 #: how the figures are written (``bbox_inches="tight"`` instead of ``tight_layout``)
-_SAVE = {"dpi": 120, "layout": False, "bbox_inches": "tight"}
+_SAVE: dict[str, Any] = {"dpi": 120, "layout": False, "bbox_inches": "tight"}
 
 
 def real_schur_eta(X) -> float:
@@ -79,6 +80,7 @@ def aircraft_design(starts: int = 3):
     """Example 3 redesigned: min kappa2, poles in ``Re s <= -decay(L_paper)``, ``||L|| <= ||L_paper||``."""
     ex = problems.load("jung_huh_ex3")
     plant = ex.plant
+    assert plant is not None, "the library problem jung_huh_ex3 has a plant"
     L_paper = np.asarray(ex.references["cases_printed"][0]["L"], dtype=float).reshape(3, 1)
     decay = -float(np.max(np.linalg.eigvals(plant.A - L_paper @ plant.C).real))
     region = HalfPlane(decay)
@@ -125,6 +127,7 @@ def _example1(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow],
     a1, a2 = float(ex1.data["a1"]), float(ex1.data["a2"])
     beta = float(ex1.targets["beta"])
     plant1 = ex1.plant
+    assert plant1 is not None, "the library problem jung_huh_ex1 has a plant"
     e = "Ex. 1"
     for case in ex1.references["cases_printed"]:
         L = np.asarray(case["L"], dtype=float).reshape(2, 1)
@@ -291,12 +294,14 @@ def _example2(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow],
     figs: list[Path] = []
     # ------------------------------------------------------------------ Example 2
     ex2 = problems.load("jung_huh_ex2")
+    plant2 = ex2.plant
+    assert plant2 is not None, "the library problem jung_huh_ex2 has a plant"
     a, b = float(ex2.data["a"]), float(ex2.data["b"])
     beta2 = float(ex2.targets["beta"])
     e = "Ex. 2"
     worst = 0.0
     for qr in (0.5, 1.3, 3.0, 146.0):
-        are = filter_are(ex2.plant.replace(Q=[[qr]]))
+        are = filter_are(plant2.replace(Q=[[qr]]))
         worst = max(
             worst, float(np.max(np.abs(are.L.ravel() - kalman_2x2_gain(a, b, qr))) / np.linalg.norm(are.L))
         )
@@ -326,8 +331,8 @@ def _example2(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow],
             "(double pole)",
         )
     )
-    kal = well_conditioned_kalman(ex2.plant, objective="eta", starts=2 if quick else 4)
-    q_opt = float(kal.Q[0, 0])
+    kal = well_conditioned_kalman(plant2, objective="eta", starts=2 if quick else 4)
+    q_opt = float(np.nan if kal.Q is None else kal.Q[0, 0])
     x_dense = np.geomspace(1e-3, 1e4, 20001)
     eta_dense = kalman_2x2_eta(a, b, x_dense)
     rows.append(
@@ -388,6 +393,7 @@ def _example3(plt, outdir: Path, quick: bool, progress) -> tuple[list[ReproRow],
     # ------------------------------------------------------------------ Example 3
     ex3 = problems.load("jung_huh_ex3")
     plant3 = ex3.plant
+    assert plant3 is not None, "the library problem jung_huh_ex3 has a plant"
     e = "Ex. 3"
     for case in ex3.references["cases_printed"]:
         L = np.asarray(case["L"], dtype=float).reshape(3, 1)

@@ -161,6 +161,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
                          f"+-{fm.guaranteed_phase_margin:.4g} deg",
                          bool(abs(fm.guaranteed_phase_margin - 60) < 1e-9),
                          f"actual: {fm.phase_margin[0]:.4g} deg"))
+    assert fp.augmented is not None, "method='pade' returns the augmented filter"
     Aa, Ca, Ka = fp.augmented
 
     def max_re(delta):

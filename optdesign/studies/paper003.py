@@ -39,6 +39,8 @@ import numpy as np
 from .. import problems
 from ..design.generalized import (
     GeneralizedObserver,
+    NoiseRejectingObserver,
+    ObserverSimulation,
     default_poles,
     generalized_observer,
     noise_rejecting_observer,
@@ -64,6 +66,7 @@ def example_cases() -> dict[str, dict]:
     for key, name in (("step", "kim_lee_kim_step"), ("sinusoid", "kim_lee_kim_sinusoid")):
         prob = problems.load(name)
         plant = prob.plant
+        assert plant is not None, f"the library problem {name} has a plant"
         noise: NoiseModel = Step() if key == "step" else Sinusoid(1.0, plant.dt)
         out[key] = dict(problem=prob, plant=plant, noise=noise,
                         H=np.asarray(prob.references["H_printed"], float),
@@ -183,7 +186,8 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     if not quick:
         rows.extend(_well_conditioned_rows(cases, designed, quick))
     # ---------------------------------------------------------------- simulations
-    sims: dict[str, dict[str, object]] = {}
+    sims: dict[str, dict[str, tuple[GeneralizedObserver | NoiseRejectingObserver | None,
+                                    ObserverSimulation]]] = {}
     for key, c in cases.items():
         plant, noise = c["plant"], c["noise"]
         delta = _signal(noise, steps)
@@ -210,6 +214,7 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
                              "error confined to the measured state 1 (= -delta); states 2, 3 exact"))
         rows.append(ReproRow(key, "generalized: max |xi| over the last quarter", "-> 0 (3b)",
                              f"{sp.tail('internal'):.3g}", False, "xi carries the noise: persistent"))
+        assert sr.noise_estimate is not None, "a noise-rejecting observer's simulation estimates the noise"
         d_err = float(np.max(np.abs(sr.noise_estimate - sr.delta)[-steps // 4:]))
         rows.append(ReproRow(key, "noise-rejecting observer: max |x - xh|, last quarter", None,
                              f"{sr.tail('error'):.2e}", None, f"x^ -> x; |delta - Gamma d^| {d_err:.1e}"))

@@ -134,12 +134,14 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     outdir = output_dir(outdir)
     prob = problems.load(PROBLEM)
     plant = prob.plant
+    assert plant is not None, f"the library problem {PROBLEM} has a plant"
     P0 = np.asarray(prob.targets["P0"], dtype=float)
     tf = float(prob.targets["t_final"])
     m = int(prob.targets["steps"])
     n = plant.n
-    M = filter_hamiltonian(plant.A, plant.C, plant.process_noise(), plant.R)
-    Rinv_C = np.linalg.solve(plant.R, plant.C)
+    R = plant.noise_covariances()[1]
+    M = filter_hamiltonian(plant.A, plant.C, plant.process_noise(), R)
+    Rinv_C = np.linalg.solve(R, plant.C)
     ex = "harmonic oscillator, m = 50, tf = 10"
     rows: list[ReproRow] = []
 
@@ -212,7 +214,9 @@ def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> Pape
     naive = {}
     for name in NAIVE_PROBLEMS:
         pl = plant if name == PROBLEM else problems.load(name).plant
-        Mx = M if name == PROBLEM else filter_hamiltonian(pl.A, pl.C, pl.process_noise(), pl.R)
+        assert pl is not None, f"the library problem {name} has a plant"
+        Mx = M if name == PROBLEM else filter_hamiltonian(pl.A, pl.C, pl.process_noise(),
+                                                          pl.noise_covariances()[1])
         nerr = naive_error(Mx, np.zeros((pl.n, pl.n)), t_long)
         naive[name] = nerr
         bad = t_long[~(nerr <= 1e-8)]

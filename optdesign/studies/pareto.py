@@ -309,14 +309,14 @@ def pareto(
     records = [{**r, "anchor": None} for r in table.records]
     designs = list(table.results or [None] * len(records))
     for o, a in anchors.items():
-        rec = {k: None for k in names}
+        rec: dict[str, Any] = {k: None for k in names}
         rec.update(record_of(a))
         rec.update({"anchor": o, "time": a.solver_stats.time, "error": None, "worker": None})
         records.append(rec)
         designs.append(a)
     full = SweepTable(records=records, inputs=tuple(names), wall_time=table.wall_time, meta=table.meta)
-    V = np.array([[float(r.get(o)) if r.get("success") and r.get(o) is not None else np.nan for o in objs]
-                  for r in records], dtype=float)
+    V = np.array([[float(r[o]) if r.get("success") and r.get(o) is not None else np.nan for o in objs]
+                  for r in records], dtype=np.float64)
     return ParetoFront(objectives=objs, table=full, values=V, nondominated=nondominated(V), designs=designs,
                        levels={o: lv[o] for o in objs[1:]})
 

@@ -153,7 +153,7 @@ def record_of(result: Any) -> dict[str, Any]:
     stats = out.get("solver_stats", getattr(result, "solver_stats", None))
     if "time" in flat:
         flat["solver_time"] = flat.pop("time")
-    elif hasattr(stats, "time"):
+    elif stats is not None and hasattr(stats, "time"):
         flat["solver_time"] = float(stats.time)
     return flat
 
@@ -503,7 +503,7 @@ class InlineExecutor(cf.Executor):
     def __init__(self) -> None:
         self._shutdown = False
 
-    def submit(self, fn, /, *args, **kwargs):  # type: ignore[override]
+    def submit(self, fn, /, *args, **kwargs):
         if self._shutdown:
             raise RuntimeError("cannot submit to an InlineExecutor after shutdown")
         fut: cf.Future = cf.Future()

@@ -51,10 +51,12 @@ def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: 
     extra: dict[str, Any] = {"engine": er.details, "engine_message": er.message}
     if plant.p > 1:
         extra["L_source"] = "the inverse Kalman engine"
-    if er.L is not None and (er.status.is_solved or er.status == Status.TIME_LIMIT):
-        ver, poles = verify_design(plant, target, er.L, er.P, er.Q, er.Qw, structure, tol)
+    L, P, Q = er.L, er.P, er.Q  # the engine returns all three with a design, none without
+    if L is not None and P is not None and Q is not None and (er.status.is_solved
+                                                              or er.status == Status.TIME_LIMIT):
+        ver, poles = verify_design(plant, target, L, P, Q, er.Qw, structure, tol)
         if ver.passed:
-            Wdec = er.Q if structure == "full" else er.Qw
+            Wdec = Q if structure == "full" else er.Qw
             st = er.solver_stats
             return InverseKalmanResult(
                 L=er.L, Q=er.Q, Qw=er.Qw, P=er.P, poles=poles, status=er.status,
@@ -62,7 +64,7 @@ def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: 
                 solver_stats=make_stats(st.backend or "engine", st.native_status, dl.elapsed, er.iterations,
                                         rank=er.rank),
                 verification=ver, certificate=None,
-                objective_value=objective_of(objective, er.Q, Wdec if Wdec is not None else er.Q, Qn),
+                objective_value=objective_of(objective, Q, Wdec if Wdec is not None else Q, Qn),
                 extra=extra, **common)
     if er.status == Status.TIME_LIMIT or dl.expired:
         return empty_result(common, Status.TIME_LIMIT, f"time limit reached in the inverse Kalman engine "

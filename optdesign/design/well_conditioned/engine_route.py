@@ -20,7 +20,7 @@ from ..._deadline import Deadline
 from ...errors import ValidationError
 from ...model.regions import Region
 from ...results import Status
-from ...solvers.eigenstructure import EigenstructureEngine
+from ...solvers.eigenstructure import EigenstructureEngine, Objective
 from ...solvers.eigenstructure_fixed import PlacementOutcome, place_fixed
 from ...solvers.eigenstructure_region import RegionStart, place_region
 from .evaluation import Candidate, Evaluated, attains, metric_of, start_record
@@ -77,7 +77,7 @@ def _candidates(out: PlacementOutcome, stage: str, wall: float) -> list[tuple[st
     return res
 
 
-def engine_fixed(eng: EigenstructureEngine, target: NDArray, objective: str, *, starts: int, seed: int,
+def engine_fixed(eng: EigenstructureEngine, target: NDArray, objective: Objective, *, starts: int, seed: int,
                  deadline: Deadline, mask: NDArray | None, evaluate: Callable[[Candidate], Any],
                  warm_start: Any = None) -> tuple[list[StartRecord], list[Evaluated]]:
     """Fixed poles on the engine (all starts in lockstep); per start a record and its evaluation.
@@ -86,7 +86,8 @@ def engine_fixed(eng: EigenstructureEngine, target: NDArray, objective: str, *, 
     one more start.
     """
     t0 = time.perf_counter()
-    out = place_fixed(None, None, target, objective=objective, starts=starts, seed=seed, deadline=deadline,
+    # A, C: the engine's own (place_fixed uses the engine and ignores them)
+    out = place_fixed(eng.A, eng.C, target, objective=objective, starts=starts, seed=seed, deadline=deadline,
                       warm_start=warm_start, gain_mask=mask, engine=eng)
     wall = time.perf_counter() - t0
     records: list[StartRecord] = []
@@ -113,7 +114,7 @@ def engine_region(eng: EigenstructureEngine, region: Region, objective: str,
             break
         t0 = time.perf_counter()
         try:
-            out = place_region(None, None, region, objective=objective, n_samples=0, seed=seed + idx,
+            out = place_region(eng.A, eng.C, region, objective=objective, n_samples=0, seed=seed + idx,
                                deadline=deadline, engine=eng,
                                starts=[RegionStart(origin, np.asarray(P0, dtype=complex), L0, warm=warm)])
         except ValidationError as exc:  # e.g. start poles the engine cannot use

@@ -152,7 +152,7 @@ def evaluate_candidate(
             # repeated pole: the basis is not unique; report the verified basis the solver found
             k2 = kz
             kf = float(np.linalg.norm(Z) * np.linalg.norm(np.linalg.inv(Z)))
-        V = Z
+        V: NDArray | None = Z
     else:
         V = metrics.eigenvector_matrix(X) if math.isfinite(k2) else None
     gn = float(np.linalg.norm(L, 2))

@@ -306,6 +306,7 @@ def region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Gene
     n_sampled = 0
     for k in range(starts):
         P0 = None
+        L0: NDArray | None  # None while no placement has succeeded
         if k == 1 and not kalman_used:
             L0 = riccati_start(plant, rng, 0)
             st = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)

@@ -62,15 +62,16 @@ def complex_basis(
 ) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
     """``(Z, poles)`` from a real modal basis ``V``: unit real columns, then for each pair with
     columns ``(x, y)`` the unit vector ``z = x + sign j y`` and ``conj(z)`` (poles ``u, conj(u)``)."""
+    re_, up = np.asarray(real), np.asarray(uppers)
     cols, poles = [], []
     for k in range(st.n_real):
         cols.append(V[:, k] / np.linalg.norm(V[:, k]))
-        poles.append(complex(real[k]))
+        poles.append(complex(re_[k]))
     for k in range(st.n_pairs):
         j = st.n_real + 2 * k
         z = V[:, j] + sign * 1j * V[:, j + 1]
         z = z / np.linalg.norm(z)
-        lam = complex(uppers[k])
+        lam = complex(up[k])
         cols += [z, z.conj()]
         poles += [lam, lam.conjugate()]
     return np.column_stack(cols), np.asarray(poles)
@@ -112,8 +113,9 @@ class ObserverNLP:
         self.solver_ready = False
         #: IPOPT's max_wall_time the solver was configured with (None: unlimited)
         self.solver_wall_time: float | None = None
-        self._stage_w = None
-        self._bound_w = None
+        # casadi parameters (one-hot stage weights), None until the objective / the kappa2 bound needs them
+        self._stage_w: Any | None = None
+        self._bound_w: Any | None = None
 
     def _objective_and_bounds(self, Vu, Wu, Lorig, dep2, delta2, *, max_gain, kappa2_max, eta_max) -> None:
         """Objective (with kappa2 continuation weights) and the bound constraints."""
@@ -153,10 +155,10 @@ class ObserverNLP:
             chain = trace_power_chain(ca, Ln.T @ Ln + 1e-14 * np.eye(p), GAIN_BOUND_STAGE)
             opti.subject_to(chain[GAIN_BOUND_STAGE] <= 0)
         if self.objective == "kappa2":
-            self._stage_w = opti.parameter(len(KAPPA2_STAGES))
-            opti.set_value(self._stage_w, np.eye(len(KAPPA2_STAGES))[-1])
+            stage_w = self._stage_w = opti.parameter(len(KAPPA2_STAGES))
+            opti.set_value(stage_w, np.eye(len(KAPPA2_STAGES))[-1])
             opti.minimize(
-                sum((self._stage_w[k] * self.k2_terms[J] for k, J in enumerate(KAPPA2_STAGES)), ca.MX(0))
+                sum((stage_w[k] * self.k2_terms[J] for k, J in enumerate(KAPPA2_STAGES)), ca.MX(0))
             )
         elif self.objective == "kappa_fro":
             opti.minimize(ca.log(self.fro2))
@@ -292,14 +294,16 @@ class RegionNLP(ObserverNLP):
         pi = opti.variable(npair) if npair else None
         self.vars.update(lam_real=lr, pair_re=pr, pair_im=pi)
         Lam = ca.MX.zeros(n, n)
-        for k in range(nr):
-            Lam[k, k] = lr[k]
-        for k in range(npair):
-            j = nr + 2 * k
-            Lam[j, j] = pr[k]
-            Lam[j + 1, j + 1] = pr[k]
-            Lam[j, j + 1] = pi[k]
-            Lam[j + 1, j] = -pi[k]
+        if lr is not None:  # nr > 0
+            for k in range(nr):
+                Lam[k, k] = lr[k]
+        if pr is not None and pi is not None:  # npair > 0
+            for k in range(npair):
+                j = nr + 2 * k
+                Lam[j, j] = pr[k]
+                Lam[j + 1, j + 1] = pr[k]
+                Lam[j, j + 1] = pi[k]
+                Lam[j + 1, j] = -pi[k]
         self.Lam = Lam
         Vt = opti.variable(n, n)
         Wt = opti.variable(n, n)
@@ -316,8 +320,9 @@ class RegionNLP(ObserverNLP):
             norms.append(ca.sumsqr(V[:, j]) + ca.sumsqr(V[:, j + 1]) - 2.0)
         opti.subject_to(ca.vertcat(*norms) == 0)
 
-        poles = [(lr[k], 0.0) for k in range(nr)] + [(pr[k], pi[k]) for k in range(npair)]
-        if npair:
+        poles = [(lr[k], 0.0) for k in range(nr)] if lr is not None else []
+        if pr is not None and pi is not None:
+            poles += [(pr[k], pi[k]) for k in range(npair)]
             opti.subject_to(pi >= 0)
         w0 = sc.omega
         if region is not None:
@@ -350,7 +355,8 @@ class RegionNLP(ObserverNLP):
             delta = opti.variable()
             self.vars["delta"] = delta
             opti.subject_to(delta >= 1e-12)
-            ev = poles + [(pr[k], -pi[k]) for k in range(npair)]
+            lowers = [(pr[k], -pi[k]) for k in range(npair)] if pr is not None and pi is not None else []
+            ev = poles + lowers
             gaps = [
                 (ev[i][0] - ev[j][0]) ** 2 + (ev[i][1] - ev[j][1]) ** 2 - delta * delta
                 for i in range(len(ev))
@@ -359,9 +365,10 @@ class RegionNLP(ObserverNLP):
             if gaps:
                 opti.subject_to(ca.vertcat(*gaps) >= 0)
             Xo = ca.diag(ca.DM(T)) @ Xt @ ca.diag(ca.DM(1.0 / T))  # (A - LC) / omega
-            lam2 = sum((lr[k] ** 2 for k in range(nr)), ca.MX(0)) + sum(
-                (2 * (pr[k] ** 2 + pi[k] ** 2) for k in range(npair)), ca.MX(0)
-            )
+            real_sq = sum((lr[k] ** 2 for k in range(nr)), ca.MX(0)) if lr is not None else ca.MX(0)
+            pair_sq = (sum((2 * (pr[k] ** 2 + pi[k] ** 2) for k in range(npair)), ca.MX(0))
+                       if pr is not None and pi is not None else ca.MX(0))
+            lam2 = real_sq + pair_sq
             dep2 = ca.sumsqr(Xo) - lam2
             delta2 = delta * delta
         Lorig = sc.omega * ca.diag(ca.DM(T)) @ Lt @ ca.diag(ca.DM(sc.S))
@@ -496,7 +503,8 @@ class FixedPoleNLP(ObserverNLP):
         self._objective_and_bounds(
             Vu, Wu, Lorig, dep2, self._delta2, max_gain=max_gain, kappa2_max=kappa2_max, eta_max=eta_max
         )
-        self._poles = None
+        #: (real poles, upper pair members) of the target, set by set_poles
+        self._poles: tuple[NDArray[np.float64], NDArray[np.complex128]] | None = None
 
     def set_poles(self, poles: ArrayLike) -> None:
         """Set the target poles (same real/pair pattern as the build): recomputes the null spaces.
@@ -566,6 +574,8 @@ class FixedPoleNLP(ObserverNLP):
         """``(Z, poles)``: the solver's complex eigenvector matrix (unit columns) and its poles."""
         n = self.plant.n
         V = np.asarray(value(self.Vu), dtype=float).reshape(n, n)
+        # a solution exists only for a problem whose poles (parameters of the NLP) were set
+        assert self._poles is not None, "basis() before set_poles()"
         real, pairs = self._poles
         # x - j y is the right eigenvector of the upper pole (the rows of W are Re w, Im w)
         return complex_basis(V, self.structure, real, pairs, -1.0)
