@@ -499,6 +499,7 @@ def test_well_conditioned_wiring_against_the_contract(paper, monkeypatch):
     """The mapping of the issue-4 contract (ObserverDesign with .L for the structured pair) to H, K, with a
     stand-in design (pole placement); the real NLP is tested above."""
     import optdesign.design.generalized as gen
+    import optdesign.design.generalized.verbs as gen_verbs
     from optdesign.classical.placement import place_observer
     from optdesign.results import Check, SolverStats, Status, Verification
 
@@ -522,7 +523,7 @@ def test_well_conditioned_wiring_against_the_contract(paper, monkeypatch):
             d.L = place_observer(aug, P)
         return d
 
-    monkeypatch.setattr(gen, "_call_well_conditioned", fake)
+    monkeypatch.setattr(gen_verbs, "_call_well_conditioned", fake)
     g = generalized_observer(paper["plant"], noise, method="well_conditioned", starts=3, seed=5,
                              options={"ipopt.max_iter": 50}, time_limit=7.5)
     assert calls["aug"].n == 5 and calls["aug"].p == 3 and calls["aug"].is_discrete

@@ -13,7 +13,7 @@ parametrized by one null vector ``g_b`` per target block (:mod:`optdesign.solver
 SDP: :mod:`optdesign.solvers.clarabel_fixed_gain`).  With ``Qdec = V V'`` (``Q = Gd Qdec Gd'``)
 :func:`solve_inverse_kalman` runs, from each of a few starts (a scaled identity whose Kalman poles
 are closest to the targets, the nominal for ``"nearest"``, seeded random covariances, a caller's
-warm start):
+warm start; :mod:`optdesign.solvers.inverse_kalman_starts`):
 
 1. *Feasibility* -- SQP over ``(V, g)`` (V of ``min(k, 2p + 2)`` columns) with a filter line search
    until nearly feasible, the objective reduced on the way, then Gauss-Newton onto the feasible
@@ -75,6 +75,7 @@ from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
 from ..results import Check, DesignResult, SolverStats, Status, Verification
 from .clarabel_fixed_gain import FamilyMap, FixedGainSolution, family_map, fixed_gain_family, solve_fixed_gain
+from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
 
@@ -208,108 +209,6 @@ def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
     there; :func:`optdesign.formulate.inverse_kalman.spectral_terms`)."""
     target = as_poles("poles", poles, setup.plant.n)
     return spectral_terms(setup.plant.A, setup.plant.C, target, setup.plant.dt) is not None
-
-
-# ============================================================================ helpers
-def _stable(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
-    return np.abs(z) < 1.0 if discrete else np.real(z) < 0.0
-
-
-def _kalman(plant: Plant, Q: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
-    """(L, P, poles) of the Kalman filter of the state-space noise Q by scipy (no validation), or
-    None where there is no stabilizing solution."""
-    A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
-    try:
-        with np.errstate(all="ignore"):
-            if plant.is_discrete:
-                P = sl.solve_discrete_are(A.T, C.T, Q, R)
-                L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
-            else:
-                P = sl.solve_continuous_are(A.T, C.T, Q, R)
-                L = np.linalg.solve(R, C @ P).T
-            poles = np.linalg.eigvals(A - L @ C)
-    except (np.linalg.LinAlgError, ValueError):
-        return None
-    if not (np.all(np.isfinite(poles)) and np.all(_stable(poles, plant.is_discrete))):
-        return None
-    return L, 0.5 * (P + P.T), poles
-
-
-def _scaled_start(setup: EngineSetup, target: NDArray, base: NDArray, deadline: Deadline) -> float:
-    """The scale ``a`` (log grid 1e-6 .. 1e6) whose ``a base`` has Kalman poles closest to the
-    targets (1 when none has a Kalman filter; the best so far when the deadline expires)."""
-    best = (1.0, float("inf"))
-    for a in np.logspace(-6, 6, 25):
-        if deadline.expired:
-            break
-        kal = _kalman(setup.plant, setup.Gd @ (a * base) @ setup.Gd.T)
-        if kal is not None:
-            e = pole_error(kal[2], target)
-            if e < best[1]:
-                best = (float(a), float(e))
-    return best[0]
-
-
-def _placement_scale(setup: EngineSetup, target: NDArray) -> float | None:
-    """``||L0 R L0'|| / ||Gd||^2`` for a gain L0 with the target poles: the size of the noise such
-    a gain asks for (``Q = L R L' - A P - P A'``).  L0 is the gain of the null vectors of the
-    spectral matrices at ``Qdec = I`` (any null vectors place the poles: O(n^3), where scipy's
-    robust placement takes seconds at n = 20); None where the spectral form does not apply."""
-    terms = spectral_terms(setup.plant.A, setup.plant.C, target, setup.plant.dt)
-    if terms is None:
-        return None
-    blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd)
-    try:
-        L0, _ = blocks.gain(initial_null_vectors(blocks, np.eye(setup.k)))
-    except np.linalg.LinAlgError:
-        return None
-    c = float(np.linalg.norm(L0 @ np.asarray(setup.plant.R, dtype=float) @ L0.T, 2))
-    c /= max(1e-300, float(np.linalg.norm(setup.Gd, 2)) ** 2)
-    return c if np.isfinite(c) and c > 0 else None
-
-
-def _starts(setup: EngineSetup, target: NDArray, Qn: NDArray | None, count: int, seed: int,
-            warm: NDArray | None, deadline: Deadline) -> list[tuple[str, NDArray]]:
-    """The decision-covariance starts, in order: the warm start, the scaled identity whose Kalman
-    poles are closest to the targets, the scaled nominal (``"nearest"``), then seeded random
-    covariances at the scale of the scaled identity -- unless that scale is at an end of its grid
-    (no scale of the identity comes close), where the pole-placement scale
-    (:func:`_placement_scale`) replaces it for the random starts and adds its own identity."""
-    k = setup.k
-    a = _scaled_start(setup, target, np.eye(k), deadline)
-    c = _placement_scale(setup, target) if not (1e-6 < a < 1e6 or deadline.expired) else None
-    out: list[tuple[str, NDArray]] = []
-    if warm is not None:
-        out.append(("warm start", warm))
-    out.append(("scaled identity", a * np.eye(k)))
-    if Qn is not None:
-        w, U = np.linalg.eigh(0.5 * (Qn + Qn.T))
-        Wn = (U * np.maximum(w, 1e-3 * max(float(w[-1]), 1e-300))) @ U.T
-        out.append(("scaled nominal", _scaled_start(setup, target, Wn, deadline) * Wn))
-    if c is not None:
-        out.append(("placement-scaled identity", c * np.eye(k)))
-    rng = np.random.default_rng(seed)
-    cr = a if c is None else c
-    while len(out) < count:
-        F = rng.standard_normal((k, k))
-        out.append(("random", cr * (F @ F.T / k + 0.1 * np.eye(k))))
-    return out[:max(1, count)]
-
-
-def _rescue_starts(setup: EngineSetup, target: NDArray, count: int, seed: int,
-                   deadline: Deadline) -> list[tuple[str, NDArray]]:
-    """Further starts when none of the first gave a feasible point: seeded random covariances at the
-    pole-placement scale and at 10, 1/10 and 100 times the scaled identity's (the feasible Q of a
-    target may be far from every scaled identity: measured on repeated targets)."""
-    k = setup.k
-    a = _scaled_start(setup, target, np.eye(k), deadline)
-    scales = [c for c in (_placement_scale(setup, target), 10.0 * a, 0.1 * a, 100.0 * a) if c is not None]
-    rng = np.random.default_rng(seed + 7919)
-    out = []
-    for i in range(max(1, count)):
-        F = rng.standard_normal((k, k))
-        out.append(("random (rescue)", scales[i % len(scales)] * (F @ F.T / k + 0.1 * np.eye(k))))
-    return out
 
 
 @dataclass
@@ -651,7 +550,7 @@ def _verify(setup: EngineSetup, target: NDArray, L: NDArray, P: NDArray, Q: NDAr
             1.0, float(np.linalg.norm(Qw, 2))), -rnd, "smallest eigenvalue of Qw / max(1, ||Qw||)"))
         mis = float(np.linalg.norm(G @ Qw @ G.T - Q)) / max(1.0, float(np.linalg.norm(Q)))
         checks.append(Check.at_most("structure", mis, rnd, "||G Qw G' - Q|| / max(1, ||Q||)"))
-    kal = _kalman(plant, Q)
+    kal = scipy_kalman(plant, Q)
     if kal is None:
         checks.append(Check.at_most("are_resolve_gain", float("inf"), 0.0,
                                     "scipy's Riccati solver gave no stabilizing solution with the "
@@ -777,7 +676,7 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
     Qn = _nominal(setup, Q_nominal)
     warm = _warm(setup, warm_start)
     common = dict(tol=tol)
-    if not np.all(_stable(target, plant.is_discrete)):
+    if not np.all(stable_mask(target, plant.is_discrete)):
         where = "inside the unit circle" if plant.is_discrete else "in the open left half-plane"
         msg = f"infeasible: a target pole is not {where}, and every steady-state Kalman filter is stable"
         return _result(setup, target, Status.INFEASIBLE, msg, t0, cpu0,
@@ -857,7 +756,7 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
     records: list[dict[str, Any]] = []
     best: _Candidate | None = None
     iterations = 0
-    queue = _starts(setup, target, Qn, starts, seed, warm, deadline)
+    queue = decision_starts(setup, target, Qn, starts, seed, warm, deadline)
     rescue = True
     while queue:
         kind, W = queue.pop(0)
@@ -878,7 +777,7 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
             rec.get("projection_iterations", 0) + sum(h["iterations"] for h in rec.get("newton", []))
         rec["cpu_time"] = time.process_time() - tic
         if not queue and best is None and rescue:   # nothing feasible yet: as many rescue starts again
-            queue, rescue = _rescue_starts(setup, target, starts, seed, deadline), False
+            queue, rescue = rescue_starts(setup, target, starts, seed, deadline), False
     details: dict[str, Any] = {"starts": records}
     if best is None:
         status = Status.TIME_LIMIT if deadline.expired else Status.NOT_FOUND

@@ -1,0 +1,127 @@
+"""Starting points of the inverse Kalman engine (:mod:`optdesign.solvers.inverse_kalman_engine`): the
+decision covariances its SQP starts from (a scaled identity whose Kalman poles are closest to the targets,
+the scaled nominal, seeded random covariances, the rescue starts), and the scipy Kalman filter of a noise
+covariance they are measured by.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.linalg as sl
+from numpy.typing import NDArray
+
+from .._deadline import Deadline
+from ..classical.placement import pole_error
+from ..formulate.inverse_kalman import spectral_terms
+from ..model.plant import Plant
+from .spectral_factor import initial_null_vectors, spectral_blocks
+
+if TYPE_CHECKING:
+    from .inverse_kalman_engine import EngineSetup
+
+__all__ = ["stable_mask", "scipy_kalman", "scaled_start", "placement_scale", "decision_starts",
+           "rescue_starts"]
+
+
+def stable_mask(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
+    """Elementwise stability of the poles ``z``: ``|z| < 1`` (discrete) or ``Re z < 0`` (continuous)."""
+    return np.abs(z) < 1.0 if discrete else np.real(z) < 0.0
+
+
+def scipy_kalman(plant: Plant, Q: NDArray) -> tuple[NDArray, NDArray, NDArray] | None:
+    """(L, P, poles) of the Kalman filter of the state-space noise Q by scipy (no validation), or
+    None where there is no stabilizing solution."""
+    A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
+    try:
+        with np.errstate(all="ignore"):
+            if plant.is_discrete:
+                P = sl.solve_discrete_are(A.T, C.T, Q, R)
+                L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+            else:
+                P = sl.solve_continuous_are(A.T, C.T, Q, R)
+                L = np.linalg.solve(R, C @ P).T
+            poles = np.linalg.eigvals(A - L @ C)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+    if not (np.all(np.isfinite(poles)) and np.all(stable_mask(poles, plant.is_discrete))):
+        return None
+    return L, 0.5 * (P + P.T), poles
+
+
+def scaled_start(setup: EngineSetup, target: NDArray, base: NDArray, deadline: Deadline) -> float:
+    """The scale ``a`` (log grid 1e-6 .. 1e6) whose ``a base`` has Kalman poles closest to the
+    targets (1 when none has a Kalman filter; the best so far when the deadline expires)."""
+    best = (1.0, float("inf"))
+    for a in np.logspace(-6, 6, 25):
+        if deadline.expired:
+            break
+        kal = scipy_kalman(setup.plant, setup.Gd @ (a * base) @ setup.Gd.T)
+        if kal is not None:
+            e = pole_error(kal[2], target)
+            if e < best[1]:
+                best = (float(a), float(e))
+    return best[0]
+
+
+def placement_scale(setup: EngineSetup, target: NDArray) -> float | None:
+    """``||L0 R L0'|| / ||Gd||^2`` for a gain L0 with the target poles: the size of the noise such
+    a gain asks for (``Q = L R L' - A P - P A'``).  L0 is the gain of the null vectors of the
+    spectral matrices at ``Qdec = I`` (any null vectors place the poles: O(n^3), where scipy's
+    robust placement takes seconds at n = 20); None where the spectral form does not apply."""
+    terms = spectral_terms(setup.plant.A, setup.plant.C, target, setup.plant.dt)
+    if terms is None:
+        return None
+    blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd)
+    try:
+        L0, _ = blocks.gain(initial_null_vectors(blocks, np.eye(setup.k)))
+    except np.linalg.LinAlgError:
+        return None
+    c = float(np.linalg.norm(L0 @ np.asarray(setup.plant.R, dtype=float) @ L0.T, 2))
+    c /= max(1e-300, float(np.linalg.norm(setup.Gd, 2)) ** 2)
+    return c if np.isfinite(c) and c > 0 else None
+
+
+def decision_starts(setup: EngineSetup, target: NDArray, Qn: NDArray | None, count: int, seed: int,
+            warm: NDArray | None, deadline: Deadline) -> list[tuple[str, NDArray]]:
+    """The decision-covariance starts, in order: the warm start, the scaled identity whose Kalman
+    poles are closest to the targets, the scaled nominal (``"nearest"``), then seeded random
+    covariances at the scale of the scaled identity -- unless that scale is at an end of its grid
+    (no scale of the identity comes close), where the pole-placement scale
+    (:func:`placement_scale`) replaces it for the random starts and adds its own identity."""
+    k = setup.k
+    a = scaled_start(setup, target, np.eye(k), deadline)
+    c = placement_scale(setup, target) if not (1e-6 < a < 1e6 or deadline.expired) else None
+    out: list[tuple[str, NDArray]] = []
+    if warm is not None:
+        out.append(("warm start", warm))
+    out.append(("scaled identity", a * np.eye(k)))
+    if Qn is not None:
+        w, U = np.linalg.eigh(0.5 * (Qn + Qn.T))
+        Wn = (U * np.maximum(w, 1e-3 * max(float(w[-1]), 1e-300))) @ U.T
+        out.append(("scaled nominal", scaled_start(setup, target, Wn, deadline) * Wn))
+    if c is not None:
+        out.append(("placement-scaled identity", c * np.eye(k)))
+    rng = np.random.default_rng(seed)
+    cr = a if c is None else c
+    while len(out) < count:
+        F = rng.standard_normal((k, k))
+        out.append(("random", cr * (F @ F.T / k + 0.1 * np.eye(k))))
+    return out[:max(1, count)]
+
+
+def rescue_starts(setup: EngineSetup, target: NDArray, count: int, seed: int,
+                   deadline: Deadline) -> list[tuple[str, NDArray]]:
+    """Further starts when none of the first gave a feasible point: seeded random covariances at the
+    pole-placement scale and at 10, 1/10 and 100 times the scaled identity's (the feasible Q of a
+    target may be far from every scaled identity: measured on repeated targets)."""
+    k = setup.k
+    a = scaled_start(setup, target, np.eye(k), deadline)
+    scales = [c for c in (placement_scale(setup, target), 10.0 * a, 0.1 * a, 100.0 * a) if c is not None]
+    rng = np.random.default_rng(seed + 7919)
+    out = []
+    for i in range(max(1, count)):
+        F = rng.standard_normal((k, k))
+        out.append(("random (rescue)", scales[i % len(scales)] * (F @ F.T / k + 0.1 * np.eye(k))))
+    return out
