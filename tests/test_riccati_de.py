@@ -262,10 +262,10 @@ def test_bpf_fails_on_long_horizons_and_says_so():
 
 def test_bpf_does_not_break_on_random_plants():
     """Issue 11, item 7: on 10 random continuous plants (fixed seed; n = 2..6, stable and unstable,
-    horizons 5-20 s, 400 blocks) the paper's recursion raised 'phi_k singular' on 8, at t = 2.6 to
-    13.8 s.  Restarted, every one is solved; the error is the method's (second order: twice the
-    blocks, a quarter of the error) and the restarted coefficients are the unrestarted ones
-    wherever those are computable."""
+    horizons 5-20 s, 400 blocks) the paper's recursion raised 'phi_k singular' on 8 (7 with numpy 1.24 /
+    scipy 1.10: where it breaks is a rounding event), at t = 2.6 to 13.8 s.  Restarted, every one is
+    solved; the error is the method's (second order: twice the blocks, a quarter of the error) and the
+    restarted coefficients are the unrestarted ones wherever those are computable."""
     rng = np.random.default_rng(11)
     broke = 0
     for k in range(10):
@@ -285,7 +285,7 @@ def test_bpf_does_not_break_on_random_plants():
         # the restart changes rounding only: the two agree far below the method's own error (by 1e-7 ..
         # 1e-5 of it on these plants, depending on the LAPACK build; asserted: a thousandth)
         assert _rel(tr.P, plain.P) < 1e-3 * tr.error_estimate
-    assert broke == 8
+    assert broke >= 5  # the unrestarted recursion fails on most of them; the restarted one on none
 
 
 def test_hopeless_stiff_plant_raises():

@@ -949,8 +949,12 @@ def test_not_found_is_not_infeasible():
 #: 2.0e5 while YT at the naive poles gives 7.5e3 (now 946, from the naive start; HE5, 4.5e7 -> 76,
 #: takes 13 s and runs in full); OPTDESIGN_FULL=1 runs all 30 at starts=2 (~15 min)
 COMPLEIB_QUICK = ["compleib_ac17", "compleib_dis2", "compleib_uwv"]
-#: measured kappa2 with starts=1 (regression guards, far below YT at the naive poles)
+#: measured kappa2 with starts=1 (regression guards against the old failures -- UWV 2.0e5, HE5 4.5e7 --
+#: far below YT at the naive poles); the local optimum one start reaches moves with the rounding of the
+#: BLAS/LAPACK build (UWV: 946.4 native, 947.4 with numpy 1.24 / scipy 1.10, 948.3 under
+#: OPENBLAS_CORETYPE=Prescott), so the guard allows 1 %
 COMPLEIB_MEASURED = {"compleib_he5": 75.92, "compleib_uwv": 946.4}
+COMPLEIB_MEASURED_RTOL = 1e-2
 COMPLEIB_ALL = [n for n in problems.names() if n.startswith("compleib")]
 #: REA4 (n = 8, p = 1, eight unstable modes clustered near 0.6, weakly observable together): no gain
 #: placing the poles in this region is computable in double precision -- scipy YT at the naive poles
@@ -1030,7 +1034,7 @@ def test_compleib_region_designs(name):
     k_opt = _yt(plant, d.poles)
     assert d.kappa2 <= (math.inf if k_opt is None else k_opt) * (1 + 1e-6)
     if name in COMPLEIB_MEASURED:  # starts=2 includes the starts=1 candidates
-        assert d.kappa2 <= COMPLEIB_MEASURED[name] * (1 + 1e-3), (name, d.kappa2)
+        assert d.kappa2 <= COMPLEIB_MEASURED[name] * (1 + COMPLEIB_MEASURED_RTOL), (name, d.kappa2)
 
 
 # ----------------------------------------------------------------------------- routes (issue 13)
