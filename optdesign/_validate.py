@@ -40,6 +40,7 @@ __all__ = [
     "as_options",
     "as_rng",
     "as_str",
+    "as_gain_mask",
     "sym_tol",
 ]
 
@@ -445,3 +446,38 @@ def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *,
     warnings.warn(f"{old}= is deprecated: use {new}= (the old spelling goes in the next release)",
                   DeprecationWarning, stacklevel=stacklevel)
     return old_value
+
+
+def as_gain_mask(name: str, value: object, n: int, p: int, *,
+                 label: str = " (mask of free entries of L)") -> NDArray[np.bool_] | None:
+    """A mask of the free entries of a gain ``L`` (n, p) as a boolean array; None stays None.
+
+    ``label`` follows ``name`` in the shape message (the design verbs say what the mask is; the solver
+    layer leaves it out).
+
+    Raises
+    ------
+    DimensionError
+        Not of shape (n, p).
+    ValidationError
+        Ragged or non-numeric; entries other than booleans or 0/1; no free entry (L would be zero).
+    """
+    if value is None:
+        return None
+    what = f"{name} must be a boolean mask of shape ({n}, {p}) (True = free entry of L)"
+    try:
+        m = np.asarray(value)
+    except (ValueError, TypeError):  # ragged nests
+        raise ValidationError(f"{what}; found a ragged or non-numeric {type(value).__name__}") from None
+    if m.dtype.kind not in "biuf":
+        raise ValidationError(f"{what}; found dtype {m.dtype}")
+    if m.shape != (n, p):
+        raise DimensionError(f"{name}{label} must have shape ({n}, {p}); found {m.shape}")
+    if m.dtype != bool:
+        if not np.all(np.isin(m, (0, 1))):
+            raise ValidationError(f"{name} must be boolean (a boolean mask: True = free entry of L, "
+                                  "False = structural zero); found entries other than 0 and 1")
+        m = m.astype(bool)
+    if not m.any():
+        raise ValidationError(f"{name} has no free entry: L would be zero (nothing to design)")
+    return m

@@ -9,6 +9,7 @@ from optdesign._validate import (
     as_array,
     as_bool,
     as_frequencies,
+    as_gain_mask,
     as_int,
     as_matrix,
     as_options,
@@ -237,3 +238,23 @@ def test_as_int_and_as_bool():
     for bad in (1, 0, "yes", None):
         with pytest.raises(ValidationError, match="reuse must be true or false; found"):
             as_bool("reuse", bad)
+
+
+def test_as_gain_mask_is_the_one_mask_validator():
+    """One validator for the masks of free gain entries (the well-conditioned, robust and engine routes)."""
+    assert as_gain_mask("gain_mask", None, 3, 2) is None
+    m = as_gain_mask("gain_mask", [[1, 0], [1, 1], [0, 1]], 3, 2)
+    assert m.dtype == bool and m.tolist() == [[True, False], [True, True], [False, True]]
+    shape = r"gain_mask \(mask of free entries of L\) must have shape \(3, 2\); found \(2, 3\)"
+    with pytest.raises(DimensionError, match=shape):
+        as_gain_mask("gain_mask", np.ones((2, 3), bool), 3, 2)
+    with pytest.raises(DimensionError, match=r"^gain_mask must have shape \(3, 2\)"):
+        as_gain_mask("gain_mask", np.ones((2, 3), bool), 3, 2, label="")
+    with pytest.raises(ValidationError, match="must be boolean .*found entries other than 0 and 1"):
+        as_gain_mask("gain_mask", np.full((3, 2), 0.5), 3, 2)
+    with pytest.raises(ValidationError, match="found a ragged or non-numeric list"):
+        as_gain_mask("gain_mask", [[True, False], [True]], 3, 2)
+    with pytest.raises(ValidationError, match="found dtype <U1"):
+        as_gain_mask("gain_mask", np.array([["a", "b"]] * 3), 3, 2)
+    with pytest.raises(ValidationError, match="gain_mask has no free entry"):
+        as_gain_mask("gain_mask", np.zeros((3, 2), bool), 3, 2)

@@ -60,7 +60,7 @@ import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, as_time_limit
-from .._validate import as_int, as_matrix, as_positive_float
+from .._validate import as_gain_mask, as_int, as_matrix, as_positive_float
 from ..classical.riccati import filter_are
 from ..errors import ValidationError
 from ..formulate.robust_nlp import KAPPA2_ORDERS, RobustNLP, build_robust_nlp
@@ -74,7 +74,6 @@ from .robust_result import (
     RobustStart,
     as_regions,
     check_choice,
-    check_gain_mask,
     failed_design,
     fixed_mode_certificate,
     optional_bound,
@@ -229,7 +228,7 @@ def robust_observer(
         soft=as_regions(soft_region, ms, "soft_region", default=False),
         objective=check_choice("objective", objective, ("kappa2", "h2", "gain")),
         aggregate=check_choice("aggregate", aggregate, ("max", "mean")),
-        mask=check_gain_mask(gain_mask, ms.n, ms.p),
+        mask=as_gain_mask("gain_mask", gain_mask, ms.n, ms.p, label=" (free entries of L)"),
         kappa2_max=optional_bound("kappa2_max", kappa2_max, 1.0),
         bounds={
             "h2_max": optional_bound("h2_max", h2_max),

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, as_time_limit
-from .._validate import as_int, as_positive_float
+from .._validate import as_gain_mask, as_int, as_positive_float
 from ..errors import ValidationError
 from ..formulate.robust_lmi import build_robust_lmi, default_margin
 from ..model.model_set import ModelSet, as_model_set
@@ -43,7 +43,6 @@ from .robust_result import (
     RobustObserverDesign,
     as_regions,
     check_choice,
-    check_gain_mask,
     failed_design,
     fixed_mode_certificate,
     optional_bound,
@@ -133,7 +132,7 @@ def robust_lmi_observer(
     ms = as_model_set(models, weights)
     regions = as_regions(region, ms, "region", default=True)
     check_choice("objective", objective, ("cond", "gain", "h2", "hinf"))
-    mask = check_gain_mask(gain_mask, ms.n, ms.p)
+    mask = as_gain_mask("gain_mask", gain_mask, ms.n, ms.p, label=" (free entries of L)")
     h2_max, hinf_max, max_gain = (
         optional_bound("h2_max", h2_max),
         optional_bound("hinf_max", hinf_max),

@@ -26,7 +26,6 @@ __all__ = [
     "RobustObserverDesign",
     "RobustStart",
     "as_regions",
-    "check_gain_mask",
     "optional_bound",
     "check_choice",
     "fixed_mode_certificate",
@@ -269,32 +268,6 @@ def _check_region_stable(region: Region, discrete: bool, name: str) -> None:
             f"{name} {region!r} reaches Re s = {region.real_interval()[1]:.6g} > 0, outside the "
             "continuous-time stability region; intersect it with HalfPlane(alpha), alpha >= 0"
         )
-
-
-def check_gain_mask(gain_mask: Any, n: int, p: int) -> NDArray[np.bool_] | None:
-    """``gain_mask`` as an (n, p) boolean array (None stays None).
-
-    Raises
-    ------
-    DimensionError
-        Wrong shape.
-    ValidationError
-        Not boolean (or 0/1), or no free entry.
-    """
-    if gain_mask is None:
-        return None
-    m = np.asarray(gain_mask)
-    if m.shape != (n, p):
-        raise DimensionError(f"gain_mask (free entries of L) must have shape ({n}, {p}); found {m.shape}")
-    if m.dtype != bool:
-        if not np.all(np.isin(m, (0, 1))):
-            raise ValidationError(
-                "gain_mask must be boolean (True = free entry of L, False = structural zero)"
-            )
-        m = m.astype(bool)
-    if not m.any():
-        raise ValidationError("gain_mask has no free entry: L would be zero (nothing to design)")
-    return m
 
 
 def optional_bound(name: str, value: Any, lo: float | None = None) -> float | None:

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
-from .._validate import as_int, as_poles
+from .._validate import as_gain_mask, as_int, as_poles
 from ..analysis import metrics
 from ..errors import DimensionError, NotObservableError, ValidationError
 from ..results import Status
@@ -482,20 +482,8 @@ def _start_points(
 
 def _mask_zeros(gain_mask: ArrayLike | None, n: int, p: int) -> NDArray[np.bool_] | None:
     """The structural zeros (True) of a mask of free entries, or None when there are none."""
-    if gain_mask is None:
-        return None
-    m = np.asarray(gain_mask)
-    if m.shape != (n, p):
-        raise DimensionError(f"gain_mask must have shape ({n}, {p}) (the shape of L); found {m.shape}")
-    if m.dtype != bool:
-        if not np.all(np.isin(m, (0, 1))):
-            raise ValidationError(
-                "gain_mask must be boolean (True = free entry of L, False = structural zero)"
-            )
-        m = m.astype(bool)
-    if not m.any():
-        raise ValidationError("gain_mask has no free entry: L would be zero (nothing to design)")
-    return None if m.all() else ~m
+    m = as_gain_mask("gain_mask", gain_mask, n, p, label="")
+    return None if m is None or m.all() else ~m
 
 
 #: relative violation ``max |L_ij| / ||L_start||_F`` on the structural zeros accepted before they

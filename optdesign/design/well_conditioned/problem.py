@@ -23,7 +23,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._deadline import Deadline, as_time_limit
 from ..._progress import Progress, as_progress
-from ..._validate import as_bool, as_int, as_poles, as_positive_float
+from ..._validate import as_bool, as_gain_mask, as_int, as_poles, as_positive_float
 from ...errors import DimensionError, ValidationError
 from ...formulate.well_conditioned import NLPScaling, PoleStructure, build_observer_nlp, check_objective
 from ...model.coerce import as_plant
@@ -45,42 +45,13 @@ from .nlp_route import ipopt_options, nlp_fixed_runner, nlp_region_runner, solve
 from .results import ObserverDesign, StartRecord, n_converged, no_design
 from .starts import fixed_starts, region_starts
 
-__all__ = ["WellConditionedProblem", "Objective", "check_gain_mask", "check_region", "kappa2_bound",
+__all__ = ["WellConditionedProblem", "Objective", "check_region", "kappa2_bound",
            "result_from"]
 
 Objective = Literal["kappa2", "kappa_fro", "eta"]
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
-
-
-def check_gain_mask(gain_mask: Any, n: int, p: int, name: str = "gain_mask") -> NDArray[np.bool_] | None:
-    """The boolean mask of the free entries of ``L`` (n, p), or None.
-
-    Raises
-    ------
-    ValidationError, DimensionError
-        Not a boolean (0/1) array of shape (n, p), or no free entry.
-    """
-    if gain_mask is None:
-        return None
-    what = f"{name} must be a boolean mask of shape ({n}, {p}) (True = free entry of L)"
-    try:
-        m = np.asarray(gain_mask)
-    except (ValueError, TypeError):  # ragged nests
-        raise ValidationError(f"{what}; found a ragged or non-numeric {type(gain_mask).__name__}") from None
-    if m.dtype.kind not in "biuf":
-        raise ValidationError(f"{what}; found dtype {m.dtype}")
-    if m.shape != (n, p):
-        raise DimensionError(f"{name} (mask of free entries of L) must have shape ({n}, {p}); "
-                             f"found {m.shape}")
-    if m.dtype != bool:
-        if not np.all(np.isin(m, (0, 1))):
-            raise ValidationError(f"{name} must be a boolean mask (True = free entry of L, False = zero)")
-        m = m.astype(bool)
-    if not m.any():
-        raise ValidationError(f"{name} has no free entry: L would be zero (nothing to design)")
-    return m
 
 
 def check_region(region: Any) -> Region:
@@ -240,7 +211,7 @@ class WellConditionedProblem:
         self.starts = as_int("starts", starts, 1)
         self.seed = as_int("seed", seed, 0)
         self.scaling = as_bool("scaling", scaling)
-        self.mask = check_gain_mask(gain_mask, plant.n, plant.p)
+        self.mask = as_gain_mask("gain_mask", gain_mask, plant.n, plant.p)
         self.bounds = self._bounds(max_gain=max_gain, kappa2_max=kappa2_max, eta_max=eta_max)
         self.options = ipopt_options(options)
         if region is not None and poles is not None:
