@@ -78,8 +78,6 @@ stable symmetric eigenvalues (ch. 15 notes), Lyapunov/Sylvester conditioning (ch
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-
 import numpy as np
 from numpy.typing import NDArray
 
@@ -378,8 +376,3 @@ def _psd_part(X: NDArray) -> NDArray:
     lam, U = np.linalg.eigh(0.5 * (X + X.T))
     Y = (U * np.maximum(lam, 0.0)) @ U.T
     return 0.5 * (Y + Y.T)
-
-
-def failed_names(checks: Iterable[Check]) -> list[str]:
-    """Names of the failed checks, in order."""
-    return [c.name for c in checks if not c.passed]
