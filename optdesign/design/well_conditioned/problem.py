@@ -509,7 +509,8 @@ class WellConditionedProblem:
                                               len(records))
                 records, evaluated = records + more_r, evaluated + more_e
             if self.route == "auto" and engine_ok and use_nlp and not deadline.expired:
-                more_r, more_e = self._engine_polish(region, objective, evaluated, seed, deadline, bound)
+                more_r, more_e = self._engine_polish(region, objective, evaluated, seed, deadline, bound,
+                                                     evaluate)
                 if more_r:
                     planned += 1
                     route = "nlp+engine"
@@ -518,7 +519,8 @@ class WellConditionedProblem:
                            deadline=deadline, planned=planned, route=route)
 
     def _engine_polish(self, region: Region, objective: str, evaluated: list[Evaluated], seed: Any,
-                       deadline: Deadline, bound: float | None) -> tuple[list[StartRecord], list[Evaluated]]:
+                       deadline: Deadline, bound: float | None,
+                       evaluate: Callable[[Any], Any]) -> tuple[list[StartRecord], list[Evaluated]]:
         """One placement-engine start from the best verified design so far (its gain and poles); nothing
         when there is none or it attains the objective's lower bound."""
         good = [e for e in evaluated if e[3].passed and np.all(np.isfinite(e[4].L))]
@@ -529,8 +531,6 @@ class WellConditionedProblem:
             return [], []
         L0 = np.asarray(best[4].L, dtype=float)
         P0 = np.linalg.eigvals(self.plant.A - L0 @ self.plant.C)
-        evaluate = partial(evaluate_candidate, self.plant, target=None, region=region, mask=None,
-                           max_gain=None, kappa2_max=None, eta_max=None)
         recs, evs = engine_region(self.engine, region, objective,
                                   [("engine from the best design", L0, P0, True)], seed=_int_seed(seed),
                                   deadline=deadline, evaluate=evaluate, lower_bound=bound)
