@@ -119,9 +119,8 @@ def region_from_args(args: argparse.Namespace, discrete: bool = False):
     if not members:
         return None
     if discrete and (args.alpha is not None or args.zeta is not None):
-        raise CLIError("--alpha/--zeta describe continuous-time regions; this plant is discrete (use "
-                       "--region "
-                       "disk:R)")
+        raise CLIError("--alpha/--zeta describe continuous-time regions; this plant is discrete "
+                       "(use --region disk:R)")
     region = members[0]
     try:
         for m in members[1:]:
