@@ -110,7 +110,10 @@ def test_fixed_poles_beat_scipy_on_every_benchmark(pp_results):
 
 
 def test_fixed_poles_reference_values(pp_results):
-    """Values measured for this formulation (regression guard; each is <= scipy's, see above)."""
+    """Regression guard.  The values are not the verb's own output: they are the best kappa2 an
+    independent search found (scipy L-BFGS-B from 12 random eigenvector coordinates and the YT start, on
+    the smooth kappa2 bound; benchmarks/bench_placement.py, results/placement.md: 3.172491, 33.97826,
+    33.16421, 84.00417, 63.97236), rounded; each is also <= scipy's (see above)."""
     expected = {
         "pp_knv1985_ex1": 3.1725,
         "pp_knv1985_ex2": 33.979,
