@@ -226,18 +226,27 @@ def run_starts(
             its[i] += r.iterations
             evs[i] += r.evaluations
             reasons[i] = r.reason
-        alive = _distinct(model, X, alive, [r.f for r in res], reasons)
+        alive = _distinct(model, X, alive, [r.f for r in res], reasons, _STAGE_FTOL.get(k, 1e-8))
     return [(model.normalize(X[i]), int(its[i]), int(evs[i]), reasons[i]) for i in range(s)]
 
 
 def _distinct(
-    model: FixedPoleModel, X: NDArray, alive: list[int], f: list[float], reasons: list[str]
+    model: FixedPoleModel, X: NDArray, alive: list[int], f: list[float], reasons: list[str], ftol: float
 ) -> list[int]:
-    """The members of ``alive`` not at the point of an earlier one (the others marked duplicates)."""
+    """The members of ``alive`` not at the point of an earlier one (the others marked duplicates).
+
+    "The same point" is judged at the accuracy the stage converged to (its relative decrease
+    tolerance ``ftol``): values equal to ``ftol / 10`` and normalized coordinates to
+    ``sqrt(ftol)`` (near a smooth minimizer ``f - f* ~ |x - x*|^2``), but never tighter than
+    1e-9 and 1e-6.  Measured (issue 13): after the loose first stage (``ftol = 1e-5``) starts in
+    one basin sit up to ~4e-3 apart with values equal to 7e-7, while distinct basins of equal
+    value (the flat valleys of Chu's example 9) are 0.4-1.7 apart.
+    """
+    tol_f, tol_x = max(1e-9, 0.1 * ftol), max(1e-6, math.sqrt(ftol))
     keep: list[tuple[int, float, NDArray]] = []
     for i, fi in zip(alive, f, strict=True):
         xi = model.normalize(X[i])
-        if any(abs(fi - fk) <= 1e-9 * max(1.0, abs(fk)) and np.max(np.abs(xi - xk)) <= 1e-6
+        if any(abs(fi - fk) <= tol_f * max(1.0, abs(fk)) and np.max(np.abs(xi - xk)) <= tol_x
                for _, fk, xk in keep):
             reasons[i] = "duplicate"
             continue
