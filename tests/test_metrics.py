@@ -206,6 +206,7 @@ def test_condition_summary_matches_functions(rng):
     assert s["departure"] == departure(X)
     assert s["min_gap"] == min_gap(X)
     assert s["eta"] == eta(X)
+    assert s["rounding_floor"] == eigenvalue_rounding_floor(X)
     assert s["coincident"] is False
     w = np.linalg.eigvals(X)
     gaps = [abs(w[i] - w[j]) for i in range(4) for j in range(4) if i != j]
@@ -279,7 +280,8 @@ def test_defective_gives_inf(k, rng):
         assert min(abs(w[i] - w[j]) for i in range(n) for j in range(i + 1, n)) > 0  # rounding split
         s = condition_summary(X)
         assert s == {"kappa2": np.inf, "kappa_fro": np.inf, "departure": s["departure"],
-                     "min_gap": 0.0, "eta": np.inf, "coincident": True}
+                     "min_gap": 0.0, "eta": np.inf, "coincident": True,
+                     "rounding_floor": eigenvalue_rounding_floor(X)}
         assert kappa2(X) == np.inf and eta(X) == np.inf and kappa_fro(X) == np.inf
         assert min_gap(X) == 0.0
         assert 0 < departure(X) < np.inf
@@ -319,7 +321,7 @@ def test_tolerance_keyword(rng):
 def test_one_by_one():
     s = condition_summary([[3.0]])
     assert s == {"kappa2": 1.0, "kappa_fro": 1.0, "departure": 0.0, "min_gap": np.inf,
-                 "eta": 0.0, "coincident": False}
+                 "eta": 0.0, "coincident": False, "rounding_floor": eigenvalue_rounding_floor([[3.0]])}
     assert kappa2(5.0) == 1.0 and eta([[-2.0]]) == 0.0 and min_gap([[1.0]]) == np.inf
     assert kappa_fro([[1.0]]) == 1.0 and departure([[1.0]]) == 0.0
 
@@ -355,3 +357,13 @@ def test_bad_tolerance(func):
             func(X, tol=-1.0)
     with pytest.raises(ValidationError, match="n must be an integer >= 0; found 2.5"):
         coincidence_tol(2.5)
+
+
+def test_condition_summary_rounding_floor_is_the_function(rng):
+    """The summary's floor comes from its own Schur form: identical to eigenvalue_rounding_floor on
+    real, complex, badly scaled and defective matrices."""
+    cases = [rng.standard_normal((5, 5)), rng.standard_normal((3, 3)) + 1j * rng.standard_normal((3, 3)),
+             np.diag([1e-6, 1.0, 1e6]) @ rng.standard_normal((3, 3)), np.array([[1.0, 1.0], [0.0, 1.0]])]
+    for X in cases:
+        assert condition_summary(X)["rounding_floor"] == eigenvalue_rounding_floor(X)
+    assert condition_summary(np.array([[1.0, 1.0], [0.0, 1.0]]))["coincident"] is True

@@ -476,9 +476,10 @@ def condition_summary(X: ArrayLike, *, tol: float | None = None) -> dict[str, fl
     Returns
     -------
     dict
-        ``{"kappa2", "kappa_fro", "departure", "min_gap", "eta"}`` (floats, as returned by the
-        individual functions) and ``"coincident"`` (bool: two eigenvalues are numerically
-        coincident, hence the infinities).
+        ``{"kappa2", "kappa_fro", "departure", "min_gap", "eta", "rounding_floor"}`` (floats, as
+        returned by the individual functions; ``rounding_floor``: :func:`eigenvalue_rounding_floor`)
+        and ``"coincident"`` (bool: two eigenvalues are numerically coincident, hence the
+        infinities).
 
     Raises
     ------
@@ -488,13 +489,14 @@ def condition_summary(X: ArrayLike, *, tol: float | None = None) -> dict[str, fl
     n = A.shape[0]
     sp = _spectrum(A, tol)
     dep = sp.departure
+    floor = _rounding_floor(sp, float(np.linalg.norm(A)))
     if n == 1:
         return {"kappa2": 1.0, "kappa_fro": 1.0, "departure": dep, "min_gap": float("inf"),
-                "eta": 0.0, "coincident": False}
+                "eta": 0.0, "coincident": False, "rounding_floor": floor}
     if sp.coincident or sp.Vinv is None:
         inf = float("inf")
         return {"kappa2": inf, "kappa_fro": inf, "departure": dep, "min_gap": 0.0,
-                "eta": inf, "coincident": True}
+                "eta": inf, "coincident": True, "rounding_floor": floor}
     sv = np.linalg.svd(sp.V, compute_uv=False)
     return {
         "kappa2": float(sv[0] / sv[-1]),
@@ -503,4 +505,14 @@ def condition_summary(X: ArrayLike, *, tol: float | None = None) -> dict[str, fl
         "min_gap": sp.gap,
         "eta": dep / sp.gap,
         "coincident": False,
+        "rounding_floor": floor,
     }
+
+
+def _rounding_floor(sp: _Spectrum, norm_x: float) -> float:
+    """:func:`eigenvalue_rounding_floor` from a computed spectrum (the same V and ``V^-1``)."""
+    if sp.w.size == 0:
+        return 0.0
+    s = np.linalg.norm(sp.Vinv, axis=1) if sp.Vinv is not None else np.full(sp.w.shape, np.inf)
+    floor = 10.0 * _EPS * float(np.max(s * norm_x / np.maximum(1.0, np.abs(sp.w))))
+    return floor if np.isfinite(floor) else float("inf")
