@@ -443,11 +443,19 @@ def test_post_processing_only_when_asked(monkeypatch, paper):
     assert [c.name for c in full.verification] == ["nonfinite", "P_min_eig", "error_estimate"]
 
 
-def test_psd_check_is_a_certified_bound_or_exact(paper, rng):
+@pytest.mark.parametrize("batch_max_n, chunk_bytes", [(100, 1 << 22), (100, 3 * 8 * 2 * 2), (0, 1 << 22)])
+def test_psd_check_is_a_certified_bound_or_exact(paper, rng, monkeypatch, batch_max_n, chunk_bytes):
     """P_min_eig: where every P_k plus a rounding-level shift has a Cholesky factor, the value is
     the certified lower bound -11 n eps of min_k lambda_min(P_k) / max_k ||P_k||_F; otherwise the
     exact minimum.  Either way it never exceeds the true value; and an indefinite trajectory
-    whose negative part is not explained by a measured error fails the check."""
+    whose negative part is not explained by a measured error fails the check.  The same with the
+    batched Cholesky in one chunk, in chunks of 3 matrices of the paper's n = 2 (an indefinite P_k
+    in a later chunk), and with one LAPACK call per matrix."""
+    import importlib
+
+    verb = importlib.import_module("optdesign.design.riccati_de")
+    monkeypatch.setattr(verb, "_PSD_BATCH_MAX_N", batch_max_n)
+    monkeypatch.setattr(verb, "_PSD_CHUNK_BYTES", chunk_bytes)
     plant = random_observable_plant(rng, 6, 2, stable=False)
     n = plant.n
     for method in ("transition", "ode"):
@@ -583,3 +591,26 @@ def test_paper004_reproduce(tmp_path):
     # the paper prints no numbers: nothing claims agreement with a printed value
     assert all(r.printed is None for r in rep.rows if r.agrees is None)
     assert "overflow" in rows["V U^-1 from one exponential over [0, t]"].reproduced
+
+
+@pytest.mark.parametrize("n", [3, 30])
+@pytest.mark.parametrize("chunk_bytes", [1 << 22, 8 * 30 * 30 * 2])
+def test_psd_check_finds_an_indefinite_matrix_in_a_later_chunk(rng, monkeypatch, n, chunk_bytes):
+    """The PSD certificate of the trajectory (batched Cholesky for small n, one LAPACK call per
+    matrix above _PSD_BATCH_MAX_N, in chunks): only the last P_k is indefinite, and the value is
+    then its exact smallest eigenvalue (relative), not the certified bound of the PSD ones."""
+    import importlib
+
+    verb = importlib.import_module("optdesign.design.riccati_de")
+    monkeypatch.setattr(verb, "_PSD_CHUNK_BYTES", chunk_bytes)
+    X = rng.standard_normal((40, n, n))
+    P = X @ np.swapaxes(X, 1, 2) + 0.1 * np.eye(n)
+    ok = verb._psd_check(P, 1e-10)
+    assert ok.passed and ok.value == -11 * n * np.finfo(float).eps
+    w, V = np.linalg.eigh(P[-1])
+    w[0] = -1e-6 * w[-1]
+    P[-1] = (V * w) @ V.T
+    P[-1] = 0.5 * (P[-1] + P[-1].T)
+    bad = verb._psd_check(P, 1e-10)
+    true = np.min(np.linalg.eigvalsh(P)) / np.max(np.linalg.norm(P, axis=(1, 2)))
+    assert bad.value == pytest.approx(true, rel=1e-8) and not bad.passed

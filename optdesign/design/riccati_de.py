@@ -644,29 +644,56 @@ def _gains(plant: Plant, P: NDArray) -> NDArray:
 def _psd_check(P: NDArray, slack: float) -> Check:
     r"""``min_k lambda_min(P_k) / max_k ||P_k||_F >= -slack``, certified cheaply.
 
-    A Cholesky factorization of every ``P_k + tau I``, ``tau = 10 n eps max_k ||P_k||_F`` (in one
-    reused buffer: no stack-sized temporaries): if every factor exists, ``lambda_min(P_k) >= -tau
-    - n eps ||P_k||`` (Cholesky's backward error), and that bound, ``-11 n eps``, is the value.
-    Otherwise the exact eigenvalues of every ``P_k`` are computed and their minimum is the value.
+    A Cholesky factorization of every ``P_k + tau I``, ``tau = 10 n eps max_k ||P_k||_F`` (for
+    n <= ``_PSD_BATCH_MAX_N`` batched: one numpy call per chunk of at most ``_PSD_CHUNK_BYTES``, so
+    no stack-sized temporaries; above it one LAPACK call per matrix in one reused buffer): if every
+    factor exists, ``lambda_min(P_k) >= -tau - n eps ||P_k||`` (Cholesky's backward error), and that
+    bound, ``-11 n eps``, is the value.  Otherwise the exact eigenvalues of every ``P_k`` are
+    computed and their minimum is the value.
     """
     k, n = P.shape[:2]
     flat = P.reshape(k, n * n)
     scale = float(np.sqrt(np.max(np.einsum("ij,ij->i", flat, flat))))
     detail = "min_k lambda_min(P_k) / max_k ||P_k||_F (PSD within the method's error)"
-    if scale > 0:
-        tau = 10 * n * _EPS * scale
+    if scale > 0 and _shifted_cholesky_exists(P, 10 * n * _EPS * scale):
+        return Check.at_least("P_min_eig", -11 * n * _EPS, -slack,
+                              detail + f"; lower bound: every P_k + {10 * n * _EPS:.1e} max||P_k|| I "
+                                       "has a Cholesky factor")
+    lmin = float(np.min(np.linalg.eigvalsh(P)[:, 0]))
+    return Check.at_least("P_min_eig", lmin / scale if scale > 0 else 0.0, -slack, detail)
+
+
+#: largest chunk of the trajectory copied for one batched Cholesky call in :func:`_psd_check`
+_PSD_CHUNK_BYTES = 1 << 22
+
+#: largest n for the batched (numpy) Cholesky; above it one scipy ``potrf`` per matrix is faster
+#: (measured, 101 matrices: n = 10 0.05 ms vs 0.25 ms, n = 20 0.25 vs 0.53, n = 25 0.90 vs 0.42,
+#: n = 50 4.4 vs 1.1, n = 100 9.2 vs 3.9)
+_PSD_BATCH_MAX_N = 20
+
+
+def _shifted_cholesky_exists(P: NDArray, tau: float) -> bool:
+    """Whether every ``P_k + tau I`` of the stack ``P`` has a Cholesky factor."""
+    k, n = P.shape[:2]
+    if n > _PSD_BATCH_MAX_N:
         buf = np.empty((n, n), order="F")
         for Pk in P:
             buf[...] = Pk
             buf.flat[::n + 1] += tau
             if _potrf(buf, lower=1, clean=0, overwrite_a=1)[1] != 0:
-                break
-        else:
-            return Check.at_least("P_min_eig", -11 * n * _EPS, -slack,
-                                  detail + f"; lower bound: every P_k + {10 * n * _EPS:.1e} max||P_k|| I "
-                                           "has a Cholesky factor")
-    lmin = float(np.min(np.linalg.eigvalsh(P)[:, 0]))
-    return Check.at_least("P_min_eig", lmin / scale if scale > 0 else 0.0, -slack, detail)
+                return False
+        return True
+    chunk = max(1, min(k, _PSD_CHUNK_BYTES // (8 * n * n)))
+    buf = np.empty((chunk, n, n))
+    for s in range(0, k, chunk):
+        b = buf[:min(chunk, k - s)]
+        np.copyto(b, P[s:s + b.shape[0]])
+        b.reshape(b.shape[0], n * n)[:, ::n + 1] += tau
+        try:
+            np.linalg.cholesky(b)
+        except np.linalg.LinAlgError:
+            return False
+    return True
 
 
 def _steady(plant: Plant, P: NDArray, post: dict, clock: Deadline):
