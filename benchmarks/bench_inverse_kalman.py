@@ -21,10 +21,12 @@ and the returned L to 1e-6 relative; "verified" counts those.  Times are CPU sec
 (``time.process_time``) per design, medians over the targets; the ratios are of the medians.  At
 (40, 8) the verb (533 s per design in the README's run) is run only with ``--slow``.
 
-Run:  python benchmarks/bench_inverse_kalman.py [--reps 3] [--sizes 2x1,10x4] [--slow] [--profile]
+Run:  python benchmarks/bench_inverse_kalman.py [--reps 3] [--sizes 2x1,10x4 [--merge]] [--slow]
+      [--profile | --stages]
 Writes benchmarks/results/inverse_kalman.md, .csv and .json; ``--profile`` writes
 benchmarks/results/inverse_kalman_profile.md (cProfile of the engine at (20, 4) and (40, 8), time
-per stage).
+per stage); ``--stages`` benchmarks/results/inverse_kalman_stages_one_output.md (CPU per stage of the
+one-output verb).
 """
 
 from __future__ import annotations
@@ -51,6 +53,7 @@ from optdesign import Plant, kalman_for_poles  # noqa: E402
 from optdesign.analysis.metrics import eigenvalue_rounding_floor  # noqa: E402
 from optdesign.classical.placement import pole_error  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
+from optdesign.design.verification import POLE_FLOOR_CAP  # noqa: E402
 from optdesign.errors import OptDesignError  # noqa: E402
 from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
 
@@ -134,6 +137,8 @@ def run_size(n: int, p: int, targets, slow: bool) -> dict:
         row["engine_ok"] = bool(res.success and independent_check(plant, target, res.L, res.Q))
         row["engine_obj"] = res.objective_value
         row["engine_status"] = res.status.value
+        if res.L is not None:   # what the rounding of a computed gain does to these poles
+            row["pole_err"] = pole_error(np.linalg.eigvals(plant.A - res.L @ plant.C), target)
         if res.L is not None:
             row["min_obj"], row["min_t"] = minimal_sdp(plant, res.L, reuse=False)
             _, row["min_reuse_t"] = minimal_sdp(plant, res.L, reuse=True)
@@ -172,6 +177,7 @@ def summarize(res: dict) -> dict:
     out["vs_nlp"] = (f"{sum(v < -1e-7 for v in rel)} lower / {sum(abs(v) <= 1e-7 for v in rel)} equal / "
                      f"{sum(v > 1e-7 for v in rel)} higher" if rel else "-")
     out["floors"] = [r["floor"] for r in rows]
+    out["pole_errs"] = [r.get("pole_err", float("nan")) for r in rows]
     return out
 
 
@@ -186,17 +192,21 @@ def ratio(a, b):
 def table(summaries: list[dict]) -> str:
     head = ("| n, p | engine (s) | verified | `nlp` (s) | verified | `sdp` (s) | verified "
             "| min-SDP rebuilt (s) | min-SDP re-used (s) | nlp / engine | sdp / engine "
-            "| engine / min-SDP re-used | engine vs nlp objective | rounding floor of the targets |\n|"
-            + "---|" * 14)
+            "| engine / min-SDP re-used | sdp / min-SDP re-used | engine vs nlp objective "
+            "| rounding floor / pole error of the engine's design, per target |\n|" + "---|" * 15)
     lines = []
     for s in summaries:
-        floors = ", ".join(f"{f:.0e}" for f in s["floors"])
+        errs = s.get("pole_errs", [float("nan")] * len(s["floors"]))
+        floors = ", ".join(f"{f:.0e}" + ("" if not np.isfinite(e) else f" / {e:.0e}")
+                           + ("" if not e > POLE_FLOOR_CAP else " (not computable)")
+                           for f, e in zip(s["floors"], errs, strict=True))
         lines.append(
             f"| {s['n']}, {s['p']} | {fmt_t(s['engine_t'])} | {s['engine_ok']} | {fmt_t(s['nlp_t'])} "
             f"| {s['nlp_ok']} | {fmt_t(s['sdp_t'])} | {s['sdp_ok']} | {fmt_t(s['min_t'])} "
             f"| {fmt_t(s['min_reuse_t'])} "
             f"| {ratio(s['nlp_t'], s['engine_t'])} | {ratio(s['sdp_t'], s['engine_t'])} "
-            f"| {ratio(s['engine_t'], s['min_reuse_t'])} | {s['vs_nlp']} | {floors} |")
+            f"| {ratio(s['engine_t'], s['min_reuse_t'])} | {ratio(s['sdp_t'], s['min_reuse_t'])} "
+            f"| {s['vs_nlp']} | {floors} |")
     return head + "\n" + "\n".join(lines)
 
 
@@ -241,6 +251,92 @@ def profile(sizes, rng_seed: int) -> str:
     return "\n".join(out)
 
 
+#: (module, attribute, label) of the one-output stages timed by :func:`one_output_stages`
+ONE_OUTPUT_STAGES = [
+    ("optdesign.design.inverse_kalman.verb:InverseKalmanProblem", "_early_answer", "early answers"),
+    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (family map)"),
+    ("optdesign.design.inverse_kalman.engine_route", "solve_inverse_kalman", "engine"),
+    ("optdesign.solvers.inverse_kalman_engine", "spectral_terms", "  gain: spectral terms"),
+    ("optdesign.solvers.inverse_kalman_engine", "spectral_blocks", "  gain: spectral blocks"),
+    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain", "  SDP: Clarabel"),
+    ("optdesign.solvers.inverse_kalman_engine", "_from_sdp", "  polish: face projection"),
+    ("optdesign.solvers.inverse_kalman_engine", "_optimize", "  polish: Newton"),
+    ("optdesign.solvers.inverse_kalman_engine", "_design", "  design (Lyapunov P, L from P)"),
+    ("optdesign.design.inverse_kalman.engine_route", "verify_design", "verification"),
+    ("optdesign.design.verification", "independent_are", "  independent Riccati re-solve"),
+    ("optdesign.design.verification", "filter_are_error", "  forward error estimates"),
+]
+
+
+def one_output_stages(reps: int = 10) -> str:
+    """CPU ms per stage of ``kalman_for_poles`` on one output (the engine route), timed by wrappers
+    around the stage functions (cProfile's overhead would triple the small sizes); the targets of the
+    main run at n = 2, 10 (all three) and 20 (its first, computable, target)."""
+    import importlib
+
+    acc: dict[str, float] = {}
+
+    def timer(fn, label):
+        def wrapped(*a, **k):
+            t0 = time.process_time()
+            try:
+                return fn(*a, **k)
+            finally:
+                acc[label] = acc.get(label, 0.0) + time.process_time() - t0
+        return wrapped
+
+    saved = []
+    for where, attr, label in ONE_OUTPUT_STAGES:
+        mod, _, cls = where.partition(":")
+        obj = importlib.import_module(mod)
+        obj = getattr(obj, cls) if cls else obj
+        saved.append((obj, attr, getattr(obj, attr)))
+        setattr(obj, attr, timer(getattr(obj, attr), label))
+    rng = np.random.default_rng(0)
+    drawn = {size: [random_target(rng, *size) for _ in range(3)] for size in SIZES[:3]}
+    cols = {}
+    try:
+        for n, picks in ((2, [0, 1, 2]), (10, [0, 1, 2]), (20, [0])):
+            acc.clear()
+            total, ok, count = 0.0, 0, 0
+            for _ in range(reps if n < 20 else max(1, reps // 2)):
+                for i in picks:
+                    plant, are = drawn[(n, 1)][i]
+                    res, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                    total, ok, count = total + t, ok + res.success, count + 1
+            cols[n] = {"total": 1e3 * total / count, **{k: 1e3 * v / count for k, v in acc.items()},
+                       "verified": f"{ok}/{count}"}
+    finally:
+        for obj, attr, fn in saved:
+            setattr(obj, attr, fn)
+    labels = ["total"] + [label for _, _, label in ONE_OUTPUT_STAGES]
+    lines = ["| stage (CPU ms per design; indented: part of the row above) | n = 2 | n = 10 | n = 20 |",
+             "|---|---|---|---|"]
+    for label in labels + ["verified"]:
+        vals = [cols[n].get(label) for n in (2, 10, 20)]
+        lines.append(f"| {label.strip() if not label.startswith('  ') else '- ' + label.strip()} | "
+                     + " | ".join("-" if v is None else (v if isinstance(v, str) else f"{v:.2f}")
+                                  for v in vals) + " |")
+    return "\n".join(lines)
+
+
+def merge_earlier(summaries: list[dict], raw: list[dict]) -> list[tuple[int, int]]:
+    """Add the sizes not re-run from the existing ``inverse_kalman.json`` (in place, in the order of
+    :data:`SIZES`); returns the sizes taken from it."""
+    path = OUT / "inverse_kalman.json"
+    if not path.exists():
+        return []
+    old = json.loads(path.read_text(encoding="utf-8"))
+    have = {(s["n"], s["p"]) for s in summaries}
+    kept = [(s["n"], s["p"]) for s in old["summaries"] if (s["n"], s["p"]) not in have]
+    summaries += [s for s in old["summaries"] if (s["n"], s["p"]) in kept]
+    raw += [r for r in old["raw"] if (r["n"], r["p"]) in kept]
+    order = {size: i for i, size in enumerate(SIZES)}
+    summaries.sort(key=lambda s: order.get((s["n"], s["p"]), len(SIZES)))
+    raw.sort(key=lambda r: order.get((r["n"], r["p"]), len(SIZES)))
+    return kept
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=3, help="targets per size")
@@ -248,6 +344,10 @@ def main() -> None:
     ap.add_argument("--sizes", type=str, default=None,
                     help="subset, e.g. 10x4,20x4 (same targets as the full run)")
     ap.add_argument("--slow", action="store_true", help="also run the verb at (40, 8)")
+    ap.add_argument("--stages", action="store_true",
+                    help="only the CPU per stage of the one-output verb at n = 2, 10, 20")
+    ap.add_argument("--merge", action="store_true",
+                    help="with --sizes: keep the other sizes' rows of the existing results (marked)")
     ap.add_argument("--profile", action="store_true",
                     help="only the cProfile of the engine at (20, 4), (40, 8)")
     args = ap.parse_args()
@@ -255,6 +355,14 @@ def main() -> None:
     warm = random_target(np.random.default_rng(99), 3, 2)   # imports and first calls out of the timing
     solve_inverse_kalman(prepare_inverse_kalman(warm[0]), warm[1].poles)
     kalman_for_poles(warm[0], warm[1].poles, method="nlp")
+    if args.stages:
+        text = one_output_stages()
+        print(text)
+        (OUT / "inverse_kalman_stages_one_output.md").write_text(
+            "# kalman_for_poles, one output: CPU per stage\n\n`python benchmarks/bench_inverse_kalman.py "
+            "--stages` (means over 10 repetitions of the main run's targets; n = 20: 5 of its first, the "
+            "computable one)\n\n" + text + "\n", encoding="utf-8")
+        return
     if args.profile:
         text = profile([(20, 4), (40, 8)], args.seed)
         (OUT / "inverse_kalman_profile.md").write_text(text + "\n", encoding="utf-8")
@@ -270,6 +378,7 @@ def main() -> None:
         res = run_size(n, p, targets, args.slow)
         raw.append(res)
         summaries.append(summarize(res))
+    kept = merge_earlier(summaries, raw) if args.merge and args.sizes is not None else []
     text = ("# kalman_for_poles: the engine without an NLP vs the current verb vs minimal SDPs\n\n"
             f"`python benchmarks/bench_inverse_kalman.py` -- {platform.machine()}, Python "
             f"{platform.python_version()}, single-threaded BLAS, CPU seconds per design (medians of "
@@ -282,8 +391,18 @@ def main() -> None:
             "known gain, not a design: its point is not polished).  'engine vs nlp objective': trace Q of "
             "the engine vs the NLP's (both local optima over L; 1e-7 relative is 'equal').  With one output "
             "the poles fix L: the engine is the fixed-gain SDP on Clarabel in its smallest form "
-            "(P = P0 + N X N').  '-': not run (the verb at (40, 8) took 533 s per design in the README's "
+            "(P = P0 + N X N').  Last column, per target: the rounding floor of the poles "
+            "(eigenvalue_rounding_floor: 10 eps times their condition, an upper estimate) and the relative "
+            "pole error of the engine's gain (what rounding did); 'not computable': that error exceeds the "
+            "verb's cap of 1e-6 -- the poles' condition is so large (floor 6e-2 .. 2) that the gain the "
+            "targets fix cannot be computed in double precision to place them to 1e-6, so no method's design "
+            "verifies (the verb, after the engine, also tries the SDP routes before it says so).  "
+            "'-': not run (the verb at (40, 8) took 533 s per design in the README's "
             "run; `--slow` runs it).\n")
+    if kept:
+        text += ("\nRe-run in this run: " + ", ".join(f"({n}, {p})" for n, p in wanted) + "; the rows "
+                 + ", ".join(f"({n}, {p})" for n, p in kept) + " are from the earlier run's "
+                 "inverse_kalman.json (not re-run: `--merge`).\n")
     print("\n" + text)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "inverse_kalman.md").write_text(text, encoding="utf-8")

@@ -9,6 +9,8 @@ on random feasible targets, and every error path.
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 from types import SimpleNamespace
 
 import numpy as np
@@ -859,12 +861,25 @@ def test_kalman_for_poles_error_paths():
             kalman_for_poles(plant, [-5, -8], seed=seed)
 
 
+def test_one_output_engine_needs_no_cvxpy_solver_discovery():
+    """The one-output engine calls Clarabel directly: a fresh process's first design must not import
+    cvxpy (its solver discovery cost about 0.9 s of CPU per process before; issue 14)."""
+    code = ("import sys\n"
+            "from optdesign import Plant, kalman_for_poles\n"
+            "res = kalman_for_poles(Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]]), [-5, -8])\n"
+            "print(res.success, res.solver_stats.backend, 'cvxpy' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "spectral-newton+clarabel", "False"]
+
+
 @pytest.mark.parametrize("method", ["sdp", "auto"])
 def test_missing_sdp_solver_names_the_package(monkeypatch, method):
     from optdesign.errors import BackendUnavailableError
     from optdesign.solvers import cvxpy_backend
 
     monkeypatch.setattr(cvxpy_backend, "available_sdp_solvers", lambda: ())
+    monkeypatch.setitem(sys.modules, "clarabel", None)   # `import clarabel` fails: the engine is off too
     with pytest.raises(BackendUnavailableError, match="no SDP solver installed.*pip install clarabel"):
         kalman_for_poles(_ex1_plant(), [-5, -8], method=method)
     with pytest.raises(BackendUnavailableError, match="pip install clarabel"):

@@ -16,12 +16,7 @@ from ..._deadline import Deadline
 from ...errors import RiccatiError
 from ...model.plant import Plant
 from ...results import Status
-from ...solvers.inverse_kalman_engine import (
-    EngineSetup,
-    engine_applies,
-    prepare_inverse_kalman,
-    solve_inverse_kalman,
-)
+from ...solvers.inverse_kalman_engine import EngineSetup, prepare_inverse_kalman, solve_inverse_kalman
 from .common import empty_result, make_stats, objective_of, verify_design
 from .results import InverseKalmanResult
 
@@ -40,14 +35,14 @@ def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: 
     engine does not apply (a target at an eigenvalue of A or of its mirror image), found nothing,
     or its design fails a check.  A time limit that runs out inside the engine is returned as
     such (nothing is lost: the other routes would have no time either)."""
-    if not engine_applies(setup, target):
-        return None
     plant, structure, objective = setup.plant, common["structure"], common["objective"]
     try:
         er = solve_inverse_kalman(setup, target, Q_nominal=Qn, seed=seed, time_limit=dl, tol=tol,
                                   warm_start=warm_start)
     except (np.linalg.LinAlgError, RiccatiError):  # e.g. a repeated one-output target: the SDP route
         return None                                 # (Ackermann's gain) answers it
+    if er.details.get("applicable") is False:   # the engine's own test (engine_applies), run once
+        return None
     extra: dict[str, Any] = {"engine": er.details, "engine_message": er.message}
     if plant.p > 1:
         extra["L_source"] = "the inverse Kalman engine"
