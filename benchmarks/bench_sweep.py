@@ -1,7 +1,8 @@
 """Sweep benchmark: parameter re-use vs rebuilding, and a 1,000-point sweep on a local pool and on Dask.
 
 Run:  python benchmarks/bench_sweep.py [--problem compleib_dis2] [--subset 40] [--alphas 40 --zetas 25]
-                                        [--b-alphas 40] [--no-dask] [--out benchmarks/results/sweep.md]
+                                        [--b-alphas 40] [--no-dask] [--skip-a | --skip-b] [--variants 4,5]
+                                        [--out benchmarks/results/sweep.md]
 
 A. Time per point, one process, the same points (a block of the grid), for
    1. the public verb ``well_conditioned_observer(plant, region=..., starts=2)`` per point (a new
@@ -11,7 +12,9 @@ A. Time per point, one process, the same points (a block of the grid), for
    3. ``RegionSweepDesigner(reuse=True, warm_start=False)``: one problem, NLPs built once, cold starts,
    4. ``RegionSweepDesigner()`` (default): re-use + warm start from the previous point + one placement start,
    5. ``RegionSweepDesigner(placement="fallback")``: re-use + warm start, placement only when needed;
-   with the IPOPT iterations, the success rate and kappa2 against the best found by any variant.
+   with the CPU time per point (median and mean), the deterministic work per point (IPOPT iterations,
+   IPOPT solves, independent evaluations, scipy placements), the success rate and kappa2 against the
+   best found by any variant run.
 B. The grid (alpha x damping sector, 1,000 points by default; ``--b-alphas`` alphas) with the default
    designer on a local process pool of 2 workers and on a 2-worker Dask LocalCluster: wall time,
    throughput, identical results.
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import logging
 import os
 import platform
@@ -64,7 +68,35 @@ def timed_serial(fn, points):
     return np.array(times), np.array(cpu), results
 
 
-def part_a(problem: str, points: list[dict]) -> tuple[list[dict], dict]:
+class WorkCounter:
+    """Counts the IPOPT solves, the independent evaluations and the scipy placements of the designs
+    (by wrapping the module functions the problem object calls; restored on exit)."""
+
+    def __init__(self) -> None:
+        from optdesign.design.well_conditioned import nlp_route, problem, starts
+
+        self.targets = [(nlp_route, "solve_nlp", "solves"), (problem, "evaluate_candidate", "evals"),
+                        (starts, "place_observer", "placements")]
+        self.counts = dict.fromkeys(("solves", "evals", "placements"), 0)
+
+    def __enter__(self) -> WorkCounter:
+        self.saved = [getattr(mod, name) for mod, name, _ in self.targets]
+        for (mod, name, key), fn in zip(self.targets, self.saved, strict=True):
+            setattr(mod, name, self._counted(fn, key))
+        return self
+
+    def _counted(self, fn, key):
+        def wrapper(*args, **kwargs):
+            self.counts[key] += 1
+            return fn(*args, **kwargs)
+        return wrapper
+
+    def __exit__(self, *exc) -> None:
+        for (mod, name, _), fn in zip(self.targets, self.saved, strict=True):
+            setattr(mod, name, fn)
+
+
+def part_a(problem: str, points: list[dict], which: list[int] | None = None) -> tuple[list[dict], dict]:
     rows = []
     variants = [
         ("public verb per point (rebuild, starts=2)", None),
@@ -78,31 +110,32 @@ def part_a(problem: str, points: list[dict]) -> tuple[list[dict], dict]:
         ("designer, re-used + warm start, placement as fallback",
          RegionSweepDesigner(problem=problem, radius=RADIUS, placement="fallback")),
     ]
-    k2: dict[str, np.ndarray] = {}
+    if which is not None:
+        variants = [variants[i - 1] for i in which]
     for name, designer in variants:
         clear_cache()
-        if designer is None:
-            times, cpu, res = timed_serial(lambda alpha, zeta: verb_point(problem, alpha, zeta), points)
-        else:
-            session = designer.start_chunk()  # one chunk: the warm start runs along the points
-            times, cpu, res = timed_serial(session, points)
+        with WorkCounter() as work:
+            if designer is None:
+                times, cpu, res = timed_serial(lambda alpha, zeta: verb_point(problem, alpha, zeta), points)
+            else:
+                session = designer.start_chunk()  # one chunk: the warm start runs along the points
+                times, cpu, res = timed_serial(session, points)
         ok = np.array([not isinstance(r, Exception) and r.success for r in res])
         k = np.array([r.kappa2 if not isinstance(r, Exception) and r.success else np.nan for r in res])
         its = np.array([0 if isinstance(r, Exception) else r.solver_stats.iterations for r in res],
                        dtype=float)
-        k2[name] = k
-        rows.append({"variant": name, "median_ms": 1e3 * np.median(times), "mean_ms": 1e3 * np.mean(times),
+        rows.append({"variant": name, "kappa2": k.tolist(), "median_ms": 1e3 * np.median(times),
+                     "mean_ms": 1e3 * np.mean(times),
                      "cpu_median_ms": 1e3 * np.median(cpu), "cpu_total_s": float(np.sum(cpu)),
+                     "cpu_mean_ms": 1e3 * np.mean(cpu),
+                     **{key: v / len(points) for key, v in work.counts.items()},
                      "first_ms": 1e3 * times[0], "iters": float(np.mean(its)), "success": int(ok.sum()),
                      "n": len(points)})
-        print(f"  {name}: median {1e3 * np.median(times):.0f} ms/point (CPU {1e3 * np.median(cpu):.0f}), "
-              f"{ok.sum()}/{len(points)} verified", flush=True)
-    best = np.nanmin(np.vstack(list(k2.values())), axis=0)
-    for r in rows:
-        k = k2[r["variant"]]
-        ratio = k / best
-        r["within_1e-3"] = int(np.sum(ratio <= 1 + 1e-3))
-        r["worst_ratio"] = float(np.nanmax(ratio)) if np.isfinite(ratio).any() else float("nan")
+        print(f"  {name}: median {1e3 * np.median(times):.0f} ms/point "
+              f"(CPU median {1e3 * np.median(cpu):.0f}, "
+              f"mean {1e3 * np.mean(cpu):.0f}), {np.mean(its):.1f} IPOPT iterations and "
+              f"{work.counts['solves'] / len(points):.2f} solves/point, {ok.sum()}/{len(points)} verified",
+              flush=True)
     # build + configure cost on its own
     from optdesign.formulate.well_conditioned import NLPScaling, PoleStructure, build_observer_nlp
     from optdesign.solvers.casadi_backend import solve_opti
@@ -117,6 +150,16 @@ def part_a(problem: str, points: list[dict]) -> tuple[list[dict], dict]:
         solve_opti(nlp.opti, {"ipopt.max_iter": 0})
         tb.append(time.perf_counter() - t0)
     return rows, {"build_configure_ms": 1e3 * float(np.median(tb))}
+
+
+def score(rows: list[dict]) -> None:
+    """kappa2 of every row against the best of all rows at each point (within 0.1 %, worst ratio)."""
+    k2 = np.array([np.asarray(r["kappa2"], dtype=float) for r in rows])
+    best = np.nanmin(k2, axis=0)
+    for r, k in zip(rows, k2, strict=True):
+        ratio = k / best
+        r["within_1e-3"] = int(np.sum(ratio <= 1 + 1e-3))
+        r["worst_ratio"] = float(np.nanmax(ratio)) if np.isfinite(ratio).any() else float("nan")
 
 
 def part_b(problem: str, points: list[dict], chunk: int, use_dask: bool) -> list[dict]:
@@ -148,6 +191,14 @@ def main(argv=None) -> int:
     ap.add_argument("--b-alphas", type=int, default=None, help="alphas of part B (default: --alphas)")
     ap.add_argument("--no-dask", action="store_true")
     ap.add_argument("--skip-a", action="store_true")
+    ap.add_argument("--skip-b", action="store_true", help="part A alone")
+    ap.add_argument("--variants", default=None,
+                    help="part A: the variants to run, by number (1-5, see above), e.g. 4,5")
+    ap.add_argument("--json-out", default=None, help="part A: also write its rows (with kappa2) as JSON")
+    ap.add_argument("--before", default=None,
+                    help="part A: the JSON of an earlier run (--json-out, e.g. of the code before a change, "
+                         "run just before this one): its rows head the table as 'before: ...' and its "
+                         "kappa2 counts in the best")
     ap.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "sweep.md"))
     args = ap.parse_args(argv)
     # zeta descending: within a chunk the sector widens, so the previous design stays feasible
@@ -170,21 +221,32 @@ def main(argv=None) -> int:
     ]
     if not args.skip_a:
         print(f"A. per-point cost on {len(subset)} points", flush=True)
-        rows, extra = part_a(args.problem, subset)
+        which = None if args.variants is None else [int(v) for v in args.variants.split(",")]
+        rows, extra = part_a(args.problem, subset, which)
+        if args.json_out:
+            Path(args.json_out).write_text(json.dumps({"rows": rows, "extra": extra}), encoding="utf-8")
+        if args.before:
+            earlier = json.loads(Path(args.before).read_text(encoding="utf-8"))["rows"]
+            rows = [{**r, "variant": f"before: {r['variant']}"} for r in earlier] + rows
+        score(rows)
         base = rows[0]["cpu_median_ms"]
         lines += [
             f"## A. Time per point, one process, {len(subset)} consecutive points "
             f"(alpha {subset[0]['alpha']:.3g}..{subset[-1]['alpha']:.3g}, every zeta)",
             "",
-            "| variant | median ms/point | mean ms/point | first point ms | median CPU ms/point "
-            "| total CPU s | speed-up (median CPU) | IPOPT iterations/point "
+            "| variant | median ms/point | first point ms | median CPU ms/point | mean CPU ms/point "
+            "| total CPU s | CPU ratio to the first row (median, mean) | IPOPT iterations/point "
+            "| IPOPT solves/point | evaluations/point | scipy placements/point "
             "| verified | kappa2 within 0.1% of the best | worst kappa2 / best |",
-            "|---|---|---|---|---|---|---|---|---|---|---|",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         ]
         for r in rows:
-            lines.append(f"| {r['variant']} | {r['median_ms']:.0f} | {r['mean_ms']:.0f} | "
-                         f"{r['first_ms']:.0f} | {r['cpu_median_ms']:.0f} | {r['cpu_total_s']:.1f} | "
-                         f"{base / r['cpu_median_ms']:.1f}x | {r['iters']:.0f} | {r['success']}/{r['n']} | "
+            lines.append(f"| {r['variant']} | {r['median_ms']:.0f} | "
+                         f"{r['first_ms']:.0f} | {r['cpu_median_ms']:.1f} | {r['cpu_mean_ms']:.0f} | "
+                         f"{r['cpu_total_s']:.1f} | {base / r['cpu_median_ms']:.1f}x, "
+                         f"{rows[0]['cpu_mean_ms'] / r['cpu_mean_ms']:.1f}x | {r['iters']:.1f} | "
+                         f"{r['solves']:.2f} | {r['evals']:.2f} | {r['placements']:.2f} | "
+                         f"{r['success']}/{r['n']} | "
                          f"{r['within_1e-3']}/{r['n']} | {r['worst_ratio']:.4g} |")
         lines += [
             "",
@@ -196,6 +258,8 @@ def main(argv=None) -> int:
             "engine (IPOPT only as a fallback).",
             "",
         ]
+    if args.skip_b:
+        return _write(args.out, lines)
     if args.b_alphas is not None:
         points = grid(alpha=np.linspace(0.5, 3.0, args.b_alphas), zeta=np.linspace(0.9, 0.2, args.zetas))
     print(f"B. {len(points)} points on a local pool and on Dask", flush=True)
@@ -205,16 +269,18 @@ def main(argv=None) -> int:
         f"## B. {len(points)}-point sweep, default designer, chunks of {args.zetas} points (one alpha per "
         "chunk)",
         "",
-        "| executor | wall time (s) | points/s | median time/point in worker (ms) | verified | failed "
-        "| differences from the local pool |",
-        "|---|---|---|---|---|---|---|",
+        "| executor | wall time (s) | points/s | median time/point in worker (ms) "
+        "| mean time/point in worker (ms) | verified | failed | differences from the local pool |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for r in runs:
         t = r["table"]
         diff = t.diff(ref)
         extra = f" (+{r['startup']:.1f} s cluster start)" if "startup" in r else ""
         lines.append(f"| {r['executor']} | {t.wall_time:.1f}{extra} | {len(t) / t.wall_time:.2f} | "
-                     f"{1e3 * np.nanmedian(t.column('time')):.0f} | {t.n_success} | {len(t) - t.n_success} | "
+                     f"{1e3 * np.nanmedian(t.column('time')):.0f} | "
+                     f"{1e3 * np.nanmean(t.column('time')):.0f} | "
+                     f"{t.n_success} | {len(t) - t.n_success} | "
                      f"{len(diff)} cells |")
     fails = [r for r in ref.records if not r["success"]]
     if fails:
@@ -226,8 +292,12 @@ def main(argv=None) -> int:
     if k.size:
         lines += ["", f"kappa2 over the verified points: min {np.min(k):.4g}, median {np.median(k):.4g}, "
                       f"max {np.max(k):.4g}."]
-    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.out).write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return _write(args.out, lines)
+
+
+def _write(out: str, lines: list[str]) -> int:
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    Path(out).write_text("\n".join(lines) + "\n", encoding="utf-8")
     print("\n".join(lines))
     return 0
 

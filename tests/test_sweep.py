@@ -278,6 +278,8 @@ def test_region_designer_reuses_its_nlp_and_verifies_every_point():
     assert first.solver_stats.extra["nlp_builds"] >= 1
     assert second.solver_stats.extra["nlp_builds"] == 0  # re-solved with new parameter values
     assert second.starts[0].origin == "warm start"
+    # the warm start's own gain attains kappa2 = 1 (the lower bound) in the looser region: no IPOPT at all
+    assert second.solver_stats.iterations == 0 and [r.origin for r in second.starts] == ["warm start"]
     region = HalfPlane(1.2) & Sector.from_damping(0.5) & Disk(0.0, 20.0)
     # independent check of the answer: poles of A - L C with numpy, inside the point's region
     plant = DESIGNER._plant()
@@ -323,7 +325,7 @@ def test_region_designer_point_is_the_problem_solve(point):
     res = d(**point)
     prob = WellConditionedProblem(problems.load("compleib_dis2").plant, objective="kappa2", starts=2, seed=0,
                                   options=SWEEP_IPOPT_OPTIONS, pole_scale=20.0, route="nlp",
-                                  kalman_start=False)
+                                  kalman_start=False, region_polish="last")
     ref = prob.solve(region=d.region_for(**point), seed=d.seed_for(**point))
     assert res.success and ref.success
     np.testing.assert_allclose(res.L, ref.L, rtol=0, atol=1e-9 * max(1.0, np.abs(ref.L).max()))

@@ -156,6 +156,123 @@ def test_starts_stop_at_the_lower_bound_of_kappa2():
     assert len(well_conditioned_observer(pr.plant, poles=pr.targets["poles"], starts=3).starts) == 3
 
 
+def _count_region_work(monkeypatch):
+    """Count the IPOPT solves (``nlp_route.solve_nlp``) and scipy placements of region starts."""
+    from optdesign.design.well_conditioned import nlp_route, starts
+
+    calls = {"ipopt": 0, "placement": 0}
+    solve, place = nlp_route.solve_nlp, starts.place_observer
+
+    def counted_solve(*a, **k):
+        calls["ipopt"] += 1
+        return solve(*a, **k)
+
+    def counted_place(*a, **k):
+        calls["placement"] += 1
+        return place(*a, **k)
+
+    monkeypatch.setattr(nlp_route, "solve_nlp", counted_solve)
+    monkeypatch.setattr(starts, "place_observer", counted_place)
+    return calls
+
+
+def test_region_warm_start_at_the_lower_bound_runs_no_ipopt(monkeypatch):
+    """A warm start whose gain already attains kappa2 = 1 (the lower bound: a global optimum) is the
+    answer as it is: no IPOPT solve, and no placement for the starts that are not run (they are made
+    lazily)."""
+    A = np.array([[0.0, 1.0], [-2.0, -3.0]])
+    plant = Plant(A, np.eye(2))  # C = I: A - L C = diag(-3, -4) is normal
+    L0 = A - np.diag([-3.0, -4.0])
+    calls = _count_region_work(monkeypatch)
+    prob = WellConditionedProblem(plant, route="nlp", starts=2)
+    res = prob.solve(region=HalfPlane(1.0) & Disk(0.0, 10.0), warm_start=L0)
+    assert res.success and res.kappa2 <= 1 + kappa2_agreement_tol(1.0)
+    assert calls == {"ipopt": 0, "placement": 0}
+    assert [r.origin for r in res.starts] == ["warm start"] and res.solver_stats.iterations == 0
+    assert "stopped after 1 of 3 starts: kappa2 = 1 is its lower bound" in res.message
+    np.testing.assert_array_equal(res.L, L0)
+    # the check is independent: the poles of A - L C with numpy, in the region
+    assert np.allclose(np.sort(np.linalg.eigvals(A - res.L).real), [-4.0, -3.0])
+
+
+def test_region_warm_start_runs_only_the_last_stages(monkeypatch):
+    """A warm start from a nearby design runs the last stage of the free-pole NLP and one fixed-pole
+    polish at its answer's poles (2 IPOPT solves, no YT placement); the answer is never worse than the
+    warm start's own gain in a looser region."""
+    plant = problems.load("compleib_dis2").plant
+    prob = WellConditionedProblem(plant, route="nlp", starts=1, pole_scale=20.0, kalman_start=False)
+    tight = prob.solve(region=HalfPlane(2.5) & Sector.from_damping(0.8) & Disk(0.0, 20.0))
+    assert tight.success and tight.kappa2 > 1.01  # not at the bound: the warm start must work
+    calls = _count_region_work(monkeypatch)
+    loose = prob.solve(region=HalfPlane(2.5) & Sector.from_damping(0.7) & Disk(0.0, 20.0),
+                       warm_start=tight, starts=0)
+    assert loose.success and loose.kappa2 <= tight.kappa2 * (1 + 1e-9)
+    assert calls == {"ipopt": 2, "placement": 0}
+
+
+def test_region_polish_last_runs_fewer_solves(monkeypatch):
+    """region_polish="last": no fixed-pole NLP at the start's poles, one stage per fixed-pole polish
+    (the free-pole continuation's stages + 2 solves per start); both modes verified."""
+    plant = problems.load("compleib_dis2").plant
+    region = HalfPlane(2.0) & Sector.from_damping(0.6) & Disk(0.0, 20.0)
+    solves = {}
+    for polish in ("full", "last"):
+        calls = _count_region_work(monkeypatch)
+        prob = WellConditionedProblem(plant, route="nlp", starts=1, pole_scale=20.0, region_polish=polish)
+        res = prob.solve(region=region)
+        assert res.success and region.contains(np.linalg.eigvals(plant.A - res.L @ plant.C))
+        solves[polish] = calls["ipopt"]
+    assert solves["last"] <= len(wc.nlp_route.REGION_STAGES) + 2 < solves["full"]
+    with pytest.raises(ValidationError, match="region_polish must be 'full' or 'last'; found 'some'"):
+        WellConditionedProblem(plant, region_polish="some")
+
+
+def test_cached_evaluate_checks_each_distinct_candidate_once():
+    """Within a solve a candidate is checked once (by its gain, basis and basis poles), however often the
+    runner and the ranking ask; a different gain or a solver basis is a new check."""
+    from optdesign.design.well_conditioned.evaluation import Candidate, cached_evaluate, evaluate_candidate
+
+    plant = Plant([[0.0, 1.0], [2.0, -1.0]], [[1.0, 0.0]])
+    region = HalfPlane(0.5) & Disk(0.0, 10.0)
+    seen = []
+
+    def evaluate(c):
+        seen.append(c)
+        return evaluate_candidate(plant, c, target=None, region=region, mask=None, max_gain=None,
+                                  kappa2_max=None, eta_max=None)
+
+    cached = cached_evaluate(evaluate)
+    L = np.array([[5.0], [14.0]])  # poles -2, -3
+    c1 = Candidate(L, None, None, Status.SOLVED, "direct", "", 0, 0.0)
+    first = cached(c1)
+    again = cached(Candidate(L.copy(), None, None, Status.SOLVED, "direct", "relabelled", 7, 1.0))
+    assert again is first and len(seen) == 1
+    other = cached(Candidate(L + np.array([[0.0], [1e-9]]), None, None, Status.SOLVED, "direct", "", 0, 0.0))
+    V = metrics.eigenvector_matrix(plant.A - L @ plant.C)
+    with_basis = cached(Candidate(L, V, np.linalg.eigvals(plant.A - L @ plant.C), Status.SOLVED, "x", "", 0,
+                                  0.0))
+    assert len(seen) == 3 and "eig_residual" in {c.name for c in with_basis[1]}
+    assert other[0]["kappa2"] != first[0]["kappa2"] and first[1].passed
+    assert first[0]["kappa2"] == evaluate(c1)[0]["kappa2"]  # the same answer as without the cache
+
+
+def test_iter_region_starts_is_region_starts_without_the_kalman_start():
+    """kalman=False draws the same region samples as region_starts (whose Kalman start draws nothing),
+    one start at a time."""
+    from optdesign.design.well_conditioned.starts import iter_region_starts, region_starts
+
+    plant = problems.load("compleib_dis2").plant
+    region = HalfPlane(1.0) & Sector.from_damping(0.5) & Disk(0.0, 20.0)
+    full = region_starts(plant, region, 4, np.random.default_rng(3), None)
+    assert full[1][0] == "Kalman gain (Q = I)"
+    lazy = iter_region_starts(plant, region, 3, np.random.default_rng(3), None, kalman=False)
+    got = list(lazy)
+    assert [s[0] for s in got] == ["naive poles + YT", "region sample + YT", "region sample + YT"]
+    for a, b in zip(got, [full[0], full[2], full[3]], strict=True):
+        np.testing.assert_array_equal(a[1], b[1])
+        np.testing.assert_array_equal(a[3], b[3])
+
+
 def test_multiplicity_above_rank_is_infeasible_with_certificate():
     pr = problems.load("pp_chowkokotovic")  # single output, pole -1 twice
     d = well_conditioned_observer(pr.plant, poles=pr.targets["poles"], starts=1)

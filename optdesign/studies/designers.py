@@ -16,18 +16,21 @@ and the bounds as ``opti.parameter`` s, and re-solves them with every point's va
 fixes the NLP scaling, ``pole_scale``, so that its points share the NLPs):
 
 * a *warm start* from the previous point's verified design (same chunk of the sweep, see
-  :mod:`optdesign.studies.sweep`; the last stage of the continuation only) -- its gain itself is a
-  candidate too, so when the region gets looser (or a bound weaker) along a chunk the answer never
-  gets worse.  Order the last axis of a grid from the tightest to the loosest region (e.g. ``zeta``
-  descending) to get this monotonicity; the NLP is non-convex and independent local solves can
-  otherwise land in different local optima at neighbouring points;
+  :mod:`optdesign.studies.sweep`; the last stage of the free-pole NLP and of one fixed-pole polish
+  at its answer's poles) -- its gain itself is a candidate too, so when the region gets looser (or a
+  bound weaker) along a chunk the answer never gets worse; a warm start whose own gain attains
+  kappa2 = 1 (the lower bound) is the point's answer, with no IPOPT solve and no further start.
+  Order the last axis of a grid from the tightest to the loosest region (e.g. ``zeta`` descending)
+  to get this monotonicity; the NLP is non-convex and independent local solves can otherwise land
+  in different local optima at neighbouring points;
 * ``starts`` *placement starts*: the first at the open-loop poles moved into the point's region
   (:func:`~optdesign.design.well_conditioned.naive_poles`), the others at poles sampled in the
   region (complex-pair patterns first; ``kalman_start=False`` of the problem), each with a robust
-  placement (scipy YT) for the initial gain and the full continuation -- so a point never depends
-  on a warm start alone.  The problem runs IPOPT for every point (``route="nlp"``): on DIS2 the
-  placement engine's region route found worse local optima from these starts (kappa2 1.12 against
-  1.05 at ``alpha = 3, zeta = 0.55``, even with 8 starts).
+  placement (scipy YT) for the initial gain, the free-pole NLP's full continuation and the last stage
+  of the fixed-pole polishes at its answer's poles (``region_polish="last"`` of the problem) -- so a
+  point never depends on a warm start alone.  The problem runs IPOPT for every point
+  (``route="nlp"``): on DIS2 the placement engine's region route found worse local optima from these
+  starts (kappa2 1.12 against 1.05 at ``alpha = 3, zeta = 0.55``, even with 8 starts).
 
 Every candidate is verified independently of the solver, by the problem's checks (stability and the
 signed distance of the poles of ``A - L C`` to the point's region, with numpy; the solver's
@@ -415,7 +418,8 @@ class RegionSweepDesigner:
         def build() -> WellConditionedProblem:
             objective: Any = self.objective  # (validated by the constructor)
             return WellConditionedProblem(plant, objective=objective, starts=self.starts, seed=self.seed,
-                                          options=opts, pole_scale=omega, route="nlp", kalman_start=False)
+                                          options=opts, pole_scale=omega, route="nlp", kalman_start=False,
+                                          region_polish="last")
 
         if not self.reuse:
             return build()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -42,6 +43,7 @@ __all__ = [
     "POLE_TOL",
     "Candidate",
     "evaluate_candidate",
+    "cached_evaluate",
     "kappa2_agreement_tol",
     "check_region_stable",
     "check_target_stable",
@@ -170,6 +172,45 @@ def evaluate_candidate(
         checks.append(Check.at_most("finite_gain", 0.0, 0.0))
     out = {"kappa2": k2, "eta": eta_v, "kappa_fro": kf, "gain_norm": gn, "poles": poles, "V": V}
     return out, Verification.of(checks)
+
+
+def cached_evaluate(evaluate: Callable[[Candidate], tuple[dict[str, Any], Verification]],
+                    ) -> Callable[[Candidate], tuple[dict[str, Any], Verification]]:
+    """``evaluate`` (a function of one candidate, e.g. :func:`evaluate_candidate` with the design's
+    plant, region and bounds bound) that evaluates each distinct candidate once.
+
+    A candidate is identified by the exact bytes of its gain, its eigenbasis and their poles (all
+    that :func:`evaluate_candidate` reads), so a candidate checked by a start's runner, then ranked
+    with its start's history, then compared with the other starts is evaluated once.  Make one per
+    solve (the cache holds that solve's candidates; nothing is kept across calls).
+
+    Parameters
+    ----------
+    evaluate : callable
+        ``evaluate(candidate) -> (metrics, Verification)``, a pure function of ``L``, ``Z`` and
+        ``Zpoles``.
+
+    Returns
+    -------
+    callable
+        The same function, memoized.
+    """
+    memo: dict[tuple, tuple[dict[str, Any], Verification]] = {}
+
+    def key(a: NDArray | None) -> tuple | None:
+        if a is None:
+            return None
+        a = np.asarray(a)
+        return a.shape, a.dtype.str, a.tobytes()
+
+    def cached(cand: Candidate) -> tuple[dict[str, Any], Verification]:
+        k = (key(cand.L), key(cand.Z), key(cand.Zpoles))
+        out = memo.get(k)
+        if out is None:
+            out = memo[k] = evaluate(cand)
+        return out
+
+    return cached
 
 
 def _region_sup_modulus(region: Region) -> float:

@@ -11,6 +11,7 @@ per pole structure, and re-solved with new parameters.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from typing import Any
 
@@ -36,6 +37,7 @@ from .starts import placement_start
 __all__ = [
     "IPOPT_DEFAULTS",
     "REGION_STAGES",
+    "REGION_POLISHES",
     "ipopt_options",
     "solve_nlp",
     "stage_plan",
@@ -50,6 +52,11 @@ __all__ = [
 #: continuation stages of the free-pole NLP (the fixed-pole polish at its poles runs them all):
 #: on COMPleib AC6 stages 3 and 9 changed kappa2 by < 0.2 % at ~40 % of the time
 REGION_STAGES = (0, 6, 12)
+
+#: how a region start polishes (:func:`nlp_region_runner`): ``"full"``, the fixed-pole NLP at the
+#: start's poles and at the free-pole answer's poles, each through its whole continuation; ``"last"``,
+#: only at the answer's poles and the last stage only
+REGION_POLISHES = ("full", "last")
 
 #: IPOPT settings of the design verbs (per stage; merged under the caller's ``options``).
 #: ``acceptable_obj_change_tol`` ends the long flat tails measured on scipy's 6x6 test case
@@ -203,14 +210,19 @@ def solve_starts(starts_list, runner, objective: str, evaluate: Evaluate, deadli
     """Run the starts ``(origin, L0, structure[, poles, warm])`` through ``runner(L0, structure, first,
     warm)`` (-> candidates); keep each start's best verified candidate.  No start after the first is
     begun once ``deadline`` has expired, nor once a design attains ``lower_bound`` (the
-    objective's, :func:`~.evaluation.objective_lower_bound`).  Indices start at ``first_index``."""
+    objective's, :func:`~.evaluation.objective_lower_bound`).  Indices start at ``first_index``.
+    ``starts_list`` may be a lazy iterable: a start is taken from it only when it is run."""
     records: list[StartRecord] = []
     evaluated: list[Evaluated] = []
-    for k, spec in enumerate(starts_list):
-        origin, L0, structure = spec[0], spec[1], spec[2]
-        idx = first_index + k
+    pending = iter(starts_list)
+    for k in itertools.count():
         if k and (deadline.expired or any(attains(lower_bound, e[0], e[3], e[4]) for e in evaluated)):
             break
+        spec = next(pending, None)
+        if spec is None:
+            break
+        origin, L0, structure = spec[0], spec[1], spec[2]
+        idx = first_index + k
         hist = runner(L0, structure, k == 0, bool(spec[4]) if len(spec) > 4 else False)
         if not hist:
             continue
@@ -239,23 +251,39 @@ def nlp_fixed_runner(get_nlp: Callable[[Any], Any], target: NDArray, objective: 
 
 def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dict[str, Any],
                       get_fixed: Callable[[Any], Any], get_region: Callable[[Any], Any],
-                      evaluate: Evaluate, deadline: Deadline, *, mask: NDArray | None):
+                      evaluate: Evaluate, deadline: Deadline, *, mask: NDArray | None,
+                      lower_bound: float | None = None, polish: str = "full"):
     """``runner(L0, structure, first, warm)`` of poles free in ``region``.
 
     Each start contributes (0) its own gain, unoptimized, (A) the fixed-pole NLP at the start's
     poles, (B) the free-pole NLP from the start (``get_region(structure)``), (C) the fixed-pole NLP
     at B's poles, from B's gain and from scipy's YT gain there -- each verified; the best is kept,
-    so a design is never worse than its start (e.g. scipy YT at the naive poles).  A warm start (a
-    converged design of a nearby problem) runs the last stage of each continuation only.
+    so a design is never worse than its start (e.g. scipy YT at the naive poles).  ``polish="last"``
+    (:data:`REGION_POLISHES`): no A, and the two C solves run the last stage of the continuation only.
+
+    A warm start (a converged design of a nearby problem, e.g. the previous point of a sweep) runs
+    only what it needs: no A (its gain is already the fixed-pole optimum at its own poles: the
+    previous design's C), the last stage of B's continuation, the last stage of C from B's gain, and
+    no YT gain.  A start stops as soon as one of its verified candidates attains ``lower_bound`` (the
+    objective's, :func:`~.evaluation.objective_lower_bound`: a global optimum that nothing can beat)
+    -- a warm start already at the bound runs no IPOPT at all.  ``evaluate`` should be memoized per
+    solve (:func:`~.evaluation.cached_evaluate`): each candidate is checked here and again when the
+    start's best is picked.
     """
     n = plant.n
     observable = plant.is_observable()
     rank_c = int(np.linalg.matrix_rank(plant.C))
     region_opts = dict(options)
     region_opts["ipopt.max_iter"] = min(int(options.get("ipopt.max_iter", 300)), 300)
+    light = polish == "last"
 
     def verified(c: Candidate) -> bool:
         return bool(evaluate(c)[1].passed)
+
+    def optimal(cands: list[Candidate]) -> bool:
+        """A verified candidate at the objective's lower bound: nothing else can beat it."""
+        return lower_bound is not None and any(
+            attains(lower_bound, metric_of(objective, m), v, c) for c in cands for m, v in [evaluate(c)])
 
     def fixed_at(poles_now, L0, final_only):
         """Fixed-pole optimization at given poles (inside the region), or [] if not applicable."""
@@ -282,7 +310,12 @@ def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dic
                         "the start's gain itself (not improved by IPOPT)", 0, 0.0, stage="start gain",
                         backend="start")
         hist = [raw]
-        hist += fixed_at(P0, L0, warm) if observable and region.contains(P0) else []
+        if optimal(hist):
+            return hist
+        if not (warm or light) and observable and region.contains(P0):
+            hist += fixed_at(P0, L0, False)
+            if optimal(hist):
+                return hist
         # the free-pole NLP from the start itself, with the whole continuation: measured on COMPleib
         # AC6, starting it from the fixed-pole optimum (stages 9, 12 only) ended at kappa2 18.9,
         # from the placement start at 1.27
@@ -291,13 +324,14 @@ def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dic
                                                    final_only=warm)
         hist += hb
         okb = [(metric_of(objective, m), c) for c in hb for m, v in [evaluate(c)] if v.passed]
-        if okb and observable:
+        if okb and observable and not optimal(hb):
             cb = min(okb, key=lambda t: t[0])[1]
             Pb = np.linalg.eigvals(plant.A - cb.L @ plant.C)
-            hist += fixed_at(Pb, cb.L, warm)
-            Lyt = placement_start(plant, Pb, "YT") if mask is None else None
+            hist += fixed_at(Pb, cb.L, warm or light)
+            yt = mask is None and not warm and not optimal(hist)
+            Lyt = placement_start(plant, Pb, "YT") if yt else None
             if Lyt is not None:  # robust placement at the same poles may sit in a better basin
-                hist += fixed_at(Pb, Lyt, warm)
+                hist += fixed_at(Pb, Lyt, light)
         return hist
 
     return runner

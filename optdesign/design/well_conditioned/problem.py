@@ -14,7 +14,8 @@ object, and the same call gives the same answer whatever ran before in the proce
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+import itertools
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from functools import partial
 from typing import Any, Literal
 
@@ -35,15 +36,16 @@ from .engine_route import ENGINE, engine_fixed, engine_region
 from .evaluation import (
     Evaluated,
     attains,
+    cached_evaluate,
     check_region_stable,
     check_target_stable,
     design_outcome,
     evaluate_candidate,
     objective_lower_bound,
 )
-from .nlp_route import ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
+from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
 from .results import ObserverDesign, StartRecord, n_converged, no_design
-from .starts import fixed_starts, region_starts
+from .starts import fixed_starts, iter_region_starts
 
 __all__ = ["WellConditionedProblem", "Objective", "check_region", "kappa2_bound",
            "result_from"]
@@ -176,6 +178,14 @@ class WellConditionedProblem:
     kalman_start : bool, default True
         Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
         first samples poles in the region (complex-pair patterns first).
+    region_polish : {"full", "last"}, default "full"
+        Region mode, NLP route: how a start polishes the free-pole answer.  ``"full"``: the fixed-pole
+        NLP at the start's own poles too, and the fixed-pole NLPs at the answer's poles (from its gain
+        and from scipy's YT gain there) through their whole continuation; ``"last"``: only at the
+        answer's poles, the last continuation stage only (the sweep designer's: on the DIS2 block of
+        ``benchmarks/results/sweep.md`` the same kappa2 at every point, 4.2 instead of 13.3 IPOPT
+        solves per point).  A warm start always runs the short path
+        (:func:`~.nlp_route.nlp_region_runner`).
 
     Attributes
     ----------
@@ -201,7 +211,8 @@ class WellConditionedProblem:
                  eta_max: float | None = None, starts: int = 8, seed: int = 0, nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
                  allow_unstable: bool = False, pole_scale: float | None = None,
-                 route: Literal["auto", "nlp", "engine"] = "auto", kalman_start: bool = True) -> None:
+                 route: Literal["auto", "nlp", "engine"] = "auto", kalman_start: bool = True,
+                 region_polish: Literal["full", "last"] = "full") -> None:
         plant = as_plant(plant)
         check_objective(objective)
         if not isinstance(nlp_solver, str) or nlp_solver != "ipopt":
@@ -227,6 +238,9 @@ class WellConditionedProblem:
             raise ValidationError(f"route must be 'auto', 'nlp' or 'engine'; found {route!r}")
         self.route = route
         self.kalman_start = as_bool("kalman_start", kalman_start)
+        if not isinstance(region_polish, str) or region_polish not in REGION_POLISHES:
+            raise ValidationError(f"region_polish must be 'full' or 'last'; found {region_polish!r}")
+        self.region_polish = region_polish
         self._nlps: dict[tuple, Any] = {}
 
     @property
@@ -398,8 +412,8 @@ class WellConditionedProblem:
         if proof is not None:
             return proof
         plant, objective = self.plant, self.objective
-        evaluate = partial(evaluate_candidate, plant, target=target, region=None,
-                           stable=not self.allow_unstable, mask=self.mask, **bounds)
+        evaluate = cached_evaluate(partial(evaluate_candidate, plant, target=target, region=None,
+                                           stable=not self.allow_unstable, mask=self.mask, **bounds))
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []
         # structural zeros go to IPOPT too: the engine's augmented Lagrangian for masks can stop worse
@@ -432,17 +446,11 @@ class WellConditionedProblem:
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
                            deadline=deadline, planned=planned, route=route)
 
-    def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator) -> list:
-        """The starts of region mode (:func:`~.starts.region_starts`; without its Kalman start 1 when
-        ``kalman_start`` is False: sampled poles instead)."""
-        if not n_starts:
-            return []
-        if self.kalman_start:
-            return region_starts(self.plant, region, n_starts, rng, self.mask)
-        specs = region_starts(self.plant, region, n_starts + 1, rng, self.mask)  # (its Kalman start 1
-        if specs[1][0] == "Kalman gain (Q = I)":  # draws nothing from rng: the samples stay the same)
-            del specs[1]
-        return specs[:n_starts]
+    def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator) -> Iterator:
+        """The starts of region mode, lazily (:func:`~.starts.iter_region_starts`: a start's placement is
+        computed when it runs; without the Kalman start 1 when ``kalman_start`` is False: sampled poles
+        instead)."""
+        return iter_region_starts(self.plant, region, n_starts, rng, self.mask, kalman=self.kalman_start)
 
     def _unobservable_outside(self, region: Region) -> ObserverDesign | None:
         unobs = self.plant.unobservable_modes()
@@ -466,9 +474,10 @@ class WellConditionedProblem:
         if proof is not None:
             return proof
         plant, objective = self.plant, self.objective
-        evaluate = partial(evaluate_candidate, plant, target=None, region=region, mask=self.mask, **bounds)
+        evaluate = cached_evaluate(partial(evaluate_candidate, plant, target=None, region=region,
+                                           mask=self.mask, **bounds))
         rng = np.random.default_rng(seed)
-        specs = self._region_starts(region, n_starts, rng)
+        specs: Iterable[Any] = self._region_starts(region, n_starts, rng)
         warm_spec = None
         if warm is not None:
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
@@ -481,9 +490,10 @@ class WellConditionedProblem:
         evaluated: list[Evaluated] = []
         planned = 0
         route = "nlp" if use_nlp else "engine"
-        with Progress(len(specs) + (warm is not None), "well-conditioned observer", enabled=progress,
+        with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if not use_nlp:
+                specs = list(specs)  # (every start runs on the engine; the fallback re-uses them)
                 eng_specs = [(o, L0, P0, False) for o, L0, _, P0 in specs]
                 if warm_spec is not None:
                     eng_specs.insert(0, (warm_spec[0], warm_spec[1], warm_spec[3], True))
@@ -494,17 +504,14 @@ class WellConditionedProblem:
                                                    progress=bar)
             if use_nlp or _needs_fallback(evaluated, deadline):
                 route = "nlp" if use_nlp else "engine+nlp"
-                planned += len(specs) + (warm_spec is not None)
-                try:
-                    x0 = abs(float(region.interior_point()))
-                except Exception:  # noqa: BLE001 - any failure: fall back on the plant's scale
-                    x0 = 0.0
-                sc = self._scaling(x0)
-                nlp_specs = ([] if warm_spec is None else [warm_spec]) + [s + (False,) for s in specs]
+                planned += n_starts + (warm_spec is not None)
+                sc = self._scaling(0.0 if self.pole_scale is not None else _interior_scale(region))
+                nlp_specs = itertools.chain([] if warm_spec is None else [warm_spec],
+                                            (s + (False,) for s in specs))
                 runner = nlp_region_runner(plant, region, objective, self.options,
                                            self._fixed_nlp_getter(bounds, sc),
                                            self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
-                                           mask=self.mask)
+                                           mask=self.mask, lower_bound=bound, polish=self.region_polish)
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
                 records, evaluated = records + more_r, evaluated + more_e
@@ -543,6 +550,14 @@ class WellConditionedProblem:
                 else "the stability region")
         return (f"WellConditionedProblem(n={self.plant.n}, p={self.plant.p}, objective={self.objective!r}, "
                 f"{what}, starts={self.starts}, NLPs built: {len(self._nlps)})")
+
+
+def _interior_scale(region: Region) -> float:
+    """The modulus of the region's interior point (the NLP scaling's pole scale; 0 if it fails)."""
+    try:
+        return abs(float(region.interior_point()))
+    except Exception:  # noqa: BLE001 - any failure: fall back on the plant's scale
+        return 0.0
 
 
 def _as_seed(seed: Any) -> int | list[int]:

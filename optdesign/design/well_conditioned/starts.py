@@ -6,6 +6,7 @@ eigenstructure assignments, Kalman gains, and the reference pole choices of regi
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
 
 import numpy as np
 from numpy.typing import NDArray
@@ -30,6 +31,7 @@ __all__ = [
     "riccati_start",
     "fixed_starts",
     "region_starts",
+    "iter_region_starts",
 ]
 
 #: one region start: (origin, initial gain, pole structure, start poles)
@@ -294,20 +296,31 @@ def region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Gene
     """Start 0: scipy YT at :func:`naive_poles`; start 1: the Kalman gain for ``Q = I, R = I``;
     then YT at poles sampled in the region (real/complex patterns of :func:`start_real_counts`).
     Per start ``(origin, L0, structure, poles)``: ``poles`` are the placed poles (or those of
-    ``A - L0 C`` for a Kalman gain or a masked one).
+    ``A - L0 C`` for a Kalman gain or a masked one).  The list of :func:`iter_region_starts`.
 
     Measured on COMPleib (region of ``benchmarks/bench_placement.py``): AC7 ends at kappa2 22.8
     from the Kalman start, at 3e6 from sampled poles; HE5 at 76 from the naive start.
     """
+    return list(iter_region_starts(plant, region, starts, rng, mask))
+
+
+def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Generator,
+                       mask: NDArray | None, *, kalman: bool = True) -> Iterator[RegionStartSpec]:
+    """The starts of :func:`region_starts`, one at a time: each start's placement is computed only
+    when the caller asks for it (a design that stops early computes no placement it does not run).
+
+    ``kalman=False``: no Kalman start 1 -- start 1 and after sample poles in the region (the
+    Kalman gain is still the fallback of a start whose placement fails).  The samples drawn from
+    ``rng`` are those of :func:`region_starts` (its Kalman start draws nothing).
+    """
     n = plant.n
     observable = plant.is_observable()
-    out: list[RegionStartSpec] = []
     kalman_used = False
     n_sampled = 0
     for k in range(starts):
         P0 = None
         L0: NDArray | None  # None while no placement has succeeded
-        if k == 1 and not kalman_used:
+        if k == 1 and kalman and not kalman_used:
             L0 = riccati_start(plant, rng, 0)
             st = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
             origin = "Kalman gain (Q = I)"
@@ -341,5 +354,4 @@ def region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Gene
             st = PoleStructure.of(np.linalg.eigvals(plant.A - L0 @ plant.C), tol=1e-6)
             P0 = None
         poles = np.linalg.eigvals(plant.A - L0 @ plant.C) if P0 is None else np.asarray(P0, dtype=complex)
-        out.append((origin, L0, st, poles))
-    return out
+        yield origin, L0, st, poles
