@@ -50,6 +50,8 @@ from optdesign.formulate.well_conditioned import (
 )
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.solvers.casadi_backend import solve_opti
+from optdesign.design.well_conditioned.problem import DEFAULT_STARTS
+from optdesign.solvers.eigenstructure_fixed import default_starts
 
 
 def _yt(plant, poles, method="YT"):
@@ -128,13 +130,15 @@ def test_fixed_poles_reference_values(pp_results):
 def test_history_and_record(pp_results):
     d = pp_results["pp_byers3"][0]
     assert isinstance(d, ObserverDesign)
-    assert len(d.starts) == 8 and d.starts[0].origin == "YT" and d.starts[1].origin == "KNV0"
-    assert d.n_converged == 8
+    # default starts on the engine: what the engine needs (6 at n = 4), not the NLP route's 8
+    assert default_starts(4) == 6
+    assert len(d.starts) == 6 and d.starts[0].origin == "YT" and d.starts[1].origin == "KNV0"
+    assert d.n_converged == 6
     # fixed poles without bounds: the placement engine (issue 13), every start in lockstep
-    assert d.solver_stats.backend == "eigenstructure" and d.solver_stats.extra["starts"] == 8
+    assert d.solver_stats.backend == "eigenstructure" and d.solver_stats.extra["starts"] == 6
     assert d.solver_stats.extra["route"] == "engine"
     rec = d.record()
-    assert rec["success"] is True and rec["kappa2"] == d.kappa2 and rec["converged"] == 8
+    assert rec["success"] is True and rec["kappa2"] == d.kappa2 and rec["converged"] == 6
     assert "kappa2=" in repr(d)
     assert d.gain_norm == pytest.approx(np.linalg.norm(d.L, 2))
 
@@ -145,8 +149,8 @@ def test_starts_stop_at_the_lower_bound_of_kappa2():
     plant = Plant([[0.0, 1.0, 0.0], [-2.0, -3.0, 1.0], [0.0, 0.0, -1.0]], np.eye(3))  # C = I: normal
     d = well_conditioned_observer(plant, poles=[-1.0, -2.0, -3.0])
     assert d.success and len(d.starts) == 1 and d.kappa2 <= 1 + kappa2_agreement_tol(1.0)
-    assert "stopped after 1 of 8 starts: kappa2 = 1 is its lower bound" in d.message
-    assert d.solver_stats.extra["planned_starts"] == 8
+    assert "stopped after 1 of 6 starts: kappa2 = 1 is its lower bound" in d.message   # the engine's 6
+    assert d.solver_stats.extra["planned_starts"] == default_starts(3) == 6
     ac4 = problems.load("compleib_ac4").plant
     d = well_conditioned_observer(ac4, region=suggested_region(ac4))
     assert d.success and len(d.starts) < 8 and d.kappa2 == pytest.approx(1.0, abs=1e-6)
@@ -1188,3 +1192,17 @@ def test_structural_zeros_with_fixed_poles_go_to_ipopt():
     assert d.success and d.solver_stats.extra["route"] == "nlp"
     assert np.all(d.L[~mask] == 0.0)
     assert d.kappa2 < 360.0  # IPOPT's 355.4; the engine alone ends at 406.7
+
+
+def test_default_starts_follow_the_route():
+    """starts=None: the engine's default for fixed poles without bounds, 8 on the NLP route and in a
+    region; an explicit count always wins."""
+    plant = problems.load("pp_byers3").plant
+    P = problems.load("pp_byers3").targets["poles"]
+    assert len(well_conditioned_observer(plant, poles=P).starts) == default_starts(plant.n)
+    assert len(well_conditioned_observer(plant, poles=P, starts=3).starts) == 3
+    prob = WellConditionedProblem(plant, poles=P, max_gain=200.0)
+    d = prob.solve(time_limit=60)
+    assert d.solver_stats.extra["route"] == "nlp"
+    assert len(d.starts) == DEFAULT_STARTS == 8
+    assert "starts=default" in repr(prob)

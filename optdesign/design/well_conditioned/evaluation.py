@@ -131,8 +131,9 @@ def evaluate_candidate(
     checks: list[Check] = []
     X = plant.A - L @ plant.C
     poles = sort_poles(np.linalg.eigvals(X))
+    summ = metrics.condition_summary(X)   # one Schur form for the metrics and the rounding floor
     # how accurately these poles are computable at all (relative; capped like the pole check)
-    floor = min(metrics.eigenvalue_rounding_floor(X), POLE_FLOOR_CAP)
+    floor = min(float(summ["rounding_floor"]), POLE_FLOOR_CAP)
     if stable:
         checks.append(observer_stability_check(poles, plant.is_discrete, floor))
     if target is not None:
@@ -140,7 +141,6 @@ def evaluate_candidate(
                                     "max relative error of eig(A - LC) vs the target poles"))
     if region is not None:
         checks.append(region_margin_check(region, poles, floor))
-    summ = metrics.condition_summary(X)
     k2, eta_v, kf = float(summ["kappa2"]), float(summ["eta"]), float(summ["kappa_fro"])
     if cand.Z is not None and cand.Zpoles is not None:
         Z, zp = cand.Z, cand.Zpoles

@@ -32,6 +32,7 @@ from ...model.plant import Plant
 from ...model.regions import Disk, HalfPlane, Intersection, Region, Sector, stability_region
 from ...results import Certificate, SolverStats, Status
 from ...solvers.eigenstructure import EigenstructureEngine
+from ...solvers.eigenstructure_fixed import default_starts
 from .engine_route import ENGINE, engine_fixed, engine_region
 from .evaluation import (
     Evaluated,
@@ -47,10 +48,14 @@ from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_reg
 from .results import ObserverDesign, StartRecord, n_converged, no_design
 from .starts import fixed_starts, iter_region_starts
 
-__all__ = ["WellConditionedProblem", "Objective", "check_region", "kappa2_bound",
+__all__ = ["WellConditionedProblem", "Objective", "DEFAULT_STARTS", "check_region", "kappa2_bound",
            "result_from"]
 
 Objective = Literal["kappa2", "kappa_fro", "eta"]
+
+#: starts of a solve when none are given (region mode, the NLP route); fixed poles on the placement
+#: engine use :func:`~optdesign.solvers.eigenstructure_fixed.default_starts`
+DEFAULT_STARTS = 8
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
@@ -150,7 +155,10 @@ class WellConditionedProblem:
     max_gain, kappa2_max, eta_max : float, optional
         Bounds ``||L||_2 <= max_gain``, ``kappa2 <= kappa2_max``, ``eta <= eta_max`` (a solve may
         change their values).
-    starts : int, default 8
+    starts : int, optional
+        Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
+        structural zeros): :func:`~optdesign.solvers.eigenstructure_fixed.default_starts` (6 up to
+        n = 12, 2 up to 24, then 1 -- what the engine needs, measured).
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -208,7 +216,8 @@ class WellConditionedProblem:
     def __init__(self, plant: Plant | Any, *, objective: Objective = "kappa2", poles: ArrayLike | None = None,
                  region: Region | None = None, gain_mask: ArrayLike | None = None,
                  max_gain: float | None = None, kappa2_max: float | None = None,
-                 eta_max: float | None = None, starts: int = 8, seed: int = 0, nlp_solver: str = "ipopt",
+                 eta_max: float | None = None, starts: int | None = None, seed: int = 0,
+                 nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
                  allow_unstable: bool = False, pole_scale: float | None = None,
                  route: Literal["auto", "nlp", "engine"] = "auto", kalman_start: bool = True,
@@ -219,7 +228,7 @@ class WellConditionedProblem:
             raise ValidationError(f"nlp_solver must be 'ipopt' (CasADi/IPOPT is the NLP backend); found "
                                   f"{nlp_solver!r}")
         self.plant, self.objective = plant, objective
-        self.starts = as_int("starts", starts, 1)
+        self.starts = None if starts is None else as_int("starts", starts, 1)
         self.seed = as_int("seed", seed, 0)
         self.scaling = as_bool("scaling", scaling)
         self.mask = as_gain_mask("gain_mask", gain_mask, plant.n, plant.p)
@@ -365,7 +374,7 @@ class WellConditionedProblem:
         deadline = time_limit if isinstance(time_limit, Deadline) else Deadline(as_time_limit(time_limit))
         progress = as_progress(progress)
         lowest = 0 if warm_start is not None else 1
-        n_starts = self.starts if starts is None else as_int("starts", starts, lowest)
+        chosen = self.starts if starts is None else as_int("starts", starts, lowest)
         seed = self.seed if seed is None else _as_seed(seed)
         bounds = self._solve_bounds({"max_gain": max_gain, "kappa2_max": kappa2_max, "eta_max": eta_max})
         warm = _warm_gain(warm_start, self.plant)
@@ -378,10 +387,14 @@ class WellConditionedProblem:
         else:
             target = None
         if target is not None:
+            on_engine = self.mask is None and all(v is None for v in bounds.values())
+            n_starts = chosen if chosen is not None else (
+                default_starts(self.plant.n) if on_engine else DEFAULT_STARTS)
             return self._fixed(target, bounds, n_starts, seed, deadline, warm, progress)
         if region is None:
             region = self.region if self.region is not None else stability_region(self.plant.is_discrete)
         region = self._check_region_mode(region, bounds)
+        n_starts = chosen if chosen is not None else DEFAULT_STARTS
         return self._free(region, bounds, n_starts, seed, deadline, warm, progress)
 
     def _repeated_pole_proof(self, target: NDArray) -> ObserverDesign | None:
@@ -549,7 +562,7 @@ class WellConditionedProblem:
         what = ("poles" if self.poles is not None else f"region {self.region!r}" if self.region is not None
                 else "the stability region")
         return (f"WellConditionedProblem(n={self.plant.n}, p={self.plant.p}, objective={self.objective!r}, "
-                f"{what}, starts={self.starts}, NLPs built: {len(self._nlps)})")
+                f"{what}, starts={'default' if self.starts is None else self.starts}, NLPs built: {len(self._nlps)})")
 
 
 def _interior_scale(region: Region) -> float:

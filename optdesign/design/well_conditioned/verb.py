@@ -26,7 +26,7 @@ def well_conditioned_observer(
     max_gain: float | None = None,
     kappa2_max: float | None = None,
     eta_max: float | None = None,
-    starts: int = 8,
+    starts: int | None = None,
     seed: int = 0,
     nlp_solver: str | None = None,
     scaling: bool = True,
@@ -68,8 +68,11 @@ def well_conditioned_observer(
     kappa2_max, eta_max : float, optional
         Trade-off bounds on the metrics that are not minimized (e.g. minimize eta subject to
         ``kappa2 <= kappa2_max``): minimizing eta alone can make kappa2 much worse.
-    starts : int, default 8
-        Number of multi-start runs.  Fixed poles: scipy YT, KNV0 (real poles) and random
+    starts : int, optional
+        Number of multi-start runs; default 8, except fixed poles on the placement engine (no
+        bounds, no structural zeros): 6 up to n = 12, 2 up to 24, then 1
+        (:func:`~optdesign.solvers.eigenstructure_fixed.default_starts`: measured enough for the
+        engine, whose starts run in lockstep).  Fixed poles: scipy YT, KNV0 (real poles) and random
         eigenvector coordinates, run in lockstep by the placement engine.  Region: start 0 is
         scipy YT at :func:`naive_poles` (the open-loop poles moved into the region), start 1 the
         Kalman gain for ``Q = I, R = I``, the others YT at poles sampled in the region
