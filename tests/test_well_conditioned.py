@@ -39,6 +39,7 @@ from optdesign.design.well_conditioned import (
     start_real_counts,
     suggested_region,
 )
+from optdesign.design.well_conditioned.problem import DEFAULT_STARTS
 from optdesign.formulate.well_conditioned import (
     KAPPA2_STAGES,
     NLPScaling,
@@ -50,7 +51,6 @@ from optdesign.formulate.well_conditioned import (
 )
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.solvers.casadi_backend import solve_opti
-from optdesign.design.well_conditioned.problem import DEFAULT_STARTS
 from optdesign.solvers.eigenstructure_fixed import default_starts
 
 

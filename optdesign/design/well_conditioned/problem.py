@@ -561,8 +561,9 @@ class WellConditionedProblem:
     def __repr__(self) -> str:
         what = ("poles" if self.poles is not None else f"region {self.region!r}" if self.region is not None
                 else "the stability region")
+        starts = "default" if self.starts is None else self.starts
         return (f"WellConditionedProblem(n={self.plant.n}, p={self.plant.p}, objective={self.objective!r}, "
-                f"{what}, starts={'default' if self.starts is None else self.starts}, NLPs built: {len(self._nlps)})")
+                f"{what}, starts={starts}, NLPs built: {len(self._nlps)})")
 
 
 def _interior_scale(region: Region) -> float:
