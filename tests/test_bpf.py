@@ -32,6 +32,7 @@ from optdesign.classical.bpf import (
     crank_nicolson_transition,
     davison_maki,
     filter_hamiltonian,
+    filter_hamiltonian_trusted,
     hamiltonian_scaling,
     integration_matrix,
     riccati_flow,
@@ -102,6 +103,15 @@ def test_filter_hamiltonian_is_hamiltonian(rng):
     assert np.allclose(JM, JM.T, atol=1e-14)
     E = scipy.linalg.expm(0.3 * M)                                                 # symplectic
     assert np.allclose(E.T @ J2(4) @ E, J2(4), atol=1e-12)
+
+
+def test_trusted_filter_hamiltonian_equals_the_validated_one(rng):
+    """The unvalidated variant (for callers that have validated) builds the same matrix, bit for bit."""
+    for n, p in ((1, 1), (4, 2), (7, 3)):
+        pl = random_observable_plant(rng, n, p, stable=False)
+        M = filter_hamiltonian(pl.A, pl.C, pl.process_noise(), pl.R)
+        assert np.array_equal(filter_hamiltonian_trusted(pl.A, pl.C, pl.process_noise(), pl.R), M)
+        assert np.array_equal(M[:n, :n], -pl.A.T) and np.array_equal(M[n:, n:], pl.A)
 
 
 # ------------------------------------------------------------------ what the recursion is

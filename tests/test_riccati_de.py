@@ -443,6 +443,38 @@ def test_post_processing_only_when_asked(monkeypatch, paper):
     assert [c.name for c in full.verification] == ["nonfinite", "P_min_eig", "error_estimate"]
 
 
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_error_estimate_recomputes_by_doubling_not_by_the_direct_map(monkeypatch, seed):
+    """Short output intervals take the direct one-exponential map; the error estimate must not take
+    the same shortcut (it would agree with the trajectory exactly, whatever its error): its
+    recomputation doubles from a 4x shorter base step, so it measures a nonzero rounding difference,
+    within the direct map's promise (``DIRECT_MAX_LOSS * eps``, times n and a factor 10)."""
+    import importlib
+
+    from optdesign.classical import transition
+
+    verb = importlib.import_module("optdesign.design.riccati_de")
+    infos = []
+    real_flow = verb.riccati_flow
+
+    def flow(*a, **k):
+        P, info = real_flow(*a, **k)
+        infos.append((k.get("direct", True), info))
+        return P, info
+
+    monkeypatch.setattr(verb, "riccati_flow", flow)
+    rng = np.random.default_rng(1470 + seed)
+    n = 6
+    plant = random_observable_plant(rng, n, 2, stable=bool(seed % 2))
+    F = rng.standard_normal((n, n))
+    tr = riccati_de(plant, F @ F.T / n, 2.0, steps=100, steady_state=False)
+    (direct_main, main), (direct_est, est) = infos
+    assert direct_main and main["direct"] == 1 and tr.solver_stats.extra["direct"] == 1
+    assert not direct_est and est["direct"] == 0 and est["doublings"] >= 2
+    assert "doubling" in tr.error_kind and tr.success
+    assert 0.0 < tr.error_estimate <= 10 * n * transition.DIRECT_MAX_LOSS * np.finfo(float).eps
+
+
 @pytest.mark.parametrize("batch_max_n, chunk_bytes", [(100, 1 << 22), (100, 3 * 8 * 2 * 2), (0, 1 << 22)])
 def test_psd_check_is_a_certified_bound_or_exact(paper, rng, monkeypatch, batch_max_n, chunk_bytes):
     """P_min_eig: where every P_k plus a rounding-level shift has a Cholesky factor, the value is

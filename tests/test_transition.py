@@ -14,6 +14,7 @@ from conftest import random_observable_plant
 from optdesign.classical import transition
 from optdesign.classical.bpf import filter_hamiltonian
 from optdesign.classical.transition import RiccatiMap, apply_map, davison_maki, riccati_flow, riccati_map
+from optdesign.errors import ValidationError
 
 _EPS = float(np.finfo(float).eps)
 
@@ -37,7 +38,7 @@ def test_apply_map_matches_the_moebius_form(n, stable):
     rng = np.random.default_rng(1400 + n + 100 * stable)
     M = _hamiltonian(rng, n, max(1, n // 4), stable)
     dt = 0.5 / float(np.linalg.norm(M, 1))
-    rmap = riccati_map(M, 4 * dt)                      # two doublings
+    rmap = riccati_map(M, 4 * dt, direct=False)        # two doublings
     P = _random_psd(rng, n)
     P_in = P.copy()
     out = apply_map(rmap, P)
@@ -110,3 +111,73 @@ def test_cholesky_and_lu_forms_agree_and_match_davison_maki(monkeypatch, stable)
         assert np.max(np.linalg.norm(P - ref, axis=(1, 2))) <= 1e4 * n * _EPS * scale, kernel
         out[kernel] = P
     assert np.max(np.linalg.norm(out["cholesky"] - out["lu"], axis=(1, 2))) <= 100 * n * _EPS * scale
+
+
+# ------------------------------------------------------------------ the direct map of short intervals
+def _loss(M, dt: float) -> float:
+    """``||E||_1 ||E11^-1||_1`` of ``E = expm(M dt)``, with the exact inverse (independent of the
+    ``gecon`` estimate the guard uses)."""
+    n = M.shape[0] // 2
+    E = scipy.linalg.expm(M * dt)
+    return float(np.linalg.norm(E, 1) * np.linalg.norm(np.linalg.inv(E[:n, :n]), 1))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_direct_map_matches_the_doubling_and_davison_maki(seed):
+    """Short output intervals (``||M dt||_1 <= DIRECT_MAX_NORM``) take one exponential of the whole
+    interval; on random plants (n = 2..12, stable and unstable, P0 random PSD) the trajectory equals
+    the doubling's and Davison-Maki's to the guard's promise, ``DIRECT_MAX_LOSS * eps`` relative (times
+    n and a factor 10 for the references' own rounding)."""
+    rng = np.random.default_rng(1450 + seed)
+    n = int(rng.integers(2, 13))
+    M = _hamiltonian(rng, n, max(1, n // 4), stable=bool(seed % 2))
+    dt = float(rng.uniform(2.0, 12.0)) / float(np.linalg.norm(M, 1))      # s >= 2 doublings otherwise
+    times = dt * np.arange(31)
+    P0 = _random_psd(rng, n)
+    P, info = riccati_flow(M, P0, times, balance=False)
+    Pd, info_d = riccati_flow(M, P0, times, balance=False, direct=False, max_norm=1.0 / 16)
+    assert info["direct"] == info["maps"] == 1 and info["doublings"] == 0
+    assert info_d["direct"] == 0 and info_d["doublings"] >= 4
+    assert np.all(P == np.swapaxes(P, 1, 2))
+    ref = davison_maki(M, P0, times, max_step=0.25)
+    scale = float(np.max(np.linalg.norm(ref, axis=(1, 2))))
+    tol = 10 * n * transition.DIRECT_MAX_LOSS * _EPS * scale
+    assert np.max(np.linalg.norm(P - Pd, axis=(1, 2))) <= tol
+    assert np.max(np.linalg.norm(P - ref, axis=(1, 2))) <= tol
+
+
+def test_direct_map_guard_falls_back_to_the_doubling():
+    """A short interval whose ``E11`` is ill conditioned (a fast stable mode beside a fast unstable
+    one, weakly measured: measured loss ``||E|| ||E11^-1|| >> DIRECT_MAX_LOSS`` at ``||M dt||_1 <=
+    DIRECT_MAX_NORM``) is refused by the guard: the map is doubled, and it is right (Davison-Maki)."""
+    A = np.diag([-6.0, 6.0])
+    C = np.array([[1e-3, 1e-3]])
+    M = filter_hamiltonian(A, C, np.eye(2), np.eye(1))
+    dt = 0.9 * transition.DIRECT_MAX_NORM / float(np.linalg.norm(M, 1))
+    assert _loss(M, dt) > 1e3 * transition.DIRECT_MAX_LOSS
+    rmap = riccati_map(M, dt)
+    assert not rmap.direct and rmap.doublings >= 4
+    P0 = 0.5 * np.eye(2)
+    ref = davison_maki(M, P0, [0.0, dt], max_step=0.25)[1]
+    assert np.linalg.norm(apply_map(rmap, P0) - ref) <= 1e4 * _EPS * np.linalg.norm(ref)
+
+
+def test_direct_map_respects_the_growth_limit():
+    """The direct map is refused where its ``||Phi||_1`` exceeds ``growth_limit`` (the doubling's
+    restarts then cover the interval)."""
+    rng = np.random.default_rng(1460)
+    M = _hamiltonian(rng, 4, 1, stable=False)
+    dt = 4.0 / float(np.linalg.norm(M, 1))
+    free = riccati_map(M, dt)
+    phi = float(np.linalg.norm(free.Phi, 1))
+    assert free.direct and phi > 1.0
+    capped = riccati_map(M, dt, growth_limit=0.99 * phi)
+    assert not capped.direct
+
+
+def test_riccati_map_refuses_a_non_bool_direct():
+    M = _hamiltonian(np.random.default_rng(1461), 2, 1, stable=True)
+    with pytest.raises(ValidationError, match="direct must be true or false; found"):
+        riccati_map(M, 0.1, direct="yes")
+    with pytest.raises(ValidationError, match="direct must be true or false; found"):
+        riccati_flow(M, np.eye(2), [0.0, 0.1], direct=1)

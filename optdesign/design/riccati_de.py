@@ -22,7 +22,8 @@ Methods
     form, built by doubling from one short exact step and restarted at every output time
     (:func:`optdesign.classical.transition.riccati_flow`).  Symmetric by construction, PSD to
     rounding (checked), stable on long horizons and on stiff or unstable plants.  Error estimate: the
-    difference from a recomputation with a 4x shorter base step (rounding only).  For a discrete
+    difference from a recomputation by doubling from a 4x shorter base step (rounding only; never
+    the direct one-exponential map that short intervals may use).  For a discrete
     plant: the Riccati recursion in Joseph form (a sum of PSD terms); error estimate: the
     difference from the standard form.
 ``"bpf"``
@@ -77,7 +78,7 @@ from scipy.linalg.lapack import dpotrf as _potrf
 
 from .._deadline import Deadline
 from .._validate import as_bool, as_positive_float, as_square, as_vector, check_psd
-from ..classical.bpf import bpf_evaluate, bpf_restart_blocks, bpf_riccati, filter_hamiltonian
+from ..classical.bpf import bpf_evaluate, bpf_restart_blocks, bpf_riccati, filter_hamiltonian_trusted
 from ..classical.transition import as_hamiltonian, riccati_flow
 from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.coerce import as_plant
@@ -347,8 +348,7 @@ def riccati_de(
 
 def _continuous(plant: Plant, P0: NDArray, t_final: float, method: str, steps: int | None,
                 t_eval: NDArray | None, tol: float, post: dict, clock: Deadline) -> RiccatiTrajectory:
-    W = plant.process_noise()
-    M = filter_hamiltonian(plant.A, plant.C, W, plant.noise_covariances()[1])
+    M = filter_hamiltonian_trusted(plant.A, plant.C, plant.process_noise(), plant.noise_covariances()[1])
     status, message = Status.SOLVED, ""
     asym = 0.0
     if method == "bpf":
@@ -416,12 +416,12 @@ def _error_estimate(M: NDArray, P0: NDArray, t: NDArray, P: NDArray, method: str
         return float("nan"), "not computed (no output)"
     if method == "transition":
         try:
-            P2, _ = riccati_flow(M, P0, t, max_norm=0.125, deadline=clock)
+            P2, _ = riccati_flow(M, P0, t, max_norm=0.125, direct=False, deadline=clock)
         except RiccatiError as exc:  # pragma: no cover - the finer base step failed only
             return float("nan"), f"unavailable: the recomputation failed ({exc})"
         if P2.shape[0] < P.shape[0]:
             return float("nan"), "not computed (time limit reached during the recomputation)"
-        return _rel_diff(P, P2), "rounding: recomputed with a 4x shorter base step"
+        return _rel_diff(P, P2), "rounding: recomputed by doubling from a 4x shorter base step"
     try:
         Pref, _ = riccati_flow(M, P0, t, deadline=clock)
     except RiccatiError as exc:
