@@ -990,13 +990,13 @@ def _count_solves(monkeypatch, after: int):
         def __init__(self, time_limit=None):
             super().__init__(time_limit, after=after)
 
-    real = cb.solve_opti
+    real = cb.run_solver   # every IPOPT stage of the observer NLP route goes through it
 
     def counted(*args, **kwargs):
         Budget.solves += 1
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(cb, "solve_opti", counted)
+    monkeypatch.setattr(cb, "run_solver", counted)
     for module in (wc.verb, wc.kalman):  # where the verbs make their budget
         monkeypatch.setattr(module, "Deadline", Budget)
     return Budget
@@ -1206,3 +1206,95 @@ def test_default_starts_follow_the_route():
     assert d.solver_stats.extra["route"] == "nlp"
     assert len(d.starts) == DEFAULT_STARTS == 8
     assert "starts=default" in repr(prob)
+
+
+# ----------------------------------------------------------------------------- one IPOPT instance per stage
+
+
+def _stage_nlps():
+    """A RegionNLP (COMPleib DIS2, the sweep's plant and region pieces) and a FixedPoleNLP with a gain
+    bound (KNV Ex 1), each with its start gain."""
+    dis2 = problems.load("compleib_dis2").plant
+    P0 = np.array([-3.0, -4 + 1j, -4 - 1j])
+    region = build_observer_nlp(dis2, PoleStructure.of(P0), fixed_poles=False, decay=1.8, damping=0.5,
+                                radius=20.0, scaling=NLPScaling.for_plant(dis2, 20.0, balance=False))
+    pr = problems.load("pp_knv1985_ex1")
+    fixed = build_observer_nlp(pr.plant, PoleStructure.of(pr.targets["poles"]), fixed_poles=True,
+                               max_gain=100.0)
+    fixed.set_poles(pr.targets["poles"])
+    return [(region, place_observer(dis2, P0)), (fixed, place_observer(pr.plant, pr.targets["poles"]))]
+
+
+def test_stage_solver_start_and_values_match_opti():
+    """numeric_start gives the Opti description's own start, parameters and bounds (the same numbers),
+    after set_initial_gain, set_stage, set_parameters and warm_start; the evaluator returns what
+    Opti's sol.value returns (values and shapes) at the same point."""
+    for nlp, L0 in _stage_nlps():
+        nlp.set_initial_gain(L0)
+        nlp.set_stage(KAPPA2_STAGES[1])
+        if "decay" in nlp.params:
+            nlp.set_parameters(decay=1.7)
+        o = nlp.opti
+        x0, p, lbg, ubg = nlp.numeric_start()
+        pv = o.value_parameters()
+        np.testing.assert_array_equal(x0, np.ravel(o.value(o.x, o.initial())))
+        np.testing.assert_array_equal(p, np.ravel(o.value(o.p, pv)))
+        np.testing.assert_array_equal(lbg, np.ravel(o.value(o.lbg, pv)))
+        np.testing.assert_array_equal(ubg, np.ravel(o.value(o.ubg, pv)))
+        rep = solve_opti(o, {"ipopt.max_iter": 3})
+        xs = np.ravel(rep.value(o.x))
+        value = nlp.evaluator(xs, p)
+        for expr in [nlp.L_expr, o.f, *(v for v in nlp.vars.values() if v is not None)]:
+            a, b = value(expr), rep.value(expr)
+            assert np.shape(a) == np.shape(b)
+            tol = 64 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(b))))  # a few roundings
+            np.testing.assert_allclose(a, b, rtol=0, atol=tol)
+        nlp.warm_start(nlp.snapshot(rep.value))  # a snapshot of a solve is a start like any other
+        np.testing.assert_array_equal(nlp.numeric_start()[0], np.ravel(o.value(o.x, o.initial())))
+
+
+def test_stage_solver_start_set_another_way_falls_back_on_opti():
+    """A value set for part of a variable (not recorded) is still the start: numeric_start asks Opti."""
+    nlp, L0 = _stage_nlps()[0]
+    nlp.set_initial_gain(L0)
+    Vt = nlp.vars["Vt"]
+    nlp.opti.set_initial(Vt[0, 0], 0.25)
+    assert nlp.opti.start_vectors(nlp.opti.layout()) is None
+    x0 = nlp.numeric_start()[0]
+    np.testing.assert_array_equal(x0, np.ravel(nlp.opti.value(nlp.opti.x, nlp.opti.initial())))
+    assert 0.25 in x0
+
+
+def test_stage_solvers_reach_the_opti_solutions():
+    """solve_nlp (one IPOPT instance per stage, on the stage's objective alone) follows the Opti
+    description's solve (all stages' objectives with one-hot weights) through the continuation: the same
+    status, iterates that agree to IPOPT's tolerance, and one configured solver per stage run."""
+    for nlp, L0 in _stage_nlps():
+        ours, theirs = [], []
+        for J in KAPPA2_STAGES[:3]:
+            nlp.set_initial_gain(L0)
+            nlp.set_stage(J)
+            rep = wc.nlp_route.solve_nlp(nlp, {"ipopt.tol": 1e-10, "ipopt.max_iter": 500}, Deadline(None))
+            ours.append((rep.status, nlp.gain(rep.value), rep.objective))
+            ref = solve_opti(nlp.opti, {"ipopt.tol": 1e-10, "ipopt.max_iter": 500})
+            theirs.append((ref.status, nlp.gain(ref.value), ref.objective))
+        assert sorted(nlp.stage_solvers) == [0, 1, 2]
+        for (s1, L1, f1), (s2, L2, f2) in zip(ours, theirs, strict=True):
+            assert s1 == s2 == Status.OPTIMAL
+            scale = max(1.0, float(np.max(np.abs(L2))))
+            np.testing.assert_allclose(L1, L2, rtol=0, atol=1e-6 * scale)
+            assert f1 == pytest.approx(f2, rel=1e-8, abs=1e-10)
+
+
+def test_stage_solver_that_cannot_be_made_is_a_solver_error():
+    """CasADi refusing to make the solver (expand=True on the FixedPoleNLP's linear solve) is a failed
+    solve (status solver_error, CasADi's reason), not an exception; reading a value from it raises."""
+    nlp, L0 = _stage_nlps()[1]
+    nlp.set_initial_gain(L0)
+    rep = wc.nlp_route.solve_nlp(nlp, {"expand": True}, Deadline(None))
+    assert rep.status == Status.SOLVER_ERROR and "solver_error" in rep.message
+    assert rep.stats.iterations == 0 and "error" in rep.stats.extra
+    with pytest.raises(RuntimeError, match="no iterate: the solver could not be made"):
+        rep.value(nlp.L_expr)
+    cand, ok = wc.nlp_route.read_candidate(nlp, rep, "FixedPoleNLP J=12")
+    assert not ok and cand.status == Status.SOLVER_ERROR and np.all(np.isnan(cand.L))

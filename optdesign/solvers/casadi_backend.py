@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import re
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -16,7 +17,8 @@ from ..results import SolverStats, Status
 from .report import SolverReport
 from .status import map_status
 
-__all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "DEFAULT_IPOPT_OPTIONS", "check_ipopt_options"]
+__all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "ipopt_solver", "run_solver", "setup_error_report",
+           "DEFAULT_IPOPT_OPTIONS", "check_ipopt_options"]
 
 #: Quiet, reasonably tight IPOPT defaults.  Override per call.
 DEFAULT_IPOPT_OPTIONS: dict[str, Any] = {
@@ -87,10 +89,8 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
     """
     import_casadi()  # a clear BackendUnavailableError when CasADi is missing
     if configure:
-        opts = dict(DEFAULT_IPOPT_OPTIONS)
-        opts.update(options or {})
-        plugin = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
-        ipopt = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
+        plugin = _plugin_options(options)
+        ipopt = plugin.pop("ipopt")
         opti.solver("ipopt", plugin, ipopt)
     t0 = time.perf_counter()
     error = ""
@@ -185,3 +185,100 @@ def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] 
         return xopt
 
     return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)
+
+
+def _plugin_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """CasADi plugin options (``ipopt.``-prefixed keys nested under ``"ipopt"``) of ``options``
+    merged over :data:`DEFAULT_IPOPT_OPTIONS`."""
+    opts = dict(DEFAULT_IPOPT_OPTIONS)
+    opts.update(options or {})
+    plug = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
+    plug["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
+    return plug
+
+
+def ipopt_solver(problem: dict[str, Any], options: dict[str, Any] | None = None, *, name: str = "nlp"):
+    """An IPOPT ``casadi.nlpsol`` Function for ``problem`` (``{"x", "p", "f", "g"}``), configured
+    once and called many times by :func:`run_solver`.
+
+    Parameters
+    ----------
+    problem : dict
+        The problem for ``casadi.nlpsol`` (e.g. the expressions of an ``Opti`` description with one
+        objective of a continuation, :meth:`ObserverNLP.nlpsol_problem`).
+    options : dict, optional
+        As for :func:`solve_opti`: plugin options (e.g. ``expand``) and ``ipopt.``-prefixed IPOPT
+        options, merged over :data:`DEFAULT_IPOPT_OPTIONS`.
+    name : str
+        Name of the CasADi function.
+
+    Returns
+    -------
+    casadi.Function
+
+    Raises
+    ------
+    RuntimeError
+        CasADi refuses the problem or an option (callers validate options up front,
+        :func:`check_ipopt_options`).
+    """
+    ca = import_casadi()
+    return ca.nlpsol(name, "ipopt", problem, _plugin_options(options))
+
+
+def run_solver(solver, x0: NDArray, p: NDArray, lbg: NDArray, ubg: NDArray,
+               value_of: Callable[[NDArray], Callable[[Any], Any]]) -> SolverReport:
+    """Run an :func:`ipopt_solver` Function from ``x0`` with parameters ``p`` and constraint bounds
+    ``lbg <= g <= ubg``; never raises on solver failure.
+
+    Parameters
+    ----------
+    solver : casadi.Function
+        From :func:`ipopt_solver`.
+    x0, p, lbg, ubg : (nx,), (np,), (ng,), (ng,) array_like
+    value_of : callable
+        ``value_of(x)`` -> ``value(expr)``: evaluates an expression of the problem at the solution
+        vector ``x`` (the last iterate when IPOPT fails), e.g. :meth:`ObserverNLP.evaluator`.
+
+    Returns
+    -------
+    SolverReport
+        As :func:`solve_opti`'s: the status mapped from IPOPT's ``return_status``, ``value(expr)``.
+    """
+    t0 = time.perf_counter()
+    error = ""
+    try:
+        sol = solver(x0=x0, p=p, lbg=lbg, ubg=ubg)
+        st = solver.stats()
+        x = np.asarray(sol["x"], dtype=float).ravel()
+        obj = float(sol["f"])
+    except RuntimeError as exc:  # an evaluation or the plugin failed to run
+        error = _error_line(exc)
+        st, x, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
+    elapsed = time.perf_counter() - t0
+    native = str(st.get("return_status", "solver_error" if error else "unknown"))
+    status = map_status("ipopt", native)  # unknown (and "solver_error") -> SOLVER_ERROR
+    stats = SolverStats(
+        backend="ipopt",
+        native_status=native,
+        time=float(st.get("t_wall_total", elapsed)) if st else elapsed,
+        iterations=int(st["iter_count"]) if "iter_count" in st else None,
+        extra={"objective": obj, **({"error": error} if error else {})},
+    )
+    msg = f"ipopt: {native}" + (f" ({error})" if error and error not in native else "")
+    return SolverReport(status=status, stats=stats, value=value_of(x), objective=obj, message=msg)
+
+
+def setup_error_report(exc: BaseException) -> SolverReport:
+    """The report of a solve that could not start: CasADi refused to make the solver (``exc``, e.g.
+    ``expand`` on a problem with a linear solve).  Status ``solver_error``; its ``value(expr)`` raises
+    RuntimeError (there is no iterate), as ``Opti``'s does after such a failure."""
+    line = _error_line(exc)
+    stats = SolverStats(backend="ipopt", native_status="solver_error", time=0.0, iterations=0,
+                        extra={"objective": float("nan"), "error": line})
+
+    def value(_expr: Any = None) -> NDArray[np.float64]:
+        raise RuntimeError(f"no iterate: the solver could not be made ({line})")
+
+    return SolverReport(status=Status.SOLVER_ERROR, stats=stats, value=value, objective=float("nan"),
+                        message=f"ipopt: solver_error ({line})")
