@@ -22,11 +22,12 @@ and the returned L to 1e-6 relative; "verified" counts those.  Times are CPU sec
 (40, 8) the verb (533 s per design in the README's run) is run only with ``--slow``.
 
 Run:  python benchmarks/bench_inverse_kalman.py [--reps 3] [--sizes 2x1,10x4 [--merge]] [--slow]
-      [--profile | --stages]
+      [--profile | --stages | --sdp-forms | --verify-ab]
 Writes benchmarks/results/inverse_kalman.md, .csv and .json; ``--profile`` writes
 benchmarks/results/inverse_kalman_profile.md (cProfile of the engine at (20, 4) and (40, 8), time
 per stage); ``--stages`` benchmarks/results/inverse_kalman_stages_one_output.md (CPU per stage of the
-one-output verb).
+one-output verb); ``--sdp-forms`` benchmarks/results/inverse_kalman_sdp_forms.md (one fixed-gain
+SDP on Clarabel: the direct form vs a sparse form, Clarabel's KKT solvers).
 """
 
 from __future__ import annotations
@@ -320,6 +321,118 @@ def one_output_stages(reps: int = 10) -> str:
     return "\n".join(lines)
 
 
+def sparse_fixed_gain(plant: Plant, L, options: dict) -> tuple[str, float, int]:
+    """The fixed-gain SDP (one output, continuous, min trace Q) in the sparse form: svec P and svec Q
+    as variables, ``P C' = L R`` and ``Q + A P + P A' = L R L'`` as equalities, Q in Clarabel's PSD
+    cone; data scaled as the direct form's.  Returns (Clarabel status, trace Q, iterations)."""
+    import clarabel
+    import scipy.sparse as sp
+
+    from optdesign.solvers.clarabel_fixed_gain import CLARABEL_OPTIONS, smat, svec
+
+    A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
+    n, p = C.shape[1], C.shape[0]
+    LR = L @ R
+    LRL = LR @ L.T
+    s = max(float(np.linalg.norm(LRL)), float(np.linalg.norm(LR)))
+    I, J = np.triu_indices(n)
+    order = np.lexsort((I, J))
+    I, J = I[order], J[order]
+    w = np.where(I == J, 1.0, np.sqrt(2.0))
+    nt, c, off = I.size, np.arange(I.size), I != J
+    D = sp.csc_matrix((np.r_[1 / w, (1 / w)[off]], (np.r_[J * n + I, (I * n + J)[off]], np.r_[c, c[off]])),
+                      shape=(n * n, nt))                          # vec(P) = D svec(P)
+    S = sp.csc_matrix((w, (c, J * n + I)), shape=(nt, n * n))     # svec(X) = S vec(X)
+    E = sp.identity(n, format="csc")
+    As = sp.csc_matrix(A)
+    Amat = sp.vstack([sp.hstack([sp.kron(sp.csc_matrix(C), E) @ D, sp.csc_matrix((n * p, nt))]),
+                      sp.hstack([S @ (sp.kron(E, As) + sp.kron(As, E)) @ D, sp.identity(nt)]),
+                      sp.hstack([sp.csc_matrix((nt, nt)), -sp.identity(nt)])], format="csc")
+    b = np.r_[(LR / s).ravel(order="F"), svec(0.5 * (LRL + LRL.T) / s), np.zeros(nt)]
+    q = np.r_[np.zeros(nt), (I == J).astype(float)]
+    st = clarabel.DefaultSettings()
+    st.verbose = False
+    for k, v in {**CLARABEL_OPTIONS, **options}.items():
+        setattr(st, k, v)
+    sol = clarabel.DefaultSolver(sp.csc_matrix((2 * nt, 2 * nt)), q, Amat, b,
+                                 [clarabel.ZeroConeT(n * p + nt), clarabel.PSDTriangleConeT(n)], st).solve()
+    Q = s * smat(np.asarray(sol.x)[nt:], n)
+    return str(sol.status), float(np.trace(Q)), int(sol.iterations)
+
+
+def sdp_forms() -> str:
+    """CPU ms of one fixed-gain SDP on Clarabel: the direct form (``solve_fixed_gain``) with Clarabel's
+    default KKT solver and with QDLDL, and (one output) the sparse form of :func:`sparse_fixed_gain`
+    with QDLDL and the default, each with Clarabel's default regularization and the 1e-7 of its first
+    retry; the gain is the one the poles fix (one output, the main run's targets) or the Kalman gain of
+    the target (several outputs).  Medians of 3 runs per target."""
+    from optdesign.design.inverse_kalman.common import placed_gain
+    from optdesign.solvers.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain
+
+    def cpu_ms(fn):
+        out, ts = None, []
+        for _ in range(3):
+            out, t = timed(fn)
+            ts.append(1e3 * t)
+        return out, statistics.median(ts)
+
+    rng = np.random.default_rng(0)
+    drawn = {size: [random_target(rng, *size) for _ in range(3)] for size in SIZES}
+    lines = ["| n, p | target | direct, default KKT | direct, QDLDL | sparse, default KKT | sparse, QDLDL "
+             "| sparse, default KKT, reg 1e-7 |", "|---|---|---|---|---|---|---|"]
+    for n, p in [(10, 1), (20, 1), (5, 2), (10, 4), (20, 2), (20, 4), (40, 8)]:
+        for i, (plant, are) in enumerate(drawn[(n, p)][: 1 if n == 40 else 3]):
+            L = placed_gain(plant, are.poles) if p == 1 else are.L
+            fmap = family_map(plant.A, plant.C, plant.dt)
+            cells = []
+            for kkt in ("auto", "qdldl"):
+                sol, t = cpu_ms(lambda L=L, k=kkt, fm=fmap, R=plant.R: solve_fixed_gain(
+                    fixed_gain_family(fm, L, R), options={"direct_solve_method": k}))
+                tr = float(np.trace(sol.Q)) if sol.Q is not None else float("nan")
+                cells.append(f"{t:.1f} ms, {sol.native_status}, tr Q {tr:.9g}, {sol.iterations} it")
+            for opts in ({"direct_solve_method": "auto"}, {}, {"direct_solve_method": "auto",
+                                                               "static_regularization_constant": 1e-7}):
+                if p > 1:
+                    cells.append("-")
+                    continue
+                (st, tr, it), t = cpu_ms(lambda L=L, o=opts, pl=plant: sparse_fixed_gain(pl, L, o))
+                cells.append(f"{t:.1f} ms, {st}, tr Q {tr:.9g}, {it} it")
+            lines.append(f"| {n}, {p} | {i} | " + " | ".join(cells) + " |")
+            print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
+def verify_ab(rounds: int = 15) -> str:
+    """A/B in one process: the verb's verification of the engine's one-output designs with the
+    Hamiltonian re-solve (``avoid="scipy"``, the re-solver before issue 14's second one-output pass)
+    and with scipy's (``avoid="hamiltonian"``, the engine route's now), interleaved; CPU ms per
+    verification, medians over the rounds; whether the two verdicts agree on every design."""
+    from optdesign.design.inverse_kalman.common import verify_design
+
+    rng = np.random.default_rng(0)
+    drawn = {size: [random_target(rng, *size) for _ in range(3)] for size in SIZES[:3]}
+    lines = ["| n | Hamiltonian re-solve (ms) | scipy re-solve (ms) | ratio | same verdicts |",
+             "|---|---|---|---|---|"]
+    for n, picks in ((2, [0, 1, 2]), (10, [0, 1, 2]), (20, [0])):
+        t: dict[str, list[float]] = {"scipy": [], "hamiltonian": []}
+        same = True
+        for _ in range(rounds):
+            for i in picks:
+                plant, are = drawn[(n, 1)][i]
+                r = kalman_for_poles(plant, are.poles)
+                verdict = {}
+                for avoid in ("scipy", "hamiltonian"):
+                    (ver, _), dt = timed(lambda a=avoid, pl=plant, tg=are.poles, r=r: verify_design(
+                        pl, tg, r.L, r.P, r.Q, None, "full", 1e-8, avoid=a))
+                    t[avoid].append(1e3 * dt)
+                    verdict[avoid] = ver.passed
+                same &= verdict["scipy"] == verdict["hamiltonian"]
+        h, sc = statistics.median(t["scipy"]), statistics.median(t["hamiltonian"])
+        lines.append(f"| {n} | {h:.2f} | {sc:.2f} | {sc / h:.2f} | {'yes' if same else 'no'} |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
 def merge_earlier(summaries: list[dict], raw: list[dict]) -> list[tuple[int, int]]:
     """Add the sizes not re-run from the existing ``inverse_kalman.json`` (in place, in the order of
     :data:`SIZES`); returns the sizes taken from it."""
@@ -348,6 +461,10 @@ def main() -> None:
                     help="only the CPU per stage of the one-output verb at n = 2, 10, 20")
     ap.add_argument("--merge", action="store_true",
                     help="with --sizes: keep the other sizes' rows of the existing results (marked)")
+    ap.add_argument("--verify-ab", action="store_true",
+                    help="only the verification of one-output designs, Hamiltonian vs scipy re-solve")
+    ap.add_argument("--sdp-forms", action="store_true",
+                    help="only the fixed-gain SDP: direct vs sparse form, Clarabel's KKT solvers")
     ap.add_argument("--profile", action="store_true",
                     help="only the cProfile of the engine at (20, 4), (40, 8)")
     args = ap.parse_args()
@@ -362,6 +479,16 @@ def main() -> None:
             "# kalman_for_poles, one output: CPU per stage\n\n`python benchmarks/bench_inverse_kalman.py "
             "--stages` (means over 10 repetitions of the main run's targets; n = 20: 5 of its first, the "
             "computable one)\n\n" + text + "\n", encoding="utf-8")
+        return
+    if args.verify_ab:
+        print(verify_ab())
+        return
+    if args.sdp_forms:
+        text = sdp_forms()
+        (OUT / "inverse_kalman_sdp_forms.md").write_text(
+            "# The fixed-gain SDP on Clarabel: direct vs sparse form, KKT solvers\n\n"
+            "`python benchmarks/bench_inverse_kalman.py --sdp-forms` (CPU ms per SDP, medians of 3; the "
+            "machine shared with other jobs)\n\n" + text + "\n", encoding="utf-8")
         return
     if args.profile:
         text = profile([(20, 4), (40, 8)], args.seed)
@@ -396,7 +523,8 @@ def main() -> None:
             "pole error of the engine's gain (what rounding did); 'not computable': that error exceeds the "
             "verb's cap of 1e-6 -- the poles' condition is so large (floor 6e-2 .. 2) that the gain the "
             "targets fix cannot be computed in double precision to place them to 1e-6, so no method's design "
-            "verifies (the verb, after the engine, also tries the SDP routes before it says so).  "
+            "verifies (the verb returns the engine's design, unverified, status optimal_inaccurate, without "
+            "running the SDP routes: the placed gain refined for its poles misses them too).  "
             "'-': not run (the verb at (40, 8) took 533 s per design in the README's "
             "run; `--slow` runs it).\n")
     if kept:

@@ -44,11 +44,7 @@ from optdesign.classical.riccati import filter_are  # noqa: E402
 from optdesign.formulate.inverse_kalman import build_fixed_gain_sdp, spectral_terms  # noqa: E402
 from optdesign.solvers.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain  # noqa: E402
 from optdesign.solvers.cvxpy_backend import solve_cvxpy  # noqa: E402
-from optdesign.solvers.inverse_kalman_engine import (  # noqa: E402
-    SINGLE_OUTPUT_CLARABEL,
-    prepare_inverse_kalman,
-    solve_inverse_kalman,
-)
+from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
 from optdesign.solvers.spectral_factor import spectral_blocks  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "sdp_reuse.md"
@@ -89,8 +85,7 @@ def run(plant: Plant, targets: list) -> dict:
         solved["cvxpy re-used"] += rep.status.is_solved
     fmap = family_map(plant.A, plant.C, plant.dt)
     for L in gains:
-        sol, s = cpu(lambda L=L: solve_fixed_gain(fixed_gain_family(fmap, L, R),
-                                                  options=SINGLE_OUTPUT_CLARABEL))
+        sol, s = cpu(lambda L=L: solve_fixed_gain(fixed_gain_family(fmap, L, R)))
         out["Clarabel direct"].append(s)
         solved["Clarabel direct"] += sol.status.is_solved
     setup = prepare_inverse_kalman(plant)
@@ -158,7 +153,7 @@ def main() -> str:
             "sparse LDL then factors the whole KKT matrix densely: per iteration it is slower than cvxpy's "
             "larger, sparser form from n ~ 15 on (20 ms vs 2 ms at n = 20) -- where that form, here, "
             "fails.  The engine and the 'Clarabel direct' column use Clarabel's QDLDL KKT solver "
-            "(`SINGLE_OUTPUT_CLARABEL`): on this dense KKT matrix it takes about half the CPU time of "
+            "(in `CLARABEL_OPTIONS`): on this dense KKT matrix it takes about half the CPU time of "
             "Clarabel's default choice at n = 15-25, as fast below (measured side by side: 181 -> 115 ms "
             "per SDP at n = 20 in this benchmark).\n")
     RESULTS.parent.mkdir(parents=True, exist_ok=True)

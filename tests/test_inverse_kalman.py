@@ -1028,3 +1028,102 @@ def test_closed_form_spectral_nlp_agrees_with_the_symbolic_one(rng, objective, m
     assert {e["derivatives"] for e in fast.details["starts"]} == {"closed form"}
     assert {e["derivatives"] for e in slow.details["starts"]} == {"symbolic"}
     np.testing.assert_allclose(fast.objective_value, slow.objective_value, rtol=1e-6)
+
+
+# --------------------------------------------- targets no design verifies: the best unverified answer
+
+
+def _uncomputable_target():
+    """n = 20, one output: the poles of the Kalman filter of Q have a rounding floor ~0.6; no gain
+    computed in double precision places them to the cap of 1e-6 (the placed gain's pole error ~2e-3,
+    the engine's ~2e-3).  The Riccati solve itself is accurate only to a relative residual ~1e-6,
+    which depends on the CPU's rounding (no residual test): its P is exact for ``Q - residual``, a
+    member of the target's family within ~1e-6 of Q."""
+    n = 20
+    rng = np.random.default_rng(2)
+    A = rng.standard_normal((n, n)) / np.sqrt(n)
+    C = rng.standard_normal((1, n))
+    F = rng.standard_normal((n, n)) / np.sqrt(n)
+    Q = F @ F.T
+    are = filter_are(Plant(A, C, Q=Q, R=np.eye(1)), residual_tol=np.inf)
+    return Plant(A, C, R=np.eye(1)), are.poles, Q
+
+
+def test_uncomputable_one_output_target_returns_the_engine_design_and_skips_the_fallbacks(monkeypatch):
+    """Issue 14: the verb used to run the SDP fallbacks after the engine (0.6-0.7 s) and return their
+    worse unverified design (trace Q ~1e9 against the engine's ~5)."""
+    import optdesign.design.inverse_kalman.verb as verb
+    from optdesign.design.verification import POLE_FLOOR_CAP
+    from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman
+
+    plant, target, Q = _uncomputable_target()
+
+    def fallback(*args, **kwargs):
+        raise AssertionError("a fallback route ran on a target no route can verify")
+
+    monkeypatch.setattr(verb, "run_sdp", fallback)
+    res = kalman_for_poles(plant, target)
+    assert not res.success
+    assert res.status == Status.OPTIMAL_INACCURATE
+    assert "not computable" in res.message and "the other routes were not run" in res.message
+    assert res.verification["pole_error"].value > POLE_FLOOR_CAP
+    # the generating Q is feasible (to the residual of its Riccati solve), so the min-trace answer is
+    # no larger (it is ~4x smaller; the fallback's design had ~1e9); the engine's own optimum
+    assert res.objective_value <= np.trace(Q) * (1 + 1e-3)
+    eng = solve_inverse_kalman(prepare_inverse_kalman(plant), target)
+    assert res.objective_value == pytest.approx(eng.objective_value, rel=1e-9)
+    assert res.L is not None and res.Q is not None and res.P is not None   # nothing lost
+
+
+def test_uncomputable_poles_measures_the_placed_gain():
+    from optdesign.design.inverse_kalman.common import uncomputable_poles
+    from optdesign.results import Check, Verification
+
+    plant, target, _ = _uncomputable_target()
+    res = kalman_for_poles(plant, target)
+    err = uncomputable_poles(plant, res, target, 1e-8)
+    assert err is not None and err > 1e-6
+    # a well-conditioned target: the placed gain places it, so the other routes can help
+    easy = kalman_for_poles(Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]]), [-5, -8])
+    assert easy.success
+    failed = dataclasses.replace(easy, verification=Verification.of(
+        [Check.at_most("pole_error", 1e-3, 1e-8)]))
+    assert uncomputable_poles(easy.plant, failed, easy.target_poles, 1e-8) is None
+    assert uncomputable_poles(easy.plant, easy, easy.target_poles, 1e-8) is None  # it passed
+    # several outputs: the poles do not fix the gain, so the other routes may find another
+    two = dataclasses.replace(failed, plant=Plant(np.diag([-1.0, -2.0]), np.eye(2), R=np.eye(2)))
+    assert uncomputable_poles(two.plant, two, np.array([-3.0, -4.0]), 1e-8) is None
+
+
+def test_best_unverified_takes_the_smallest_violation_then_the_objective():
+    from optdesign.design.inverse_kalman.common import best_unverified, design_violation
+    from optdesign.results import Check, Verification
+
+    base = kalman_for_poles(Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]]), [-5, -8])
+    plant = base.plant
+
+    def variant(value, obj, name="riccati_residual", **kw):
+        ver = Verification.of([Check.at_most(name, value, 1e-8)])
+        return dataclasses.replace(base, verification=ver, objective_value=obj, **kw)
+
+    close, far = variant(2e-8, 1e9), variant(1e-6, 1.0)
+    assert design_violation(plant, close) == pytest.approx(1.0)
+    assert design_violation(plant, far) == pytest.approx(99.0)
+    assert best_unverified(plant, [far, close]) is close            # violation first
+    cheap, dear = variant(2e-8, 3.0), variant(2e-8, 5.0)
+    assert best_unverified(plant, [dear, cheap]) is cheap           # then the objective
+    m_lo = variant(2e-8, 0.1, objective="feasibility")
+    m_hi = variant(2e-8, 0.5, objective="feasibility")
+    assert best_unverified(plant, [m_lo, m_hi]) is m_hi              # a larger margin is better
+    none = dataclasses.replace(far, L=None)
+    assert best_unverified(plant, [none]) is None and design_violation(plant, none) == float("inf")
+    assert best_unverified(plant, [none, far]) is far
+    # a pole error within the rounding floor of the poles (here ~1e-15) is still a violation, one
+    # within an uncomputable target's floor is none
+    assert design_violation(plant, variant(1e-6, 1.0, name="pole_error")) > 0
+    hard, target, _ = _uncomputable_target()
+    res = kalman_for_poles(hard, target)
+    assert not res.verification["pole_error"].passed
+    only_poles = dataclasses.replace(res, verification=Verification.of(
+        [c for c in res.verification.checks if c.name in ("pole_error", "riccati_residual")]))
+    assert design_violation(hard, only_poles) == 0.0

@@ -84,7 +84,7 @@ from numpy.typing import NDArray
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
 from ..classical.riccati import AREErrorEstimate, AREResult, filter_are, filter_are_error, filter_are_residual
-from ..errors import OptDesignError, RiccatiError
+from ..errors import OptDesignError, RiccatiError, ValidationError
 from ..model.plant import Plant
 from ..results import Check
 
@@ -102,7 +102,9 @@ __all__ = [
     "riccati_checks",
     "forward_error_check",
     "independent_are",
+    "ARE_SOLVERS",
     "cross_check",
+    "check_violation",
     "relative_difference",
     "EIG_RESIDUAL_TOL",
     "REGION_TOL",
@@ -211,14 +213,47 @@ def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "") -> C
                           f"smallest eigenvalue of {label} / ||{label}|| (it must be PSD)")
 
 
-def independent_are(plant: Plant) -> AREResult:
-    """The Riccati solve used to verify a design: the Hamiltonian Schur method (independent of
-    scipy's QZ, which produces L and P on the NLP path), scipy's if that one fails.  No residual
-    test here: an inaccurate re-solve shows up as a measured difference."""
+#: the Riccati solvers of :func:`independent_are` (methods of :func:`~optdesign.classical.riccati.filter_are`)
+ARE_SOLVERS = ("scipy", "hamiltonian")
+
+
+def _check_solver(avoid: str) -> None:
+    if avoid not in ARE_SOLVERS:
+        raise ValidationError(f"avoid must be one of {ARE_SOLVERS}; found {avoid!r}")
+
+
+def independent_are(plant: Plant, *, avoid: str = "scipy") -> AREResult:
+    """The Riccati solve used to verify a design, by a solver other than the one that produced it.
+
+    Parameters
+    ----------
+    plant : Plant
+        With the Q and R of the design under test.
+    avoid : {"scipy", "hamiltonian"}
+        The :func:`~optdesign.classical.riccati.filter_are` method that produced the design's L and P
+        (default ``"scipy"``: the NLP and spectral routes take L and P from scipy's QZ solver); the
+        re-solve uses the other one -- the Hamiltonian Schur method, or scipy's solver (about half
+        the CPU time: no eigenvalue condition estimate), for designs that come from no Riccati
+        solver at all (an SDP point, a Lyapunov solve) -- and the avoided one only if that fails.
+        No residual test here: an inaccurate re-solve shows up as a measured difference.
+
+    Returns
+    -------
+    AREResult
+
+    Raises
+    ------
+    ValidationError
+        ``avoid`` is not one of :data:`ARE_SOLVERS`.
+    RiccatiError, OptDesignError
+        Both solvers failed (the second one's error).
+    """
+    _check_solver(avoid)
+    first, second = ("hamiltonian", "scipy") if avoid == "scipy" else ("scipy", "hamiltonian")
     try:
-        return filter_are(plant, "hamiltonian", residual_tol=np.inf)
+        return filter_are(plant, first, residual_tol=np.inf)
     except (RiccatiError, OptDesignError):
-        return filter_are(plant, "scipy", residual_tol=np.inf)
+        return filter_are(plant, second, residual_tol=np.inf)
 
 
 def _gain_tolerance(plant: Plant, L: NDArray, P: NDArray, err_p: float, err_are: float) -> float:
@@ -252,10 +287,12 @@ def forward_error_check(err: AREErrorEstimate) -> Check:
 
 
 def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: str = "the returned Q",
-                   resolve: bool = True) -> tuple[list[Check], AREResult | None, AREErrorEstimate]:
+                   resolve: bool = True, avoid: str = "scipy",
+                   ) -> tuple[list[Check], AREResult | None, AREErrorEstimate]:
     """The checks that ``(L, P, Q)`` is a steady-state Kalman filter of ``plant`` (with its R):
     ``riccati_residual``, ``forward_error``, ``Q_min_eig``, ``P_min_eig`` and (``resolve``)
-    ``are_resolve_gain`` -- an independent Riccati solve with Q must return L.
+    ``are_resolve_gain`` -- an independent Riccati solve with Q (:func:`independent_are`, not by the
+    solver ``avoid`` that produced L and P) must return L.
 
     Returns ``(checks, are, error)``: ``are`` is the independent solve (None when it failed or was
     not asked for), ``error`` the forward error estimate of P.
@@ -272,17 +309,36 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     ]
     if not resolve:
         return checks, None, err
+    _check_solver(avoid)  # before any work: a bad argument is not a failed check
+    resolved = plant.replace(G=None, Q=_psd_part(Qs))  # one plant for the solve and its error
     try:
-        are = independent_are(plant.replace(G=None, Q=_psd_part(Qs)))
+        are = independent_are(resolved, avoid=avoid)
     except (RiccatiError, OptDesignError, np.linalg.LinAlgError) as exc:
         checks.append(Check.at_most("are_resolve_gain", float("inf"), 0.0, f"filter_are failed: {exc}"))
         return checks, None, err
-    err_are = filter_are_error(plant.replace(G=None, Q=_psd_part(Qs)), are.P).relative
+    err_are = filter_are_error(resolved, are.P).relative
     gtol = _gain_tolerance(plant, L, P, err_rel, err_are if np.isfinite(err_are) else 1.0)
     checks.append(Check.at_most("are_resolve_gain", relative_difference(are.L, L), gtol,
                                 f"||L_are - L|| / max(1, ||L||), L_are from an independent filter_are with "
                                 f"{what}; tolerance from the error estimates of both P"))
     return checks, are, err
+
+
+def check_violation(check: Check, tolerance: float | None = None) -> float:
+    """How far a check is from passing, relative to its tolerance: 0 when it passes, else
+    ``|value - tolerance| / |tolerance|`` (inf for a NaN value or a zero tolerance).
+
+    Ranks designs that all fail their checks (the smallest largest violation first); ``tolerance``
+    replaces the check's own (e.g. an uncapped rounding floor).
+    """
+    tol = check.tolerance if tolerance is None else float(tolerance)
+    v = check.value
+    ok = v <= tol if check.sense == "<=" else v >= tol
+    if ok and not np.isnan(v):
+        return 0.0
+    if np.isnan(v) or tol == 0.0:
+        return float("inf")
+    return float(abs(v - tol) / abs(tol))
 
 
 def cross_check(P: NDArray, P_other: NDArray, err: float, err_other: float, *, other: str) -> Check:

@@ -424,12 +424,6 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
     return cand
 
 
-#: Clarabel settings of the one-output SDP: its constraint matrix is dense (every X direction moves
-#: all of Q), and QDLDL -- single-threaded, the same rounding on every run -- factors its KKT matrix
-#: in about half the CPU time of Clarabel's default choice at n = 15-25 and as fast below
-#: (``benchmarks/results/inverse_kalman_profile_one_output.md``); the same statuses on every target measured
-SINGLE_OUTPUT_CLARABEL: dict[str, Any] = {"direct_solve_method": "qdldl"}
-
 #: SQP iterations per start before the restoration (measured: 20 loses a cross-validation target,
 #: 40 none; beyond, the SQP mostly oscillates at n >= 20 -- the restoration is cheaper)
 _SQP_MAX_ITER = 40
@@ -712,8 +706,7 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
     g = np.ones((len(terms), 1), dtype=complex)
     L, _ = spectral_blocks(terms, R, setup.Gd).gain(g)
     fam = fixed_gain_family(setup.family, L, R, Qn)
-    sol = solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, options=SINGLE_OUTPUT_CLARABEL,
-                           deadline=deadline)
+    sol = solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, deadline=deadline)
     details: dict[str, Any] = {"sdp": _sdp_record(sol), "L_unique": L}
     common = dict(tol=tol, native=sol.native_status, details=details)
     if sol.status.is_infeasible:

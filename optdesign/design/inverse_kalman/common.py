@@ -4,6 +4,7 @@ covariance, the verification of a design, result helpers."""
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from contextlib import contextmanager
 
@@ -11,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._validate import as_square, check_symmetric
+from ...analysis.metrics import eigenvalue_rounding_floor
 from ...classical.placement import place_observer, pole_error
 from ...classical.riccati import filter_are
 from ...errors import ValidationError
@@ -19,9 +21,16 @@ from ...formulate.inverse_kalman import (
     psd_part,
 )
 from ...model.plant import Plant
-from ...results import Check, SolverStats, Verification
+from ...results import Check, SolverStats, Status, Verification
 from ...solvers.polish import min_norm_lstsq, sym
-from ..verification import pole_check, pole_tolerance, psd_check, relative_difference, riccati_checks
+from ..verification import (
+    check_violation,
+    pole_check,
+    pole_tolerance,
+    psd_check,
+    relative_difference,
+    riccati_checks,
+)
 from .results import InverseKalmanResult
 
 METHODS = ("auto", "sdp", "nlp", "sequential")
@@ -114,12 +123,15 @@ def placed_gain(plant: Plant, target: NDArray) -> NDArray:
 
 
 def verify_design(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
-            structure: str, tol: float) -> tuple[Verification, NDArray]:
+                  structure: str, tol: float, *, avoid: str = "scipy") -> tuple[Verification, NDArray]:
     """Independent checks of a design (:mod:`optdesign.design.verification`: numpy eigenvalues,
-    residual and forward error, re-solved ARE, PSD)."""
+    residual and forward error, re-solved ARE, PSD).  ``avoid``: the Riccati solver that produced L
+    and P (:func:`~optdesign.design.verification.independent_are` re-solves with the other one);
+    ``"hamiltonian"`` for designs from no Riccati solver (SDP points, Lyapunov solves): the re-solve
+    is then scipy's, the cheaper one."""
     A, C = plant.A, plant.C
     pcheck, poles = pole_check(A - L @ C, target, tol)
-    kalman, are, _ = riccati_checks(plant, L, P, Q, what="the returned Q")
+    kalman, are, _ = riccati_checks(plant, L, P, Q, what="the returned Q", avoid=avoid)
     checks = [pcheck, *kalman]
     if are is not None:
         gain = next(c for c in kalman if c.name == "are_resolve_gain")
@@ -201,3 +213,67 @@ def decision_size(plant: Plant, structure: str) -> int:
     m = plant.m
     return {"full": plant.n * (plant.n + 1) // 2, "input": m * (m + 1) // 2, "diagonal": m}[structure]
 
+
+#: the checks of a design's poles (:func:`verify_design`)
+POLE_CHECKS = ("pole_error", "are_resolve_poles")
+
+
+def design_violation(plant: Plant, res: InverseKalmanResult) -> float:
+    """How far a design is from verifying: the largest
+    :func:`~optdesign.design.verification.check_violation` of its checks (inf without a design).
+
+    A failed pole check is measured against the rounding floor of the poles of ``A - L C``
+    (:func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`) without the cap
+    (:data:`~optdesign.design.verification.POLE_FLOOR_CAP`) of its tolerance: a pole error within
+    that floor is as close as double precision places those poles, so it counts as no violation.
+    """
+    if res.L is None or not res.verification.checks:
+        return float("inf")
+    floor: float | None = None
+    worst = 0.0
+    for c in res.verification.checks:
+        tol = None
+        if c.name in POLE_CHECKS and not c.passed:
+            if floor is None:
+                floor = eigenvalue_rounding_floor(plant.A - res.L @ plant.C)
+            tol = max(c.tolerance, floor) if np.isfinite(floor) else None
+        worst = max(worst, check_violation(c, tol))
+    return worst
+
+
+def best_unverified(plant: Plant, candidates: list[InverseKalmanResult]) -> InverseKalmanResult | None:
+    """The answer when no route verified a design: among the candidates with a design, the one with
+    the smallest :func:`design_violation`, then the better objective (a larger margin for
+    ``"feasibility"``, else the smaller value); None when no candidate has a design."""
+    have = [r for r in candidates if r.L is not None and r.verification.checks]
+    if not have:
+        return None
+
+    def key(r: InverseKalmanResult) -> tuple[float, float]:
+        sign = -1.0 if r.objective == "feasibility" else 1.0
+        obj = sign * r.objective_value
+        return design_violation(plant, r), obj if np.isfinite(obj) else float("inf")
+
+    return min(have, key=key)
+
+
+def uncomputable_poles(plant: Plant, res: InverseKalmanResult, target: NDArray, tol: float) -> float | None:
+    """One output, ``res`` fails its ``pole_error`` check: the pole error of :func:`placed_gain` (the
+    gain the other routes start from, refined by Newton steps on its poles) when that fails the
+    pole tolerance too -- the poles fix the gain and no computation of it places them (measured:
+    those routes then give no verified design either, only worse unverified ones); else None."""
+    if plant.p != 1 or res.L is None or "pole_error" not in res.verification or \
+            res.verification["pole_error"].passed:
+        return None
+    try:
+        L = placed_gain(plant, target)
+    except (ValidationError, np.linalg.LinAlgError):
+        return None
+    F = plant.A - L @ plant.C
+    err = pole_error(np.linalg.eigvals(F), target)
+    return err if not err <= pole_tolerance(F, tol) else None
+
+
+def with_status(res: InverseKalmanResult, status: Status, message: str) -> InverseKalmanResult:
+    """``res`` with another status and message (the design and its checks kept)."""
+    return dataclasses.replace(res, status=status, message=message)

@@ -31,9 +31,10 @@ def engine_setup(plant: Plant, structure: str, objective: str) -> EngineSetup:
 
 def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: NDArray | None, tol: float,
                seed: int, dl: Deadline, warm_start: NDArray | None = None) -> InverseKalmanResult | None:
-    """The engine's design, verified independently, or None (fall back to the other routes): the
-    engine does not apply (a target at an eigenvalue of A or of its mirror image), found nothing,
-    or its design fails a check.  A time limit that runs out inside the engine is returned as
+    """The engine's design, verified independently -- also when it fails a check (the verb then
+    weighs it against the other routes' designs: ``best_unverified`` (common.py)) -- or None (fall
+    back to the other routes): the engine does not apply (a target at an eigenvalue of A or of its
+    mirror image) or found no design.  A time limit that runs out inside the engine is returned as
     such (nothing is lost: the other routes would have no time either)."""
     plant, structure, objective = setup.plant, common["structure"], common["objective"]
     try:
@@ -49,13 +50,16 @@ def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: 
     L, P, Q = er.L, er.P, er.Q  # the engine returns all three with a design, none without
     if L is not None and P is not None and Q is not None and (er.status.is_solved
                                                               or er.status == Status.TIME_LIMIT):
-        ver, poles = verify_design(plant, target, L, P, Q, er.Qw, structure, tol)
-        if ver.passed:
+        # L and P from a Lyapunov solve at the SDP's Q, not from a Riccati solver: scipy's re-solves
+        ver, poles = verify_design(plant, target, L, P, Q, er.Qw, structure, tol, avoid="hamiltonian")
+        if ver.passed or not (er.status == Status.TIME_LIMIT or dl.expired):
             Wdec = Q if structure == "full" else er.Qw
             st = er.solver_stats
+            msg = f"inverse Kalman engine: {er.message}"
+            if not ver.passed:
+                msg += "; failed checks: " + ", ".join(c.name for c in ver.failed)
             return InverseKalmanResult(
-                L=er.L, Q=er.Q, Qw=er.Qw, P=er.P, poles=poles, status=er.status,
-                message=f"inverse Kalman engine: {er.message}",
+                L=er.L, Q=er.Q, Qw=er.Qw, P=er.P, poles=poles, status=er.status, message=msg,
                 solver_stats=make_stats(st.backend or "engine", st.native_status, dl.elapsed, er.iterations,
                                         rank=er.rank),
                 verification=ver, certificate=None,

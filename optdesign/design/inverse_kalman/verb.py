@@ -27,7 +27,18 @@ from ...results import Status
 from ...solvers.inverse_kalman_engine import EngineSetup
 from ..verification import POLE_FLOOR_CAP, pole_tolerance
 from .certificates import identity_certificate
-from .common import METHODS, empty_result, make_stats, nominal_noise, quiet, stable_poles, verify_design
+from .common import (
+    METHODS,
+    best_unverified,
+    empty_result,
+    make_stats,
+    nominal_noise,
+    quiet,
+    stable_poles,
+    uncomputable_poles,
+    verify_design,
+    with_status,
+)
 from .engine_route import engine_setup, engine_warm_start, run_engine
 from .nlp_route import run_nlp
 from .results import InfeasibilityCertificate, InverseKalmanResult
@@ -114,7 +125,14 @@ def kalman_for_poles(
         return-difference inequality fails at the gain the poles fix (one output), or an accurate
         convex SDP.  When a local search finds nothing the status is ``NOT_FOUND`` (feasibility
         unknown; the closest poles found are in ``details["closest"]``), never ``INFEASIBLE``.
-        A solver failure gives its status and the reason in ``message``.
+        A solver failure gives its status and the reason in ``message``.  When no route verifies a
+        design, the result is the best unverified one (``success`` False, a solver's optimum as
+        ``optimal_inaccurate``, the failed checks named in ``message``): the smallest largest check
+        violation (:func:`~optdesign.design.verification.check_violation`; a pole error within the
+        rounding floor of its poles counts as none), then the better objective.  One output, the
+        other routes are not run when the engine's gain and the placed gain refined for its poles
+        both miss the targets beyond the pole tolerance (not computable in double precision: the
+        poles fix the gain).
 
     Raises
     ------
@@ -225,13 +243,23 @@ class InverseKalmanProblem:
         if early is not None:
             return early
         with quiet():
+            engine = None
             if method in ("auto", "sdp") and self._engine_usable():
                 warm = (engine_warm_start(warm_start) if isinstance(warm_start, InverseKalmanResult)
                         else warm_start)
-                res = run_engine(self.engine(), target, common, self.Qn, tol, seed, dl, warm)
-                if res is not None:
-                    return res
-            return self._route(method, target, common, seed, dl)
+                engine = run_engine(self.engine(), target, common, self.Qn, tol, seed, dl, warm)
+                if engine is not None and (engine.success or engine.status == Status.TIME_LIMIT):
+                    return engine
+                err = None if engine is None else uncomputable_poles(plant, engine, target, tol)
+                if err is not None and engine is not None:  # the other routes cannot help
+                    own = engine.verification["pole_error"].value
+                    return _unverified(engine, f"the targets are not computable in double precision: the "
+                                               f"poles fix the gain, and neither the engine's nor the "
+                                               f"placed gain refined for its poles places them to the "
+                                               f"tolerance (pole errors {own:.1e}, {err:.1e}); the other "
+                                               f"routes were not run")
+            res = self._route(method, target, common, seed, dl)
+            return res if engine is None else _best_of(plant, res, engine)
 
     def _engine_usable(self) -> bool:
         """The engine certifies with Clarabel: used unless another SDP solver was asked for or
@@ -283,6 +311,30 @@ class InverseKalmanProblem:
         return run_nlp(plant, target, common, Qn, solver, tol, seed, dl, nlp)
 
 
+def _unverified(res: InverseKalmanResult, why: str) -> InverseKalmanResult:
+    """An unverified design returned as the answer: a solver's optimum becomes
+    ``optimal_inaccurate`` (its checks do not confirm it), the reason is added to the message."""
+    status = Status.OPTIMAL_INACCURATE if Status(res.status).is_solved else res.status
+    return with_status(res, status, f"{res.message}; not verified: {why}")
+
+
+def _best_of(plant: Plant, res: InverseKalmanResult, engine: InverseKalmanResult) -> InverseKalmanResult:
+    """The verb's answer after the engine's design failed a check and the other routes ran: theirs
+    if verified or a verdict (a certificate of infeasibility), else the better unverified design
+    (:func:`~.common.best_unverified`: the smallest check violation, then the objective; the
+    engine's on a tie).  A time limit without a design keeps the engine's design: nothing lost."""
+    if res.success or Status(res.status).is_infeasible:
+        return res
+    if res.status == Status.TIME_LIMIT and res.L is None:
+        return with_status(engine, Status.TIME_LIMIT, f"{res.message}; the engine's unverified design is "
+                                                      f"returned: {engine.message}")
+    best = best_unverified(plant, [engine, res])
+    if best is None or best is res:
+        return res
+    return _unverified(engine, f"no route verified a design, and the engine's is the closest to verifying "
+                               f"(smallest check violation, then objective; the other routes: {res.message})")
+
+
 def open_loop_target(plant: Plant, target: NDArray, tol: float) -> bool:
     """The targets are the (stable) open-loop poles, to their rounding level.
 
@@ -300,7 +352,7 @@ def zero_noise_design(plant, target, common, tol, dl):
     Z = np.zeros((n, n))
     Qw = None if common["structure"] == "full" else np.zeros((plant.m, plant.m))
     L = np.zeros((n, p))
-    ver, poles = verify_design(plant, target, L, Z, Z, Qw, common["structure"], tol)
+    ver, poles = verify_design(plant, target, L, Z, Z, Qw, common["structure"], tol, avoid="hamiltonian")
     return InverseKalmanResult(
         L=L, Q=Z, Qw=Qw, P=Z.copy(), poles=poles, status=Status.OPTIMAL,
         message="the targets are the open-loop poles of a stable plant: Q = 0 (P = 0, L = 0) is exact and "
