@@ -208,7 +208,7 @@ class ObserverNLP:
         return self.opti.f
 
     def reset_solvers(self) -> None:
-        """Forget the configured :attr:`stage_solvers` and the description's layout (call before
+        """Forget the configured ``stage_solvers`` and the description's layout (call before
         configuring again, e.g. with new options or after adding to the description)."""
         self.stage_solvers.clear()
         self._layout = None
@@ -228,7 +228,7 @@ class ObserverNLP:
 
     def numeric_start(self) -> tuple[NDArray[np.float64], ...]:
         """``(x0, p, lbg, ubg)`` of :meth:`nlpsol_problem`: the initial guess and parameter values set
-        on the ``Opti`` description (:meth:`set_initial_gain`, :meth:`warm_start`,
+        on the ``Opti`` description (``set_initial_gain``, :meth:`warm_start`,
         :meth:`set_parameters`, the stages) and the constraint bounds at those parameter values."""
         lay = self._description()
         got = self.opti.start_vectors(lay)
