@@ -162,18 +162,8 @@ def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] 
     plug = {k: v for k, v in opts.items() if not k.startswith("ipopt.")}
     plug.update(plugin or {})
     plug["ipopt"] = {k[len("ipopt."):]: v for k, v in opts.items() if k.startswith("ipopt.")}
-    t0 = time.perf_counter()
-    error = ""
-    try:
-        solver = ca.nlpsol(name, "ipopt", problem, plug)
-        sol = solver(x0=x0, lbg=lbg, ubg=ubg)
-        st = solver.stats()
-        xopt = np.asarray(sol["x"], dtype=float).ravel()
-        obj = float(sol["f"])
-    except RuntimeError as exc:  # a callback or the plugin failed to run
-        error = _error_line(exc)
-        st, xopt, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
-    elapsed = time.perf_counter() - t0
+    st, xopt, obj, error, elapsed = _ipopt_call(lambda: ca.nlpsol(name, "ipopt", problem, plug), x0,
+                                                lbg=lbg, ubg=ubg)
     native = str(st.get("return_status", "solver_error" if error else "unknown"))
     status = map_status("ipopt", native)  # unknown (and "solver_error") -> SOLVER_ERROR
     stats = SolverStats(backend="ipopt", native_status=native, time=elapsed,
@@ -185,6 +175,22 @@ def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] 
         return xopt
 
     return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)
+
+
+def _ipopt_call(make: Callable[[], Any], x0: Any,
+                **bounds: Any) -> tuple[dict, NDArray[np.float64], float, str, float]:
+    """Make (``make()``) and call an IPOPT Function from ``x0``; ``(stats, x, objective, error line,
+    seconds)`` -- on a RuntimeError (a callback, an evaluation or the plugin failed to run) empty
+    stats, ``x0``, NaN and the error's first line."""
+    t0 = time.perf_counter()
+    try:
+        solver = make()
+        sol = solver(x0=x0, **bounds)
+        st, x, obj, error = solver.stats(), np.asarray(sol["x"], dtype=float).ravel(), float(sol["f"]), ""
+    except RuntimeError as exc:
+        st, x, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
+        error = _error_line(exc)
+    return st, x, obj, error, time.perf_counter() - t0
 
 
 def _plugin_options(options: dict[str, Any] | None) -> dict[str, Any]:
@@ -245,17 +251,7 @@ def run_solver(solver, x0: NDArray, p: NDArray, lbg: NDArray, ubg: NDArray,
     SolverReport
         As :func:`solve_opti`'s: the status mapped from IPOPT's ``return_status``, ``value(expr)``.
     """
-    t0 = time.perf_counter()
-    error = ""
-    try:
-        sol = solver(x0=x0, p=p, lbg=lbg, ubg=ubg)
-        st = solver.stats()
-        x = np.asarray(sol["x"], dtype=float).ravel()
-        obj = float(sol["f"])
-    except RuntimeError as exc:  # an evaluation or the plugin failed to run
-        error = _error_line(exc)
-        st, x, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
-    elapsed = time.perf_counter() - t0
+    st, x, obj, error, elapsed = _ipopt_call(lambda: solver, x0, p=p, lbg=lbg, ubg=ubg)
     native = str(st.get("return_status", "solver_error" if error else "unknown"))
     status = map_status("ipopt", native)  # unknown (and "solver_error") -> SOLVER_ERROR
     stats = SolverStats(
