@@ -240,7 +240,8 @@ def summarize(summ):
             f"the engine alone: median CPU {np.median([a for a, _, _ in verb]):.3f} s vs "
             f"{np.median([b for _, b, _ in verb]):.3f} s ({np.median([a / b for a, b, _ in verb]):.1f}x); "
             f"verb / YT tight median {np.median([a / c for a, _, c in verb]):.2f} on these {len(verb)}.  "
-            f"Before issue 13 the verb ran IPOPT: 0.27-0.35 s per problem at starts=4, 33 s for the complex 6x6."
+            f"Before issue 13 the verb ran IPOPT: 0.27-0.35 s per problem at starts=4, 33 s for the "
+            f"complex 6x6."
         )
     return lines
 

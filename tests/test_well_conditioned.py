@@ -227,7 +227,7 @@ def test_region_polish_last_runs_fewer_solves(monkeypatch):
         assert res.success and region.contains(np.linalg.eigvals(plant.A - res.L @ plant.C))
         solves[polish] = calls["ipopt"]
     assert solves["last"] <= len(wc.nlp_route.REGION_STAGES) + 2 < solves["full"]
-    with pytest.raises(ValidationError, match="region_polish must be 'full' or 'last'; found 'some'"):
+    with pytest.raises(ValidationError, match="region_polish must be one of 'full', 'last'; found 'some'"):
         WellConditionedProblem(plant, region_polish="some")
 
 

@@ -125,6 +125,12 @@ def _sym(X: NDArray) -> NDArray:
     return 0.5 * (X + X.T)
 
 
+def _norm1(X: NDArray) -> float:
+    """``||X||_1`` (largest column sum; NaN or inf when X is not finite), without ``numpy.linalg.norm``'s
+    argument handling."""
+    return float(np.abs(X).sum(axis=0).max())
+
+
 @dataclass(frozen=True, eq=False)
 class RiccatiMap:
     r"""The exact Riccati flow over one interval, ``P -> Pn + Phi P (I + O P)^-1 Phi'``.
@@ -254,12 +260,12 @@ def _direct_map(M: NDArray, n: int, dt: float, max_loss: float) -> RiccatiMap | 
     if not np.isfinite(E.sum()):
         return None
     E11 = E[:n, :n]
-    a_norm = float(np.abs(E11).sum(axis=0).max())
+    a_norm = _norm1(E11)
     lu, piv, info = _getrf(E11)
     if info != 0:
         return None
     rcond, info = _gecon(lu, a_norm, norm="1")
-    e_norm = float(np.abs(E).sum(axis=0).max())
+    e_norm = _norm1(E)
     if info != 0 or not rcond > 0 or e_norm / (rcond * a_norm) > max_loss:
         return None
     X, info = _getrs(lu, piv, np.hstack([E[:n, n:], np.eye(n)]))   # E11^-1 [E12, I]
@@ -475,7 +481,7 @@ def riccati_map(M: ArrayLike, dt: float, *, max_norm: float = 0.5, growth_limit:
     dt = as_positive_float("dt", dt)
     max_norm = as_positive_float("max_norm", max_norm)
     direct = as_bool("direct", direct)
-    return _riccati_map(M, n, float(np.abs(M).sum(axis=0).max()), dt, max_norm, growth_limit,
+    return _riccati_map(M, n, _norm1(M), dt, max_norm, growth_limit,
                         max_substeps, direct)
 
 
@@ -486,14 +492,14 @@ def _riccati_map(M: NDArray, n: int, m_norm: float, dt: float, max_norm: float, 
     s = max(0, int(np.ceil(np.log2(nrm / max_norm)))) if nrm > max_norm else 0
     if s and direct and nrm <= DIRECT_MAX_NORM:
         one = _direct_map(M, n, dt, DIRECT_MAX_LOSS)
-        if one is not None and float(np.abs(one.Phi).sum(axis=0).max()) <= growth_limit:
+        if one is not None and _norm1(one.Phi) <= growth_limit:
             return RiccatiMap(Pn=one.Pn, Phi=one.Phi, O=one.O, dt=dt, direct=True)
     rmap = _base_map(M, n, dt / 2.0**s)
     done = 0
     while done < s:
         cand = compose_maps(rmap, rmap)
         # ||Phi||_1 is nan/inf if Phi is not finite; a sum is not finite if an entry is not
-        phi_norm = float(np.abs(cand.Phi).sum(axis=0).max())
+        phi_norm = _norm1(cand.Phi)
         if not (phi_norm <= growth_limit and np.isfinite(cand.Pn.sum() + cand.O.sum())):
             break
         rmap, done = cand, done + 1
@@ -558,14 +564,15 @@ def riccati_flow(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *, max_norm: flo
     scale = float(times[-1]) if times.size and times[-1] > 0 else 1.0
     direct = as_bool("direct", direct)
     max_norm = as_positive_float("max_norm", max_norm)
-    m_norm = float(np.abs(M).sum(axis=0).max())
+    m_norm = _norm1(M)
     d, rho = _balancing(M, n) if balance else (np.ones(n), 1.0)
-    Ms = _scaled(M, n, d, rho) if rho != 1.0 or np.any(d != 1.0) else M
-    ms_norm = float(np.abs(Ms).sum(axis=0).max())
-    if ms_norm < m_norm:                                # balanced: fewer doublings, fewer lost digits
+    rescaled = bool(rho != 1.0 or np.any(d != 1.0))
+    Ms = _scaled(M, n, d, rho) if rescaled else M
+    ms_norm = _norm1(Ms)
+    if rescaled and ms_norm < m_norm:                   # balanced: fewer doublings, fewer lost digits
         M, P, m_norm = Ms, P / d[:, None] / d[None, :] / rho, ms_norm
     else:
-        d, rho = np.ones(n), 1.0
+        rescaled = False
     out = np.empty((times.size, n, n))
     dts = np.diff(np.r_[0.0, times])
     live = dts > 1e-14 * scale
@@ -604,7 +611,7 @@ def riccati_flow(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *, max_norm: flo
         substeps += step.rmap.substeps
     info["substeps"], info["completed"] = substeps, done
     out = out[:done]
-    if rho != 1.0 or np.any(d != 1.0):
+    if rescaled:
         out *= rho * d[:, None] * d[None, :]
     return out, info
 

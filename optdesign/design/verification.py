@@ -81,10 +81,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from .._validate import as_str
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
 from ..classical.riccati import AREErrorEstimate, AREResult, filter_are, filter_are_error, filter_are_residual
-from ..errors import OptDesignError, RiccatiError, ValidationError
+from ..errors import OptDesignError, RiccatiError
 from ..model.plant import Plant
 from ..results import Check
 
@@ -217,11 +218,6 @@ def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "") -> C
 ARE_SOLVERS = ("scipy", "hamiltonian")
 
 
-def _check_solver(avoid: str) -> None:
-    if avoid not in ARE_SOLVERS:
-        raise ValidationError(f"avoid must be one of {ARE_SOLVERS}; found {avoid!r}")
-
-
 def independent_are(plant: Plant, *, avoid: str = "scipy") -> AREResult:
     """The Riccati solve used to verify a design, by a solver other than the one that produced it.
 
@@ -248,7 +244,7 @@ def independent_are(plant: Plant, *, avoid: str = "scipy") -> AREResult:
     RiccatiError, OptDesignError
         Both solvers failed (the second one's error).
     """
-    _check_solver(avoid)
+    as_str("avoid", avoid, ARE_SOLVERS)
     first, second = ("hamiltonian", "scipy") if avoid == "scipy" else ("scipy", "hamiltonian")
     try:
         return filter_are(plant, first, residual_tol=np.inf)
@@ -309,7 +305,7 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     ]
     if not resolve:
         return checks, None, err
-    _check_solver(avoid)  # before any work: a bad argument is not a failed check
+    as_str("avoid", avoid, ARE_SOLVERS)  # before any work: a bad argument is not a failed check
     resolved = plant.replace(G=None, Q=_psd_part(Qs))  # one plant for the solve and its error
     try:
         are = independent_are(resolved, avoid=avoid)

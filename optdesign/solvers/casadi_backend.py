@@ -117,15 +117,7 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
         obj = float(getter(opti.f))
     except Exception:  # noqa: BLE001 - objective may be unavailable after a crash
         obj = float("nan")
-    stats = SolverStats(
-        backend="ipopt",
-        native_status=native,
-        time=float(st.get("t_wall_total", elapsed)) if st else elapsed,
-        iterations=int(st["iter_count"]) if "iter_count" in st else None,
-        extra={"objective": obj, **({"error": error} if error else {})},
-    )
-    msg = f"ipopt: {native}" + (f" ({error})" if error and error not in native else "")
-    return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)
+    return _report(status, native, st, _wall(st, elapsed), obj, error, value)
 
 
 def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] | None = None, *,
@@ -165,15 +157,26 @@ def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] 
     st, xopt, obj, error, elapsed = _ipopt_call(lambda: ca.nlpsol(name, "ipopt", problem, plug), x0,
                                                 lbg=lbg, ubg=ubg)
     native = str(st.get("return_status", "solver_error" if error else "unknown"))
-    status = map_status("ipopt", native)  # unknown (and "solver_error") -> SOLVER_ERROR
-    stats = SolverStats(backend="ipopt", native_status=native, time=elapsed,
-                        iterations=int(st["iter_count"]) if "iter_count" in st else None,
-                        extra={"objective": obj, **(extra or {}), **({"error": error} if error else {})})
-    msg = f"ipopt: {native}" + (f" ({error})" if error else "")
 
     def value(_expr: Any = None) -> NDArray[np.float64]:
         return xopt
 
+    # unknown (and "solver_error") -> SOLVER_ERROR; the time includes making the solver
+    return _report(map_status("ipopt", native), native, st, elapsed, obj, error, value, extra=extra)
+
+
+def _wall(st: dict, elapsed: float) -> float:
+    """IPOPT's own wall time of a run (``t_wall_total``), else the caller's measurement."""
+    return float(st.get("t_wall_total", elapsed)) if st else elapsed
+
+
+def _report(status: Status, native: str, st: dict, seconds: float, obj: float, error: str,
+            value: Callable[..., Any], *, extra: dict[str, Any] | None = None) -> SolverReport:
+    """The :class:`SolverReport` of one IPOPT run (``st``: its stats, empty if it did not run)."""
+    stats = SolverStats(backend="ipopt", native_status=native, time=seconds,
+                        iterations=int(st["iter_count"]) if "iter_count" in st else None,
+                        extra={"objective": obj, **(extra or {}), **({"error": error} if error else {})})
+    msg = f"ipopt: {native}" + (f" ({error})" if error and error not in native else "")
     return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)
 
 
@@ -253,16 +256,8 @@ def run_solver(solver, x0: NDArray, p: NDArray, lbg: NDArray, ubg: NDArray,
     """
     st, x, obj, error, elapsed = _ipopt_call(lambda: solver, x0, p=p, lbg=lbg, ubg=ubg)
     native = str(st.get("return_status", "solver_error" if error else "unknown"))
-    status = map_status("ipopt", native)  # unknown (and "solver_error") -> SOLVER_ERROR
-    stats = SolverStats(
-        backend="ipopt",
-        native_status=native,
-        time=float(st.get("t_wall_total", elapsed)) if st else elapsed,
-        iterations=int(st["iter_count"]) if "iter_count" in st else None,
-        extra={"objective": obj, **({"error": error} if error else {})},
-    )
-    msg = f"ipopt: {native}" + (f" ({error})" if error and error not in native else "")
-    return SolverReport(status=status, stats=stats, value=value_of(x), objective=obj, message=msg)
+    # unknown (and "solver_error") -> SOLVER_ERROR
+    return _report(map_status("ipopt", native), native, st, _wall(st, elapsed), obj, error, value_of(x))
 
 
 def setup_error_report(exc: BaseException) -> SolverReport:

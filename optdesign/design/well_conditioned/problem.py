@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._deadline import Deadline, as_time_limit
 from ..._progress import Progress, as_progress
-from ..._validate import as_bool, as_gain_mask, as_int, as_poles, as_positive_float
+from ..._validate import as_bool, as_gain_mask, as_int, as_poles, as_positive_float, as_str
 from ...errors import DimensionError, ValidationError
 from ...formulate.well_conditioned import NLPScaling, PoleStructure, build_observer_nlp, check_objective
 from ...model.coerce import as_plant
@@ -247,9 +247,7 @@ class WellConditionedProblem:
             raise ValidationError(f"route must be 'auto', 'nlp' or 'engine'; found {route!r}")
         self.route = route
         self.kalman_start = as_bool("kalman_start", kalman_start)
-        if not isinstance(region_polish, str) or region_polish not in REGION_POLISHES:
-            raise ValidationError(f"region_polish must be 'full' or 'last'; found {region_polish!r}")
-        self.region_polish = region_polish
+        self.region_polish = as_str("region_polish", region_polish, REGION_POLISHES)
         self._nlps: dict[tuple, Any] = {}
 
     @property
@@ -387,15 +385,18 @@ class WellConditionedProblem:
         else:
             target = None
         if target is not None:
-            on_engine = self.mask is None and all(v is None for v in bounds.values())
             n_starts = chosen if chosen is not None else (
-                default_starts(self.plant.n) if on_engine else DEFAULT_STARTS)
+                DEFAULT_STARTS if self._needs_nlp(bounds) else default_starts(self.plant.n))
             return self._fixed(target, bounds, n_starts, seed, deadline, warm, progress)
         if region is None:
             region = self.region if self.region is not None else stability_region(self.plant.is_discrete)
         region = self._check_region_mode(region, bounds)
         n_starts = chosen if chosen is not None else DEFAULT_STARTS
         return self._free(region, bounds, n_starts, seed, deadline, warm, progress)
+
+    def _needs_nlp(self, bounds: dict[str, float | None]) -> bool:
+        """Gain or trade-off bounds, or structural zeros: what the placement engine does not take."""
+        return self.mask is not None or any(v is not None for v in bounds.values())
 
     def _repeated_pole_proof(self, target: NDArray) -> ObserverDesign | None:
         """The infeasible result of a fixed pole set that no diagonalizable ``A - LC`` (or finite eta)
@@ -431,7 +432,7 @@ class WellConditionedProblem:
         evaluated: list[Evaluated] = []
         # structural zeros go to IPOPT too: the engine's augmented Lagrangian for masks can stop worse
         # (pp_byers5 with 3 zeros: kappa2 406.7 vs IPOPT's 355.4, benchmarks/results/placement.md sec. 8)
-        use_nlp = any(v is not None for v in bounds.values()) or self.mask is not None
+        use_nlp = self._needs_nlp(bounds)
         planned = 0
         route = "nlp" if use_nlp else "engine"
         with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
@@ -495,8 +496,7 @@ class WellConditionedProblem:
         if warm is not None:
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
             warm_spec = ("warm start", warm, PoleStructure.of(Pw, tol=1e-6), Pw, True)
-        engine_ok = (not any(v is not None for v in bounds.values()) and self.mask is None
-                     and objective in ("kappa2", "kappa_fro"))
+        engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro")
         use_nlp = self.route != "engine" or not engine_ok
         bound = objective_lower_bound(objective, plant.n)
         records: list[StartRecord] = []
