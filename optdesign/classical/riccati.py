@@ -55,6 +55,9 @@ __all__ = [
     "filter_are",
     "filter_are_error",
     "filter_are_residual",
+    "filter_are_terms",
+    "relative_residual",
+    "are_error_of_terms",
     "hamiltonian_are",
     "symplectic_dare",
     "RESIDUAL_TOL",
@@ -210,6 +213,7 @@ def hamiltonian_are(
     *,
     balance: bool = True,
     tol: float | None = None,
+    trusted: bool = False,
 ) -> NDArray[np.float64]:
     r"""Stabilizing solution of the continuous ARE by the Schur method on the Hamiltonian.
 
@@ -254,6 +258,11 @@ def hamiltonian_are(
         is caught with a wide margin, while DAREX 2.5's closed-loop eigenvalue 2.2e-8 inside
         the unit circle (sensitivity ~1e8) is still accepted.  ``tol=0`` disables the test
         (the eigenvalue count and the Lagrangian check remain).
+    trusted : bool
+        The arguments are float arrays already validated (r symmetric positive definite, q
+        symmetric): no validation and no boundary test (``tol`` is ignored; the eigenvalue
+        count, the U11 condition and the Lagrangian check remain) -- the lean re-solve of a
+        verification, which judges the answer by measured differences anyway.
 
     Returns
     -------
@@ -284,7 +293,11 @@ def hamiltonian_are(
            [1., 2.]])
     """
     kind = "hamiltonian_are"
-    a, b, q, r = _validate_are_args(a, b, q, r)
+    if trusted:
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        q, r = np.asarray(q, dtype=float), np.asarray(r, dtype=float)
+    else:
+        a, b, q, r = _validate_are_args(a, b, q, r)
     n = a.shape[0]
     G = _gain_term(b, r)
     rho = _norm_scaling(G, q) if balance else 1.0
@@ -292,16 +305,18 @@ def hamiltonian_are(
     sca = _symplectic_scaling(H, n) if balance else None
     if sca is not None:
         H = H * (sca[:, None] / sca[None, :])
-    tol = _BOUNDARY_TOL if tol is None else float(tol)
-    lam, sens = _eig_condition(H)
-    dist = np.abs(lam.real)
-    closest = format_pole(lam[int(np.argmin(dist))])
-    bound = _boundary_bound(sens, tol, float(np.linalg.norm(H)))
-    k = int(np.argmin(dist - bound))
-    if 0 < bound[k] and dist[k] <= bound[k]:  # tol = 0 disables the test
-        raise _boundary_error(kind, "imaginary axis", lam[k], dist[k], bound[k])
+    closest = "not computed (trusted input)"
+    if not trusted:
+        tol = _BOUNDARY_TOL if tol is None else float(tol)
+        lam, sens = _eig_condition(H)
+        dist = np.abs(lam.real)
+        closest = format_pole(lam[int(np.argmin(dist))])
+        bound = _boundary_bound(sens, tol, float(np.linalg.norm(H)))
+        k = int(np.argmin(dist - bound))
+        if 0 < bound[k] and dist[k] <= bound[k]:  # tol = 0 disables the test
+            raise _boundary_error(kind, "imaginary axis", lam[k], dist[k], bound[k])
     try:
-        _, U, sdim = scipy.linalg.schur(H, output="real", sort="lhp")
+        _, U, sdim = scipy.linalg.schur(H, output="real", sort="lhp", check_finite=not trusted)
     except ValueError as exc:  # pragma: no cover - LAPACK could not reorder (eigenvalues too close)
         raise RiccatiError(f"{kind}: reordering the Schur form failed ({exc}); eigenvalues too "
                            f"close to the imaginary axis (closest: {closest})") from exc
@@ -513,7 +528,13 @@ def filter_are_residual(
     R = _require_R(plant)
     W = _process_noise(plant, Q, Qs)
     P = as_square("P", P, plant.n)
-    res, terms = _filter_residual(plant.A, plant.C, R, W, P, plant.is_discrete)
+    return relative_residual(*filter_are_terms(plant.A, plant.C, R, W, P, plant.is_discrete))
+
+
+def relative_residual(res: NDArray, terms: list[NDArray]) -> float:
+    """``||res||_F`` over the sum of the Frobenius norms of ``terms`` (0 when res is 0; inf when
+    every term vanishes but res does not): :func:`filter_are_residual` from
+    :func:`filter_are_terms`."""
     num = float(np.linalg.norm(res))
     den = float(sum(np.linalg.norm(t) for t in terms))
     if num == 0.0:
@@ -521,9 +542,10 @@ def filter_are_residual(
     return num / den if den > 0 else float("inf")
 
 
-def _filter_residual(A: NDArray, C: NDArray, R: NDArray, W: NDArray, P: NDArray,
+def filter_are_terms(A: NDArray, C: NDArray, R: NDArray, W: NDArray, P: NDArray,
                      discrete: bool) -> tuple[NDArray, list[NDArray]]:
-    """The residual matrix of the filter Riccati equation at P and its terms."""
+    """The residual matrix of the filter Riccati equation at P and its terms (float arrays taken
+    as validated: A, W, P (n, n), C (p, n), R (p, p))."""
     if discrete:
         APA = A @ P @ A.T
         S = C @ P @ C.T + R
@@ -592,26 +614,79 @@ def filter_are_error(plant: Plant, P: ArrayLike, *, Qs: ArrayLike | None = None)
     R = _require_R(plant)
     W = _process_noise(plant, None, Qs)
     P = as_square("P", P, plant.n)
-    A, C, disc, n = plant.A, plant.C, plant.is_discrete, plant.n
-    res, terms = _filter_residual(A, C, R, W, P, disc)
+    A, C, disc = plant.A, plant.C, plant.is_discrete
+    res, terms = filter_are_terms(A, C, R, W, P, disc)
+    return are_error_of_terms(A, C, R, P, res, terms, disc)
+
+
+def are_error_of_terms(A: NDArray, C: NDArray, R: NDArray, P: NDArray, res: NDArray, terms: list[NDArray],
+                       discrete: bool) -> AREErrorEstimate:
+    """:func:`filter_are_error` from the residual and terms of :func:`filter_are_terms` (float
+    arrays taken as validated).  In continuous time one real Schur form of ``F = A - L C`` serves
+    the three Lyapunov solves of the estimate (the rounding response's two samples and the Newton
+    correction), each as :func:`scipy.linalg.solve_continuous_lyapunov` does them."""
+    n = A.shape[0]
     with np.errstate(all="ignore"):
         try:
-            L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R) if disc else np.linalg.solve(R, C @ P).T
+            L = (A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R) if discrete
+                 else np.linalg.solve(R, C @ P).T)
         except np.linalg.LinAlgError:
             return AREErrorEstimate(float("inf"), float("inf"), float("inf"))
     F = A - L @ C
     magnitude = n * _EPS * (sum(np.abs(t) for t in terms) + np.abs(P))
-    floor = rounding_response(F, 0.5 * (magnitude + magnitude.T), disc)
+    magnitude = 0.5 * (magnitude + magnitude.T)
+    if discrete:
+        floor = rounding_response(F, magnitude, discrete)
+        solve = None
+    else:
+        solve, floor = _continuous_rounding_response(F, magnitude)
     if not np.isfinite(floor):
         return AREErrorEstimate(float("inf"), float("inf"), float("inf"))
     try:
         with np.errstate(all="ignore"):
-            E = lyapunov_solve(F, res if disc else -res, disc)
+            E = lyapunov_solve(F, res, discrete) if solve is None else solve(-res)
         corr = float(np.linalg.norm(E))
     except (np.linalg.LinAlgError, ValueError):
         corr = float("inf")
     nP = float(np.linalg.norm(P))
     return AREErrorEstimate((corr + floor) / (nP if nP > 0 else 1.0), corr, floor)
+
+
+def _continuous_rounding_response(F: NDArray, magnitude: NDArray, samples: int = 2, seed: int = 0):
+    """``(solve, floor)``: ``solve(rhs)`` the solution of ``F Z + Z F' = rhs`` from one real Schur
+    form of F, and :func:`~optdesign.analysis.conditioning.rounding_response` computed with it (the
+    same seeded sign patterns; inf, and ``solve`` None, when F is not stable or a solve fails)."""
+    n = F.shape[0]
+    if n == 0:
+        return (lambda rhs: np.zeros_like(rhs)), 0.0
+    try:
+        T, U = scipy.linalg.schur(F, output="real", check_finite=False)
+    except (np.linalg.LinAlgError, ValueError):
+        return None, float("inf")
+    if not np.all(np.isfinite(T)) or np.max(np.diag(T)) >= 0.0:  # diag(T): the real parts of eig(F)
+        return None, float("inf")
+    trsyl = scipy.linalg.get_lapack_funcs("trsyl", (T,))
+
+    def solve(rhs: NDArray) -> NDArray:
+        y, scale, info = trsyl(T, T, U.T.dot(rhs.dot(U)), tranb="T")
+        if info < 0:
+            raise ValueError(f"?TRSYL: illegal value in argument number {-info}")
+        return U.dot(y * scale).dot(U.T)
+
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    with np.errstate(all="ignore"):
+        for _ in range(max(1, samples)):
+            S = rng.choice([-1.0, 1.0], size=(n, n))
+            S = np.triu(S) + np.triu(S, 1).T
+            try:
+                nz = float(np.linalg.norm(solve(magnitude * S)))
+            except (np.linalg.LinAlgError, ValueError):
+                return None, float("inf")
+            if not np.isfinite(nz):
+                return None, float("inf")
+            worst = max(worst, nz)
+    return solve, worst
 
 
 def _unexcited_boundary_modes(A: NDArray, F: NDArray, discrete: bool) -> NDArray[np.complex128]:

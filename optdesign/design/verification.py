@@ -84,7 +84,18 @@ from numpy.typing import NDArray
 from .._validate import as_str
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
-from ..classical.riccati import AREErrorEstimate, AREResult, filter_are, filter_are_error, filter_are_residual
+from ..classical.riccati import (
+    AREErrorEstimate,
+    AREResult,
+    are_error_of_terms,
+    filter_are,
+    filter_are_error,
+    filter_are_residual,
+    filter_are_terms,
+    hamiltonian_are,
+    relative_residual,
+    sort_poles,
+)
 from ..errors import OptDesignError, RiccatiError
 from ..model.plant import Plant
 from ..results import Check
@@ -101,9 +112,11 @@ __all__ = [
     "psd_check",
     "psd_tolerance",
     "riccati_checks",
+    "lean_riccati_checks",
     "forward_error_check",
     "independent_are",
     "ARE_SOLVERS",
+    "AVOID_CHOICES",
     "cross_check",
     "check_violation",
     "relative_difference",
@@ -204,11 +217,18 @@ def psd_tolerance(X: NDArray, error: float = 0.0) -> float:
     return -(float(error) + 10.0 * n * _EPS)
 
 
-def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "") -> Check:
-    """``lambda_min(X) / ||X||_2 >= -(error + 10 n eps)`` (0 for ``X = 0``)."""
-    X = 0.5 * (np.asarray(X, dtype=float) + np.asarray(X, dtype=float).T)
-    nx = float(np.linalg.norm(X, 2)) if X.size else 0.0
-    value = float(np.linalg.eigvalsh(X)[0]) / nx if nx > 0 else 0.0
+def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "",
+              eigenvalues: NDArray | None = None) -> Check:
+    """``lambda_min(X) / ||X||_2 >= -(error + 10 n eps)`` (0 for ``X = 0``).  ``eigenvalues``: those
+    of the symmetric X, ascending, when already at hand (then ``||X||_2 = max |lambda|``)."""
+    if eigenvalues is None:
+        X = 0.5 * (np.asarray(X, dtype=float) + np.asarray(X, dtype=float).T)
+        nx = float(np.linalg.norm(X, 2)) if X.size else 0.0
+        lam_min = float(np.linalg.eigvalsh(X)[0]) if X.size else 0.0
+    else:
+        nx = float(np.max(np.abs(eigenvalues))) if eigenvalues.size else 0.0
+        lam_min = float(eigenvalues[0]) if eigenvalues.size else 0.0
+    value = lam_min / nx if nx > 0 else 0.0
     label = what or name.replace("_min_eig", "")
     return Check.at_least(name, value, psd_tolerance(X, error),
                           f"smallest eigenvalue of {label} / ||{label}|| (it must be PSD)")
@@ -216,6 +236,9 @@ def psd_check(name: str, X: NDArray, *, error: float = 0.0, what: str = "") -> C
 
 #: the Riccati solvers of :func:`independent_are` (methods of :func:`~optdesign.classical.riccati.filter_are`)
 ARE_SOLVERS = ("scipy", "hamiltonian")
+#: ``avoid=`` of :func:`riccati_checks`: a solver that produced the design, or ``"none"`` (no Riccati
+#: solver did: an SDP point with L and P from a Lyapunov solve) for the lean re-solve
+AVOID_CHOICES = ARE_SOLVERS + ("none",)
 
 
 def independent_are(plant: Plant, *, avoid: str = "scipy") -> AREResult:
@@ -290,9 +313,20 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     ``are_resolve_gain`` -- an independent Riccati solve with Q (:func:`independent_are`, not by the
     solver ``avoid`` that produced L and P) must return L.
 
+    ``avoid="none"`` (one of :data:`AVOID_CHOICES`): L and P come from no Riccati solver; in
+    continuous time the re-solve is then the lean one of :func:`lean_riccati_checks` (the same checks
+    and tolerances on the validated arrays), and when that does not pass, the full one
+    (:func:`independent_are` with scipy's solver) decides.
+
     Returns ``(checks, are, error)``: ``are`` is the independent solve (None when it failed or was
     not asked for), ``error`` the forward error estimate of P.
     """
+    as_str("avoid", avoid, AVOID_CHOICES)  # before any work: a bad argument is not a failed check
+    if avoid == "none" and resolve and not plant.is_discrete and plant.R is not None:
+        lean = lean_riccati_checks(plant, L, P, Q, what=what)
+        if lean is not None:
+            return lean
+    avoid = "hamiltonian" if avoid == "none" else avoid
     Qs = 0.5 * (Q + Q.T)
     err = filter_are_error(plant, P, Qs=Qs)
     err_rel = err.relative if np.isfinite(err.relative) else float("inf")
@@ -305,7 +339,6 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     ]
     if not resolve:
         return checks, None, err
-    as_str("avoid", avoid, ARE_SOLVERS)  # before any work: a bad argument is not a failed check
     resolved = plant.replace(G=None, Q=_psd_part(Qs))  # one plant for the solve and its error
     try:
         are = independent_are(resolved, avoid=avoid)
@@ -314,10 +347,67 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
         return checks, None, err
     err_are = filter_are_error(resolved, are.P).relative
     gtol = _gain_tolerance(plant, L, P, err_rel, err_are if np.isfinite(err_are) else 1.0)
-    checks.append(Check.at_most("are_resolve_gain", relative_difference(are.L, L), gtol,
-                                f"||L_are - L|| / max(1, ||L||), L_are from an independent filter_are with "
-                                f"{what}; tolerance from the error estimates of both P"))
+    checks.append(_gain_check(are.L, L, gtol, what))
     return checks, are, err
+
+
+def _gain_check(La: NDArray, L: NDArray, gtol: float, what: str) -> Check:
+    return Check.at_most("are_resolve_gain", relative_difference(La, L), gtol,
+                         f"||L_are - L|| / max(1, ||L||), L_are from an independent filter_are with "
+                         f"{what}; tolerance from the error estimates of both P")
+
+
+def lean_riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: str = "the returned Q",
+                        ) -> tuple[list[Check], AREResult, AREErrorEstimate] | None:
+    """:func:`riccati_checks` of a continuous design that comes from no Riccati solver, at the cost
+    of its linear algebra: the same checks, values and tolerances, on the plant's validated arrays
+    (no Plant rebuilt, no re-validation); the residual and its terms computed once for the residual
+    check and the forward error estimate, one real Schur form of each closed loop for the Lyapunov
+    solves of its estimate (the design's P and the re-solve's P each have their own); one symmetric
+    eigendecomposition of Q for its PSD check and the PSD part handed to the re-solve; the
+    re-solve is the ordered Schur form of the Hamiltonian (``hamiltonian_are(trusted=True)``).
+
+    Returns None -- the caller then runs the full checks -- when that re-solve fails, is not
+    stabilizing, or its gain check does not pass (nothing is lost: a lean verdict is only ever a
+    pass of the gain check; a failure is decided by the full re-solve).
+    """
+    A, C = plant.A, plant.C
+    R = np.asarray(plant.R, dtype=float)
+    Qs = 0.5 * (Q + Q.T)
+    res, terms = filter_are_terms(A, C, R, Qs, P, False)
+    err = are_error_of_terms(A, C, R, P, res, terms, False)
+    err_rel = err.relative if np.isfinite(err.relative) else float("inf")
+    lam, U = np.linalg.eigh(Qs)
+    checks = [
+        Check.at_most("riccati_residual", relative_residual(res, terms), RESIDUAL_TOL,
+                      f"relative residual of the filter ARE for the returned P with {what}"),
+        forward_error_check(err),
+        psd_check("Q_min_eig", Qs, what="Q", eigenvalues=lam),
+        psd_check("P_min_eig", P, error=min(err_rel, 1.0), what="P",
+                  eigenvalues=np.linalg.eigvalsh(0.5 * (P + P.T))),
+    ]
+    Qp = (U * np.maximum(lam, 0.0)) @ U.T
+    Qp = 0.5 * (Qp + Qp.T)
+    try:
+        with np.errstate(all="ignore"):
+            Pa = hamiltonian_are(A.T, C.T, Qp, R, trusted=True)
+            Pa = 0.5 * (Pa + Pa.T)
+            La = np.linalg.solve(R, C @ Pa).T
+    except (RiccatiError, np.linalg.LinAlgError, ValueError):
+        return None
+    if not np.all(np.isfinite(La)):
+        return None
+    poles = sort_poles(np.linalg.eigvals(A - La @ C))
+    if not float(np.max(poles.real)) < 0.0:
+        return None
+    res_a, terms_a = filter_are_terms(A, C, R, Qp, Pa, False)
+    err_are = are_error_of_terms(A, C, R, Pa, res_a, terms_a, False).relative
+    gtol = _gain_tolerance(plant, L, P, err_rel, err_are if np.isfinite(err_are) else 1.0)
+    gain = _gain_check(La, L, gtol, what)
+    if not gain.passed:
+        return None
+    are = AREResult(P=Pa, L=La, poles=poles, residual=relative_residual(res_a, terms_a), method="hamiltonian")
+    return [*checks, gain], are, err
 
 
 def check_violation(check: Check, tolerance: float | None = None) -> float:

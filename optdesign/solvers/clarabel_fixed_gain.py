@@ -317,14 +317,13 @@ def _svec_rows(n: int) -> NDArray[np.float64]:
     return S
 
 
-def _cone_data(clarabel, family: FixedGainFamily, structure: str, G: NDArray, feas: bool):
-    """``(A blocks, b blocks, cones, Mw, nw)`` of the constraints; ``Mw`` maps ``svec(Q)`` to the
-    decision (None for "full"), ``nw`` counts extra variables (w-form for a G of dependent
-    columns)."""
+def _cone_data(clarabel, family: FixedGainFamily, structure: str, G: NDArray, feas: bool, b0: NDArray):
+    """``(A blocks, b blocks, cones, Mw, nw)`` of the constraints (``b0 = svec(family.Q0)``);
+    ``Mw`` maps ``svec(Q)`` to the decision (None for "full"), ``nw`` counts extra variables (w-form
+    for a G of dependent columns)."""
     n = family.Q0.shape[0]
     T = family.T
     nx = T.shape[1]
-    b0 = svec(family.Q0)
     tcol = lambda v: [v[:, None]] if feas else []  # noqa: E731 - the margin's column
     if structure == "full":
         return [np.hstack([-T] + tcol(svec(np.eye(n))))], [b0], [clarabel.PSDTriangleConeT(n)], None, 0
@@ -411,12 +410,13 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
     b0 = svec(family.Q0)
     feas = objective == "feasibility"
     Gm = np.eye(n) if G is None else G
-    A_rows, b, cones, Mw, nw = _cone_data(clarabel, family, structure, Gm, feas)
+    A_rows, b, cones, Mw, nw = _cone_data(clarabel, family, structure, Gm, feas, b0)
     nz = nx + nw + (1 if feas else 0)
     q = np.zeros(nz)
     Pm = sp.csc_matrix((nz, nz))
     if objective == "min_trace":
-        diag_w = (_svec_index(n)[0] == _svec_index(n)[1]).astype(float)
+        Id, Jd, _ = _svec_index(n)
+        diag_w = (Id == Jd).astype(float)
         q[:nx] = diag_w @ T
     elif objective == "feasibility":
         q[-1] = -1.0

@@ -128,7 +128,9 @@ def verify_design(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDAr
     residual and forward error, re-solved ARE, PSD).  ``avoid``: the Riccati solver that produced L
     and P (:func:`~optdesign.design.verification.independent_are` re-solves with the other one);
     ``"hamiltonian"`` for designs from no Riccati solver (SDP points, Lyapunov solves): the re-solve
-    is then scipy's, the cheaper one."""
+    is then scipy's, the cheaper one; ``"none"`` for those too, with the lean re-solve in continuous
+    time (:func:`~optdesign.design.verification.lean_riccati_checks`; the full one decides whatever
+    it does not pass)."""
     A, C = plant.A, plant.C
     pcheck, poles = pole_check(A - L @ C, target, tol)
     kalman, are, _ = riccati_checks(plant, L, P, Q, what="the returned Q", avoid=avoid)
