@@ -10,8 +10,12 @@ A. Time per point, one process, the same points (a block of the grid), for
    2. ``RegionSweepDesigner(reuse=False, warm_start=False)``: the sweep algorithm (its
       ``WellConditionedProblem`` on the NLP route), a new problem (NLPs rebuilt) per point,
    3. ``RegionSweepDesigner(reuse=True, warm_start=False)``: one problem, NLPs built once, cold starts,
-   4. ``RegionSweepDesigner()`` (default): re-use + warm start from the previous point + one placement start,
+   4. ``RegionSweepDesigner()`` (default, ``placement="always"``): re-use + warm start from the previous
+      point + the placement starts at every point,
    5. ``RegionSweepDesigner(placement="fallback")``: re-use + warm start, placement only when needed;
+   6. ``RegionSweepDesigner(placement="pool")``: re-use + every start's local optimum
+      carried to the next point as a warm start, placement on a chunk's first point and when the pool
+      collapses to one optimum;
    with the CPU time per point (median and mean), the deterministic work per point (IPOPT iterations,
    IPOPT solves, independent evaluations, scipy placements), the success rate and kappa2 against the
    best found by any variant run.
@@ -98,22 +102,23 @@ class WorkCounter:
 
 def part_a(problem: str, points: list[dict], which: list[int] | None = None) -> tuple[list[dict], dict]:
     rows = []
+
+    def variant(**kw):  # made when its variant runs (the code before may not know every option)
+        return lambda: RegionSweepDesigner(problem=problem, radius=RADIUS, **kw)
+
     variants = [
-        ("public verb per point (rebuild, starts=2)", None),
-        ("designer, NLP rebuilt per point, "
-         "cold", RegionSweepDesigner(problem=problem, radius=RADIUS, reuse=False,
-                                                                      warm_start=False)),
-        ("designer, NLP re-used, "
-         "cold", RegionSweepDesigner(problem=problem, radius=RADIUS, warm_start=False)),
-        ("designer, re-used + warm start + placement "
-         "(default)", RegionSweepDesigner(problem=problem, radius=RADIUS)),
-        ("designer, re-used + warm start, placement as fallback",
-         RegionSweepDesigner(problem=problem, radius=RADIUS, placement="fallback")),
+        ("public verb per point (rebuild, starts=2)", lambda: None),
+        ("designer, NLP rebuilt per point, cold", variant(reuse=False, warm_start=False)),
+        ("designer, NLP re-used, cold", variant(warm_start=False)),
+        ("designer, re-used + warm start + placement (default)", variant()),
+        ("designer, re-used + warm start, placement as fallback", variant(placement="fallback")),
+        ("designer, re-used + pool of local optima (placement='pool')", variant(placement="pool")),
     ]
     if which is not None:
         variants = [variants[i - 1] for i in which]
-    for name, designer in variants:
+    for name, make in variants:
         clear_cache()
+        designer = make()
         with WorkCounter() as work:
             if designer is None:
                 times, cpu, res = timed_serial(lambda alpha, zeta: verb_point(problem, alpha, zeta), points)
@@ -162,8 +167,9 @@ def score(rows: list[dict]) -> None:
         r["worst_ratio"] = float(np.nanmax(ratio)) if np.isfinite(ratio).any() else float("nan")
 
 
-def part_b(problem: str, points: list[dict], chunk: int, use_dask: bool) -> list[dict]:
-    designer = RegionSweepDesigner(problem=problem, radius=RADIUS)
+def part_b(problem: str, points: list[dict], chunk: int, use_dask: bool,
+           placement: str = "always") -> list[dict]:
+    designer = RegionSweepDesigner(problem=problem, radius=RADIUS, placement=placement)
     out = []
     local = sweep(designer, points, executor="processes", workers=2, chunksize=chunk)
     out.append({"executor": "local process pool (2 workers)", "table": local})
@@ -193,8 +199,13 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-a", action="store_true")
     ap.add_argument("--skip-b", action="store_true", help="part A alone")
     ap.add_argument("--variants", default=None,
-                    help="part A: the variants to run, by number (1-5, see above), e.g. 4,5")
+                    help="part A: the variants to run, by number (1-6, see above), e.g. 4,5")
+    ap.add_argument("--b-placement", default="always", help="part B: the designer's placement mode")
+    ap.add_argument("--start", type=int, default=None,
+                    help="part A: index of its first grid point (default: a block from the middle)")
     ap.add_argument("--json-out", default=None, help="part A: also write its rows (with kappa2) as JSON")
+    ap.add_argument("--b-json-out", default=None,
+                    help="part B: also write the local pool's per-point kappa2 and status as JSON")
     ap.add_argument("--before", default=None,
                     help="part A: the JSON of an earlier run (--json-out, e.g. of the code before a change, "
                          "run just before this one): its rows head the table as 'before: ...' and its "
@@ -204,6 +215,8 @@ def main(argv=None) -> int:
     # zeta descending: within a chunk the sector widens, so the previous design stays feasible
     points = grid(alpha=np.linspace(0.5, 3.0, args.alphas), zeta=np.linspace(0.9, 0.2, args.zetas))
     start = (len(points) // 2 // args.zetas) * args.zetas  # a block of rows from the middle of the grid
+    if args.start is not None:
+        start = args.start
     subset = points[start:start + args.subset]
     lines = [
         "# Sweep benchmark: parameter re-use vs rebuilding; local pool vs Dask",
@@ -263,11 +276,15 @@ def main(argv=None) -> int:
     if args.b_alphas is not None:
         points = grid(alpha=np.linspace(0.5, 3.0, args.b_alphas), zeta=np.linspace(0.9, 0.2, args.zetas))
     print(f"B. {len(points)} points on a local pool and on Dask", flush=True)
-    runs = part_b(args.problem, points, args.zetas, not args.no_dask)
+    runs = part_b(args.problem, points, args.zetas, not args.no_dask, args.b_placement)
     ref = runs[0]["table"]
+    if args.b_json_out:
+        Path(args.b_json_out).write_text(json.dumps({"points": [
+            {"alpha": r["alpha"], "zeta": r["zeta"], "success": bool(r["success"]), "kappa2": r.get("kappa2"),
+             "time": r.get("time")} for r in ref.records]}), encoding="utf-8")
     lines += [
-        f"## B. {len(points)}-point sweep, default designer, chunks of {args.zetas} points (one alpha per "
-        "chunk)",
+        f"## B. {len(points)}-point sweep, designer (placement={args.b_placement!r}), chunks of "
+        f"{args.zetas} points (one alpha per chunk)",
         "",
         "| executor | wall time (s) | points/s | median time/point in worker (ms) "
         "| mean time/point in worker (ms) | verified | failed | differences from the local pool |",

@@ -427,7 +427,7 @@ def test_region_designer_point_errors_are_recorded():
         ({"radius": -1.0}, "radius must be > 0"),
         ({"kappa2_max": 0.5}, "kappa2_max must be >= 1"),
         ({"starts": 0}, "starts must be an integer >= 1"),
-        ({"placement": "never"}, "placement must be 'always' or 'fallback'"),
+        ({"placement": "never"}, "placement must be one of 'always', 'fallback', 'pool'; found"),
         ({"initial_gain": np.ones((2, 2))}, r"initial_gain must be a finite \(3, 2\) array"),
         ({"problem": None}, "exactly one of problem"),
         ({"time_limit": 0.0}, r"time_limit must be a finite number of seconds > 0 or None; found 0.0"),
@@ -436,7 +436,8 @@ def test_region_designer_point_errors_are_recorded():
         ({"options": {"ipopt.bogus": 1}}, r"options must be IPOPT / CasADi .*No such IPOPT option: bogus"),
         ({"options": {"ipopt.max_iter": True}}, r"options: 'ipopt.max_iter' must map to a string or a num"),
         ({"objective": np.array(["kappa2", "eta"])}, "objective must be one of .*; found array"),
-        ({"placement": np.array(["always", "fallback"])}, "placement must be 'always' or 'fallback'"),
+        ({"placement": np.array(["always", "fallback"])},
+         "placement must be one of 'always', 'fallback', 'pool'; found"),
     ],
 )
 def test_region_designer_construction_errors(kwargs, match):

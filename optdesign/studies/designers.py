@@ -70,7 +70,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
 from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
-from ..design.well_conditioned.problem import Objective
+from ..design.well_conditioned.problem import Objective, warm_start_origin
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
@@ -85,6 +85,8 @@ __all__ = [
     "place_baseline",
     "DESIGNERS",
     "SWEEP_IPOPT_OPTIONS",
+    "PLACEMENTS",
+    "merge_pool",
     "gain_values",
     "clear_cache",
 ]
@@ -99,6 +101,9 @@ SWEEP_IPOPT_OPTIONS: dict[str, Any] = {
 }
 
 _CACHE_SIZE = 8
+
+#: the ``placement`` modes of :class:`RegionSweepDesigner`
+PLACEMENTS = ("always", "fallback", "pool")
 
 #: the sweepable bounds (keyword arguments of :meth:`WellConditionedProblem.solve`)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
@@ -221,12 +226,21 @@ class RegionSweepDesigner:
         depend on where or when it runs).
     warm_start : bool, default True
         Start from the previous point's solution (within a chunk of the sweep).
-    placement : {"always", "fallback"}
+    placement : {"always", "fallback", "pool"}, default "always"
         ``"always"``: every point also runs the ``starts`` placement starts (robust: a point does
-        not depend on the warm start alone); ``"fallback"``: a solve from the warm start alone
-        first, the placement starts only when there is no warm start or its solve does not succeed
-        (first point of a chunk) -- much faster along smooth paths, but it
-        follows one local optimum along the chunk (measured in ``benchmarks/results/sweep.md``).
+        not depend on the warm start alone), the previous point's design as the warm start;
+        ``"fallback"``: a solve from the warm start alone first, the placement starts only when
+        there is no warm start or its solve does not succeed (first point of a chunk) -- fast along
+        smooth paths, but it follows one local optimum along the chunk; ``"pool"``: the session
+        keeps the distinct verified local optima of the previous point (its design and every
+        start's answer, :func:`merge_pool`) and warm-starts them all at the next point (each: the
+        last continuation stages, best first, stopping at a design that attains the objective's
+        lower bound); the placement starts run at a chunk's first point and whenever the pool has
+        collapsed to one optimum (the same gain, or the same kappa2: mirror images).  Measured on
+        DIS2 (``benchmarks/results/sweep.md``): 0.25-0.65x the CPU of ``"always"``, its kappa2 (to 5e-9)
+        at every point of the 40-point block, the 200-point sweep and the grid's first 50 points,
+        but on the 1,000-point grid 9 points up to 1.16x worse (a fresh placement start of
+        ``"always"`` finds the lower bound a few points before the pool's chains reach it).
     reuse : bool, default True
         Solve every point on one problem object per worker thread (:meth:`design_problem`), so that
         its NLPs are built once and re-solved; False builds a new problem for every point (for
@@ -286,8 +300,9 @@ class RegionSweepDesigner:
         if self.region is not None and not isinstance(self.region, Region):
             raise ValidationError("region must be an optdesign.regions.Region; found "
                                   f"{type(self.region).__name__}")
-        if not isinstance(self.placement, str) or self.placement not in ("always", "fallback"):
-            raise ValidationError(f"placement must be 'always' or 'fallback'; found {self.placement!r}")
+        if not isinstance(self.placement, str) or self.placement not in PLACEMENTS:
+            raise ValidationError(f"placement must be one of {', '.join(map(repr, PLACEMENTS))}; found "
+                                  f"{self.placement!r}")
         as_int("starts", self.starts, 1)
         as_int("seed", self.seed, 0)
         as_bool("warm_start", self.warm_start)
@@ -447,13 +462,25 @@ class RegionSweepDesigner:
 
 
 class _RegionSession:
-    """One chunk of a sweep: the previous point's verified design is the next point's warm start."""
+    """One chunk of a sweep: the previous point's verified design is the next point's warm start.
+
+    The session keeps the distinct verified local optima of the previous point (its design, the
+    warm starts' and the placement starts' answers, :func:`merge_pool`).  ``placement="pool"``:
+    all of them are the next point's warm starts, the placement starts run only when the pool is
+    stale (:meth:`_stale`); a member that did not run at a point (it ended early) is carried on.
+    ``"always"`` and ``"fallback"``: the previous point's design alone is the warm start.
+    """
 
     def __init__(self, designer: RegionSweepDesigner) -> None:
         self.d = designer
-        #: the sweepable parameters of the previous point and its verified design
+        #: the sweepable parameters of the previous point and its verified local optima (gains, best first)
         self.prev_params: frozenset[str] | None = None
-        self.prev: ObserverDesign | None = None
+        self.pool: list[tuple[float, NDArray[np.float64]]] = []
+
+    def _stale(self) -> bool:
+        """The placement starts must run again: no pool, or a pool of one optimum (the placement
+        starts' chains have merged into the best one or were lost)."""
+        return len(self.pool) < 2
 
     def __call__(self, **point: float) -> ObserverDesign:
         """The design of one point on the designer's problem object (:meth:`WellConditionedProblem.solve`)."""
@@ -464,24 +491,78 @@ class _RegionSession:
         params = frozenset(vals)
         problem = d.design_problem()
         builds0 = problem.nlp_builds
-        warm: Any = self.prev if d.warm_start and self.prev_params == params else None
-        if warm is None:
-            warm = d.initial_gain
+        pool = list(self.pool) if d.warm_start and self.prev_params == params else []
+        if not pool and d.initial_gain is not None:
+            pool = [(math.inf, d.initial_gain)]
+        if d.placement != "pool":
+            pool = pool[:1]  # the previous point's best design alone
         kw: dict[str, Any] = {"region": region, "seed": d.seed_for(**point), "time_limit": deadline,
                               **{k: vals.get(k) for k in _BOUNDS}}
+        warm: dict[str, Any] = {}
+        if pool:
+            warm = {"warm_start": pool[0][1], "warm_starts": [L for _, L in pool[1:]]}
         res = None
-        if d.placement == "fallback" and warm is not None:  # the warm start alone first
-            res = problem.solve(warm_start=warm, starts=0, **kw)
-        if res is None or not (res.success or deadline.expired):  # (a spent budget: the warm start's answer)
-            res = problem.solve(warm_start=warm, starts=d.starts, **kw)
+        if pool and (d.placement == "fallback" or (d.placement == "pool" and not self._stale())):
+            # the warm starts alone first
+            res = problem.solve(starts=0, **warm, **kw)
+        if res is None or not (res.success or deadline.expired):  # (a spent budget: the warm starts' answer)
+            res = problem.solve(starts=d.starts, **warm, **kw)
         if res.verification.passed and np.all(np.isfinite(res.L)):
-            self.prev_params, self.prev = params, res
+            self.prev_params, self.pool = params, merge_pool(res, pool, d.starts + 1, *_pool_rtol(d.options))
         best = res.solver_stats.extra.get("best_start")
         origin = next((r.origin for r in res.starts if r.index == best), None)
         stats = dataclasses.replace(res.solver_stats, extra={**res.solver_stats.extra, "best_origin": origin,
-                                                             "nlp_builds": problem.nlp_builds - builds0})
+                                                             "nlp_builds": problem.nlp_builds - builds0,
+                                                             "pool": len(self.pool)})
         return dataclasses.replace(res, solver_stats=stats,
                                    extra={**res.extra, "point": dict(point), "best_origin": origin})
+
+
+def _pool_rtol(options: Mapping[str, Any] | None) -> tuple[float, float]:
+    """``(gain rtol, objective rtol)`` of :func:`merge_pool`: the square root of IPOPT's
+    ``acceptable_tol`` (an optimum converged to that tolerance is accurate to about its root) and
+    IPOPT's ``tol`` (two answers whose objectives agree to it are one optimum value)."""
+    opts = {**SWEEP_IPOPT_OPTIONS, **(options or {})}
+    return (math.sqrt(float(opts.get("ipopt.acceptable_tol", 1e-6))), float(opts.get("ipopt.tol", 1e-8)))
+
+
+def merge_pool(res: ObserverDesign, previous: list[tuple[float, NDArray[np.float64]]], size: int,
+               rtol: float, objective_rtol: float = 0.0) -> list[tuple[float, NDArray[np.float64]]]:
+    """The distinct verified local optima of a point, best first: its design's gain, the answers of its
+    starts (``res.extra["local_optima"]``), then the members of ``previous`` (the point's warm starts,
+    in order) that did not run at this point (the point ended early); at most ``size``.
+
+    Two gains are one optimum when ``||L1 - L2||_2 <= rtol max(||L1||_2, ||L2||_2)``; two answers of
+    this point are also one when their objectives agree to ``objective_rtol`` (relative): e.g. the
+    mirror images of one design under a symmetry of the plant, whose chains stay images of each other.
+
+    Parameters
+    ----------
+    res : ObserverDesign
+        The point's design (verified).
+    previous : list of (objective, (n, p) ndarray)
+        The point's warm starts (objective when they last ran), in the order given.
+    size : int
+        The largest pool.
+    rtol, objective_rtol : float
+
+    Returns
+    -------
+    list of (objective, (n, p) ndarray)
+    """
+    ran = {r.origin for r in res.starts}
+    found = [(float(getattr(res, res.objective)), np.asarray(res.L, dtype=float))]
+    found += [(o.objective, o.L) for o in res.extra.get("local_optima", ())]
+    carried = [m for i, m in enumerate(previous) if warm_start_origin(i) not in ran]
+    out: list[tuple[float, NDArray[np.float64]]] = []
+    for f, L in found + carried:
+        nL = float(np.linalg.norm(L, 2))
+        if all(float(np.linalg.norm(L - M, 2)) > rtol * max(nL, float(np.linalg.norm(M, 2)))
+               and not abs(f - g) <= objective_rtol * abs(g) for g, M in out):
+            out.append((f, L))
+        if len(out) >= size:
+            break
+    return out
 
 
 # --------------------------------------------------------------------------- generic point result

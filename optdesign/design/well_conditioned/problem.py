@@ -48,7 +48,8 @@ from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_reg
 from .results import ObserverDesign, StartRecord, n_converged, no_design
 from .starts import fixed_starts, iter_region_starts
 
-__all__ = ["WellConditionedProblem", "Objective", "DEFAULT_STARTS", "check_region", "kappa2_bound",
+__all__ = ["WellConditionedProblem", "LocalOptimum", "local_optima", "warm_start_origin", "Objective",
+           "DEFAULT_STARTS", "check_region", "kappa2_bound",
            "result_from"]
 
 Objective = Literal["kappa2", "kappa_fro", "eta"]
@@ -130,8 +131,46 @@ def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evalua
         L=cand.L, poles=m["poles"], kappa2=m["kappa2"], eta=m["eta"], kappa_fro=m["kappa_fro"],
         gain_norm=m["gain_norm"], objective=objective, status=status, message=msg, solver_stats=stats,
         verification=v, starts=tuple(records), V=m["V"], target_poles=target, region=region, plant=plant,
-        **(kalman or {}),
+        extra={"local_optima": local_optima(evaluated)}, **(kalman or {}),
     )
+
+
+def warm_start_origin(i: int) -> str:
+    """The origin (``StartRecord.origin``) of warm start ``i`` of a solve: ``"warm start"`` (the
+    first, ``warm_start``), then ``"warm start 2"``, ... (``warm_starts``)."""
+    return "warm start" + (f" {i + 1}" if i else "")
+
+
+def local_optima(evaluated: list[Evaluated]) -> tuple[LocalOptimum, ...]:
+    """The verified answers of a multi-start run's starts (one per start that gave one), best first
+    (by objective, then start index): what a sweep carries to its next point as warm starts."""
+    good = [e for e in evaluated if e[3].passed and np.all(np.isfinite(e[4].L))]
+    good.sort(key=lambda e: (e[0], e[1]))
+    out = []
+    for obj, idx, _, _, cand in good:
+        L = np.array(cand.L, dtype=float)
+        L.setflags(write=False)
+        out.append(LocalOptimum(float(obj), int(idx), L))
+    return tuple(out)
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class LocalOptimum:
+    """One start's verified answer of a multi-start design (``extra["local_optima"]``).
+
+    Attributes
+    ----------
+    objective : float
+        The objective of the design, recomputed with numpy.
+    index : int
+        The start's index (that of its :class:`StartRecord`).
+    L : (n, p) ndarray
+        The gain (read-only).
+    """
+
+    objective: float
+    index: int
+    L: NDArray[np.float64]
 
 
 class WellConditionedProblem:
@@ -338,7 +377,8 @@ class WellConditionedProblem:
 
     # ------------------------------------------------------------------ solving
     def solve(self, poles: ArrayLike | None = None, region: Region | None = None, *, warm_start: Any = None,
-              time_limit: float | Deadline | None = None, progress: bool | None = None,
+              warm_starts: Sequence[Any] | None = None, time_limit: float | Deadline | None = None,
+              progress: bool | None = None,
               starts: int | None = None, seed: int | Sequence[int] | None = None,
               max_gain: float | None = None, kappa2_max: float | None = None,
               eta_max: float | None = None) -> ObserverDesign:
@@ -353,6 +393,10 @@ class WellConditionedProblem:
             A previous design (e.g. the previous point of a sweep) or a gain: one more start, run
             from the engine's last continuation stages (region mode: its poles moved inside the new
             region).
+        warm_starts : sequence of ObserverDesign or (n, p) array_like, optional
+            Region mode: more warm starts, run after ``warm_start`` in the order given, each as
+            ``warm_start`` (e.g. the distinct local optima of the previous point of a sweep,
+            ``extra["local_optima"]`` of its design); a warm start without a finite gain is skipped.
         time_limit : float or Deadline, optional
             Seconds of wall time (or a budget shared with the caller); see
             :func:`well_conditioned_observer`.
@@ -368,16 +412,28 @@ class WellConditionedProblem:
         Returns
         -------
         ObserverDesign
+            ``extra["local_optima"]``: the verified answers of the starts that ran (their gains, best
+            first, see :func:`result_from`).
+
+        Raises
+        ------
+        ValidationError
+            Bad arguments; ``warm_starts`` with fixed poles or not a sequence.
         """
         deadline = time_limit if isinstance(time_limit, Deadline) else Deadline(as_time_limit(time_limit))
         progress = as_progress(progress)
-        lowest = 0 if warm_start is not None else 1
+        more_warm = _warm_list(warm_starts)
+        lowest = 0 if warm_start is not None or more_warm else 1
         chosen = self.starts if starts is None else as_int("starts", starts, lowest)
         seed = self.seed if seed is None else _as_seed(seed)
         bounds = self._solve_bounds({"max_gain": max_gain, "kappa2_max": kappa2_max, "eta_max": eta_max})
         warm = _warm_gain(warm_start, self.plant)
+        warms = [w for w in [warm, *(_warm_gain(w, self.plant) for w in more_warm)] if w is not None]
         if region is not None and poles is not None:
             raise ValidationError("give either poles (fixed) or region (free poles), not both")
+        if more_warm and (poles is not None or (region is None and self.poles is not None)):
+            raise ValidationError(f"warm_starts applies to region mode only (poles free in a region); "
+                                  f"found {len(more_warm)} warm starts with fixed poles")
         if poles is not None:
             target = self._target(poles)
         elif region is None and self.poles is not None:
@@ -392,7 +448,7 @@ class WellConditionedProblem:
             region = self.region if self.region is not None else stability_region(self.plant.is_discrete)
         region = self._check_region_mode(region, bounds)
         n_starts = chosen if chosen is not None else DEFAULT_STARTS
-        return self._free(region, bounds, n_starts, seed, deadline, warm, progress)
+        return self._free(region, bounds, n_starts, seed, deadline, warms, progress)
 
     def _needs_nlp(self, bounds: dict[str, float | None]) -> bool:
         """Gain or trade-off bounds, or structural zeros: what the placement engine does not take."""
@@ -481,9 +537,9 @@ class WellConditionedProblem:
         return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region)
 
     def _free(self, region: Region, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
-              deadline: Deadline, warm: NDArray | None, progress: bool | None) -> ObserverDesign:
+              deadline: Deadline, warms: list[NDArray], progress: bool | None) -> ObserverDesign:
         """Poles free in ``region``: the engine start by start, IPOPT for what it does not handle or as a
-        fallback."""
+        fallback; the warm starts ``warms`` (gains) first."""
         proof = self._unobservable_outside(region)
         if proof is not None:
             return proof
@@ -492,10 +548,10 @@ class WellConditionedProblem:
                                            mask=self.mask, **bounds))
         rng = np.random.default_rng(seed)
         specs: Iterable[Any] = self._region_starts(region, n_starts, rng)
-        warm_spec = None
-        if warm is not None:
+        warm_specs = []
+        for i, warm in enumerate(warms):
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
-            warm_spec = ("warm start", warm, PoleStructure.of(Pw, tol=1e-6), Pw, True)
+            warm_specs.append((warm_start_origin(i), warm, PoleStructure.of(Pw, tol=1e-6), Pw, True))
         engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro")
         use_nlp = self.route != "engine" or not engine_ok
         bound = objective_lower_bound(objective, plant.n)
@@ -503,13 +559,13 @@ class WellConditionedProblem:
         evaluated: list[Evaluated] = []
         planned = 0
         route = "nlp" if use_nlp else "engine"
-        with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
+        with Progress(n_starts + len(warm_specs), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if not use_nlp:
                 specs = list(specs)  # (every start runs on the engine; the fallback re-uses them)
-                eng_specs = [(o, L0, P0, False) for o, L0, _, P0 in specs]
-                if warm_spec is not None:
-                    eng_specs.insert(0, (warm_spec[0], warm_spec[1], warm_spec[3], True))
+                eng_specs: list[tuple[str, NDArray | None, NDArray, bool]] = [
+                    (w[0], w[1], w[3], True) for w in warm_specs]
+                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in specs]
                 planned = len(eng_specs)
                 records, evaluated = engine_region(self.engine, region, objective, eng_specs,
                                                    seed=_int_seed(seed),
@@ -517,10 +573,9 @@ class WellConditionedProblem:
                                                    progress=bar)
             if use_nlp or _needs_fallback(evaluated, deadline):
                 route = "nlp" if use_nlp else "engine+nlp"
-                planned += n_starts + (warm_spec is not None)
+                planned += n_starts + len(warm_specs)
                 sc = self._scaling(0.0 if self.pole_scale is not None else _interior_scale(region))
-                nlp_specs = itertools.chain([] if warm_spec is None else [warm_spec],
-                                            (s + (False,) for s in specs))
+                nlp_specs = itertools.chain(warm_specs, (s + (False,) for s in specs))
                 runner = nlp_region_runner(plant, region, objective, self.options,
                                            self._fixed_nlp_getter(bounds, sc),
                                            self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
@@ -599,6 +654,16 @@ def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
 def _note(objective: str, evaluated: list[Evaluated]) -> str:
     vals = [e[0] for e in evaluated if e[3].passed]
     return f"best {objective} {min(vals):.6g}" if vals else "no verified design yet"
+
+
+def _warm_list(warm_starts: Any) -> list[Any]:
+    """The extra warm starts of a solve: a list (None: none)."""
+    if warm_starts is None:
+        return []
+    if isinstance(warm_starts, (str, bytes, dict)) or not isinstance(warm_starts, Sequence):
+        raise ValidationError(f"warm_starts must be a sequence of designs or gains (or None); found "
+                              f"{type(warm_starts).__name__}")
+    return list(warm_starts)
 
 
 def _warm_gain(warm_start: Any, plant: Plant) -> NDArray[np.float64] | None:
