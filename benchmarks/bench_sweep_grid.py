@@ -39,11 +39,11 @@ def points() -> list[dict]:
     return grid(alpha=np.linspace(0.5, 3.0, 40), zeta=np.linspace(0.9, 0.2, CHUNK))
 
 
-def run(mode: str, rows: str | None, out: str) -> None:
+def run(mode: str, rows: str | None, out: str, options: dict | None = None, label: str | None = None) -> None:
     k, off = (map(int, rows.split(":")) if rows else (1, 0))
     pts = points()
     index = [i for i in range(len(pts)) if (i // CHUNK) % k == off]
-    designer = RegionSweepDesigner(problem="compleib_dis2", radius=RADIUS, **MODES[mode])
+    designer = RegionSweepDesigner(problem="compleib_dis2", radius=RADIUS, options=options, **MODES[mode])
     cpu, kappa2, verified = [], [], []
     for c in range(0, len(index), CHUNK):
         session = designer.start_chunk()  # a chunk carries its warm starts, as in a sweep
@@ -54,7 +54,7 @@ def run(mode: str, rows: str | None, out: str) -> None:
             kappa2.append(float(r.kappa2))
             verified.append(bool(r.verification.passed))
         print(f"{mode}: {len(cpu)} points, {sum(cpu):.1f} s CPU", flush=True)
-    Path(out).write_text(json.dumps({"mode": mode, "index": index, "cpu": cpu, "kappa2": kappa2,
+    Path(out).write_text(json.dumps({"mode": label or mode, "index": index, "cpu": cpu, "kappa2": kappa2,
                                      "verified": verified}))
 
 
@@ -110,12 +110,14 @@ def main(argv=None) -> int:
     r.add_argument("mode", choices=sorted(MODES))
     r.add_argument("--rows", default=None, help="K:OFF -- the alpha rows i with i %% K == OFF")
     r.add_argument("--json", required=True)
+    r.add_argument("--options", default=None, help="IPOPT options over the designer's, as JSON")
+    r.add_argument("--label", default=None, help="the mode's name in the report (default: MODE)")
     p = sub.add_parser("report")
     p.add_argument("files", nargs="+")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results" / "sweep_grid.md"))
     args = ap.parse_args(argv)
     if args.cmd == "run":
-        run(args.mode, args.rows, args.json)
+        run(args.mode, args.rows, args.json, json.loads(args.options) if args.options else None, args.label)
     else:
         report(args.files, args.out)
     return 0

@@ -29,11 +29,13 @@ Sun, J.-G., "Perturbation theory for algebraic Riccati equations", SIAM J. Matri
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import scipy.linalg
 from numpy.typing import NDArray
 
-__all__ = ["lyapunov_solve", "rounding_response", "lyapunov_inverse_norm"]
+__all__ = ["lyapunov_solve", "rounding_response", "sampled_response", "lyapunov_inverse_norm"]
 
 
 def lyapunov_solve(F: NDArray, rhs: NDArray, discrete: bool, *, adjoint: bool = False) -> NDArray:
@@ -98,6 +100,17 @@ def rounding_response(F: NDArray, magnitude: NDArray, discrete: bool, *, samples
     lam = np.linalg.eigvals(F)
     if (np.max(np.abs(lam)) >= 1.0) if discrete else (np.max(lam.real) >= 0.0):
         return float("inf")
+    return sampled_response(lambda rhs: lyapunov_solve(F, rhs, discrete), magnitude, samples=samples,
+                            seed=seed)
+
+
+def sampled_response(solve: Callable[[NDArray], NDArray], magnitude: NDArray, *, samples: int = 2,
+                     seed: int = 0) -> float:
+    """``max_k ||solve(magnitude o S_k)||_F`` over ``samples`` seeded random symmetric sign patterns
+    ``S_k`` (``magnitude``: (n, n)): the sampling of :func:`rounding_response` for any solver of the
+    operator equation (e.g. one that re-uses a Schur form); ``inf`` when a solve fails or is not
+    finite."""
+    n = magnitude.shape[0]
     rng = np.random.default_rng(seed)
     worst = 0.0
     with np.errstate(all="ignore"):
@@ -105,10 +118,9 @@ def rounding_response(F: NDArray, magnitude: NDArray, discrete: bool, *, samples
             S = rng.choice([-1.0, 1.0], size=(n, n))
             S = np.triu(S) + np.triu(S, 1).T
             try:
-                Z = lyapunov_solve(F, magnitude * S, discrete)
+                nz = float(np.linalg.norm(solve(magnitude * S)))
             except (np.linalg.LinAlgError, ValueError):
                 return float("inf")
-            nz = float(np.linalg.norm(Z))
             if not np.isfinite(nz):
                 return float("inf")
             worst = max(worst, nz)

@@ -42,7 +42,7 @@ import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_matrix, as_square, check_pd, check_symmetric
-from ..analysis.conditioning import lyapunov_solve, rounding_response
+from ..analysis.conditioning import lyapunov_solve, rounding_response, sampled_response
 from ..analysis.metrics import eigenvalue_condition
 from ..errors import DimensionError, RiccatiError, ValidationError
 from ..model.plant import Plant
@@ -673,20 +673,8 @@ def _continuous_rounding_response(F: NDArray, magnitude: NDArray, samples: int =
             raise ValueError(f"?TRSYL: illegal value in argument number {-info}")
         return U.dot(y * scale).dot(U.T)
 
-    rng = np.random.default_rng(seed)
-    worst = 0.0
-    with np.errstate(all="ignore"):
-        for _ in range(max(1, samples)):
-            S = rng.choice([-1.0, 1.0], size=(n, n))
-            S = np.triu(S) + np.triu(S, 1).T
-            try:
-                nz = float(np.linalg.norm(solve(magnitude * S)))
-            except (np.linalg.LinAlgError, ValueError):
-                return None, float("inf")
-            if not np.isfinite(nz):
-                return None, float("inf")
-            worst = max(worst, nz)
-    return solve, worst
+    worst = sampled_response(solve, magnitude, samples=samples, seed=seed)
+    return (solve, worst) if np.isfinite(worst) else (None, float("inf"))
 
 
 def _unexcited_boundary_modes(A: NDArray, F: NDArray, discrete: bool) -> NDArray[np.complex128]:
