@@ -18,16 +18,19 @@ plant with a random Q >= 0, continuous time; three per size) are solved by
 Every design is checked by the same independent test: scipy's Riccati solver with the returned Q
 must give the target poles to their rounding floor (``eigenvalue_rounding_floor``, at least 1e-8)
 and the returned L to 1e-6 relative; "verified" counts those.  Times are CPU seconds
-(``time.process_time``) per design, medians over the targets; the ratios are of the medians.  At
+(``time.process_time``) per design, medians over the targets; the ratios are of the medians.  The
+engine and the re-used minimal SDP are timed as the median of 5 calls when a call takes under 0.2 s
+(the first call of a process pays warm-up costs; the reference's first solve compiles it).  At
 (40, 8) the verb (533 s per design in the README's run) is run only with ``--slow``.
 
 Run:  python benchmarks/bench_inverse_kalman.py [--reps 3] [--sizes 2x1,10x4 [--merge]] [--slow]
-      [--profile | --stages | --sdp-forms | --verify-ab | --first-try]
+      [--profile | --stages | --sdp-forms | --verify-ab | --first-try | --ipm]
 Writes benchmarks/results/inverse_kalman.md, .csv and .json; ``--profile`` writes
 benchmarks/results/inverse_kalman_profile.md (cProfile of the engine at (20, 4) and (40, 8), time
 per stage); ``--stages`` benchmarks/results/inverse_kalman_stages_one_output.md (CPU per stage of the
 one-output verb); ``--sdp-forms`` benchmarks/results/inverse_kalman_sdp_forms.md (one fixed-gain
-SDP on Clarabel: the direct form vs a sparse form, Clarabel's KKT solvers).
+SDP on Clarabel: the direct form vs a sparse form, Clarabel's KKT solvers); ``--ipm``
+benchmarks/results/inverse_kalman_one_output_ipm.md and .json (the one-output dense IPM vs Clarabel).
 """
 
 from __future__ import annotations
@@ -96,10 +99,28 @@ def timed(fn):
     return out, time.process_time() - t0
 
 
+#: a design or reference solve faster than this (CPU s) is repeated and its median taken
+REPEAT_BELOW = 0.2
+REPEATS = 5
+
+
+def timed_median(fn):
+    """``(result, CPU s)``: the median of :data:`REPEATS` calls when the first is faster than
+    :data:`REPEAT_BELOW` (the first call of a process pays warm-up costs), else the one call."""
+    out, t = timed(fn)
+    if t >= REPEAT_BELOW:
+        return out, t
+    times = [t]
+    for _ in range(REPEATS - 1):
+        out, t = timed(fn)
+        times.append(t)
+    return out, float(np.median(times))
+
+
 def minimal_sdp(plant: Plant, L, reuse: bool) -> tuple[float, float]:
     """The issue's minimal SDP at the gain L: ``(trace Q, CPU seconds of the timed solve)``.
     ``reuse``: L R and L R L' are cvxpy Parameters, solved once (compilation), re-bound and the
-    second solve timed; else built and solved once, all timed."""
+    re-solves timed (:func:`timed_median`); else built and solved once, all timed."""
     import cvxpy as cp
 
     A, C, R = plant.A, plant.C, plant.R
@@ -121,10 +142,34 @@ def minimal_sdp(plant: Plant, L, reuse: bool) -> tuple[float, float]:
     prob, Q = build(LR, LRL)
     LR.value, LRL.value = LRv, LRLv
     prob.solve(solver="CLARABEL")
-    LR.value, LRL.value = LRv.copy(), LRLv.copy()
-    t0 = time.process_time()
-    prob.solve(solver="CLARABEL")
-    return float(np.trace(Q.value)) if Q.value is not None else float("nan"), time.process_time() - t0
+
+    def resolve():
+        LR.value, LRL.value = LRv.copy(), LRLv.copy()
+        prob.solve(solver="CLARABEL")
+
+    _, t = timed_median(resolve)
+    return float(np.trace(Q.value)) if Q.value is not None else float("nan"), t
+
+
+def verb_ratio(reps: int = 7) -> str:
+    """The public verb ``kalman_for_poles(plant, poles)`` against the re-used minimal SDP at its gain, per
+    target of the main run (n = 2, 10, 20, one output), each the median of ``reps`` calls, interleaved
+    in one process: the issue's ratio for the verb itself."""
+    rng = np.random.default_rng(0)
+    lines = ["| n, p | target | verb status | verified | verb CPU ms | min-SDP re-used CPU ms "
+             "| verb / min-SDP |",
+             "|---|---|---|---|---|---|---|"]
+    for size in SIZES[:3]:
+        for k, (plant, are) in enumerate([random_target(rng, *size) for _ in range(3)]):
+            tv, tr = [], []
+            for _ in range(reps):
+                r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                tv.append(t)
+                tr.append(minimal_sdp(plant, r.L, reuse=True)[1])
+            v, m = float(np.median(tv)), float(np.median(tr))
+            lines.append(f"| {size[0]}, {size[1]} | {k} | {r.status.value} | {r.success} | {1e3 * v:.2f} | "
+                         f"{1e3 * m:.2f} | {v / m:.2f}x |")
+    return "\n".join(lines)
 
 
 def run_size(n: int, p: int, targets, slow: bool) -> dict:
@@ -133,7 +178,7 @@ def run_size(n: int, p: int, targets, slow: bool) -> dict:
     for plant, are in targets:
         target = are.poles
         row = {"floor": eigenvalue_rounding_floor(plant.A - are.L @ plant.C)}
-        res, row["engine_t"] = timed(
+        res, row["engine_t"] = timed_median(
             lambda pl=plant, tg=target: solve_inverse_kalman(prepare_inverse_kalman(pl), tg))
         row["engine_ok"] = bool(res.success and independent_check(plant, target, res.L, res.Q))
         row["engine_obj"] = res.objective_value
@@ -260,6 +305,7 @@ ONE_OUTPUT_STAGES = [
     ("optdesign.solvers.inverse_kalman_engine", "spectral_terms", "  gain: spectral terms"),
     ("optdesign.solvers.inverse_kalman_engine", "spectral_blocks", "  gain: spectral blocks"),
     ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain", "  SDP: Clarabel"),
+    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain_ipm", "  SDP: dense IPM"),
     ("optdesign.solvers.inverse_kalman_engine", "_from_sdp", "  polish: face projection"),
     ("optdesign.solvers.inverse_kalman_engine", "_optimize", "  polish: Newton"),
     ("optdesign.solvers.inverse_kalman_engine", "_design", "  design (Lyapunov P, L from P)"),
@@ -488,6 +534,82 @@ def first_try_ab(count: int = 40) -> str:
     return "\n".join(lines)
 
 
+def ipm_ab(count: int = 40) -> tuple[str, str]:
+    """The dense IPM (``optdesign.solvers.fixed_gain_ipm``) against Clarabel (tight
+    ``CLARABEL_OPTIONS``) on the same one-output min-trace SDPs at the unique gain (iterations, CPU
+    ms (median of 3), relative trace-Q difference), and the whole design with the IPM on and off
+    (``ONE_OUTPUT_IPM_MIN_DIM`` huge): verified, same status, objective difference, CPU.  Targets:
+    the main run's one-output ones and ``count`` random ones (n = 2..20, seed 123, as
+    ``--first-try``), the two settings interleaved per target (a shared machine)."""
+    import optdesign.solvers.inverse_kalman_engine as eng
+    from optdesign.solvers.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain
+    from optdesign.solvers.fixed_gain_ipm import solve_fixed_gain_ipm
+
+    rng = np.random.default_rng(0)
+    targets = [t for size in SIZES[:3] for t in (random_target(rng, *size) for _ in range(3))]
+    rng = np.random.default_rng(123)
+    targets += [t for t in (random_target(rng, int(rng.integers(2, 21)), 1) for _ in range(count)) if t]
+    sdp: dict[int, list] = {}
+    design: dict[str, list] = {"IPM on": [], "IPM off": []}
+    on = eng.ONE_OUTPUT_IPM_MIN_DIM
+    try:
+        for plant, are in targets:
+            fmap = family_map(plant.A, plant.C, None)
+            fam = fixed_gain_family(fmap, are.L, np.asarray(plant.R, dtype=float))
+            tc, ti = [], []
+            for _ in range(3):
+                ref, t = timed(lambda f=fam: solve_fixed_gain(f))
+                tc.append(t)
+                (sol, rep), t = timed(lambda f=fam: solve_fixed_gain_ipm(f))
+                ti.append(t)
+            dif = (abs(np.trace(sol.Q) - np.trace(ref.Q)) / max(1.0, abs(np.trace(ref.Q)))
+                   if sol is not None and ref.Q is not None else float("nan"))
+            floor = eigenvalue_rounding_floor(plant.A - are.L @ plant.C)
+            sdp.setdefault(plant.n, []).append((ref.native_status, ref.iterations, rep.converged,
+                                                rep.iterations, statistics.median(tc),
+                                                statistics.median(ti), dif, floor))
+            for name, dim in (("IPM on", on), ("IPM off", 10**9)):
+                eng.ONE_OUTPUT_IPM_MIN_DIM = dim
+                ts = []
+                for _ in range(3):
+                    r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                    ts.append(t)
+                native = r.extra.get("engine", {}).get("sdp", {}).get("native", "")
+                design[name].append((plant.n, r.status.value, r.success, r.objective_value,
+                                     native == "ipm: optimal", statistics.median(ts)))
+    finally:
+        eng.ONE_OUTPUT_IPM_MIN_DIM = on
+    lines = [f"{len(targets)} one-output min-trace targets (the main run's 9 at n = 2, 10, 20 and "
+             f"{count} random, n = 2..20, seed 123)", "",
+             "## One SDP at the unique gain: Clarabel (CLARABEL_OPTIONS) vs the dense IPM", "",
+             "| n | targets | Clarabel statuses | IPM converged | median iterations Clarabel / IPM | "
+             "CPU ms Clarabel / IPM (medians) | IPM / Clarabel | max rel. trace-Q diff, targets with "
+             "floor <= 1e-8 | max rel. trace-Q diff, all |", "|---|---|---|---|---|---|---|---|---|"]
+    for n in sorted(sdp):
+        rows = sdp[n]
+        sts = ", ".join(f"{k} {sum(r[0] == k for r in rows)}" for k in sorted({r[0] for r in rows}))
+        good = [r[6] for r in rows if r[7] <= 1e-8 and np.isfinite(r[6])]
+        tcm, tim = statistics.median(r[4] for r in rows), statistics.median(r[5] for r in rows)
+        lines.append(f"| {n} | {len(rows)} | {sts} | {sum(r[2] for r in rows)}/{len(rows)} | "
+                     f"{statistics.median(r[1] for r in rows):.0f} / "
+                     f"{statistics.median(r[3] for r in rows):.0f} | "
+                     f"{1e3 * tcm:.2f} / {1e3 * tim:.2f} | {tim / tcm:.2f} | "
+                     f"{max(good) if good else float('nan'):.1e} | {np.nanmax([r[6] for r in rows]):.1e} |")
+    ref = design["IPM off"]
+    lines += ["", f"## The design (kalman_for_poles) with the IPM on (n - p >= {on}) and off", "",
+              "| setting | verified | same status as off | max rel. objective diff vs off | designs from "
+              "the IPM | CPU per design, median (ms) | CPU, n >= 10 (ms) | CPU, n >= 15 (ms) |",
+              "|---|---|---|---|---|---|---|---|"]
+    for name, rows in design.items():
+        same = sum(a[1] == b[1] for a, b in zip(rows, ref, strict=True))
+        dif = max((abs(a[3] - b[3]) / max(1.0, abs(b[3])) for a, b in zip(rows, ref, strict=True)
+                   if np.isfinite(a[3]) and np.isfinite(b[3])), default=0.0)
+        med = lambda lo, rr=rows: 1e3 * statistics.median(r[5] for r in rr if r[0] >= lo)  # noqa: E731
+        lines.append(f"| {name} | {sum(r[2] for r in rows)}/{len(rows)} | {same}/{len(rows)} | {dif:.1e} | "
+                     f"{sum(r[4] for r in rows)} | {med(0):.1f} | {med(10):.1f} | {med(15):.1f} |")
+    return "\n".join(lines), json.dumps({"sdp": {str(k): v for k, v in sdp.items()}, "design": design})
+
+
 def merge_earlier(summaries: list[dict], raw: list[dict]) -> list[tuple[int, int]]:
     """Add the sizes not re-run from the existing ``inverse_kalman.json`` (in place, in the order of
     :data:`SIZES`); returns the sizes taken from it."""
@@ -522,6 +644,10 @@ def main() -> None:
                     help="only the fixed-gain SDP: direct vs sparse form, Clarabel's KKT solvers")
     ap.add_argument("--first-try", action="store_true",
                     help="only the one-output first try vs the tight Clarabel tolerances")
+    ap.add_argument("--ipm", action="store_true",
+                    help="only the one-output dense IPM vs Clarabel (one SDP, and the whole design)")
+    ap.add_argument("--verb-ratio", action="store_true",
+                    help="only the one-output verb vs the re-used minimal SDP, per target (medians of 7)")
     ap.add_argument("--profile", action="store_true",
                     help="only the cProfile of the engine at (20, 4), (40, 8)")
     args = ap.parse_args()
@@ -540,6 +666,14 @@ def main() -> None:
     if args.verify_ab:
         print(verify_ab())
         return
+    if args.verb_ratio:
+        text = verb_ratio()
+        print(text)
+        (OUT / "inverse_kalman_verb_ratio.md").write_text(
+            "# kalman_for_poles (the verb), one output, vs the re-used minimal cvxpy SDP\n\n`python "
+            "benchmarks/bench_inverse_kalman.py --verb-ratio` (CPU time, medians of 7 interleaved calls per "
+            "target, the main run's targets)\n\n" + text + "\n", encoding="utf-8")
+        return
     if args.first_try:
         text = first_try_ab()
         print(text)
@@ -547,6 +681,15 @@ def main() -> None:
             "# The one-output first try: Clarabel at ONE_OUTPUT_FIRST_TRY vs the tight tolerances\n\n"
             "`python benchmarks/bench_inverse_kalman.py --first-try` (the machine shared with other jobs)\n\n"
             + text + "\n", encoding="utf-8")
+        return
+    if args.ipm:
+        text, raw_json = ipm_ab()
+        print(text)
+        (OUT / "inverse_kalman_one_output_ipm.md").write_text(
+            "# The one-output fixed-gain SDP: the dense IPM vs Clarabel\n\n`python "
+            "benchmarks/bench_inverse_kalman.py --ipm` (CPU time, the machine shared with other jobs)\n\n"
+            + text + "\n", encoding="utf-8")
+        (OUT / "inverse_kalman_one_output_ipm.json").write_text(raw_json + "\n", encoding="utf-8")
         return
     if args.sdp_forms:
         text = sdp_forms()
@@ -574,7 +717,9 @@ def main() -> None:
     text = ("# kalman_for_poles: the engine without an NLP vs the current verb vs minimal SDPs\n\n"
             f"`python benchmarks/bench_inverse_kalman.py` -- {platform.machine()}, Python "
             f"{platform.python_version()}, single-threaded BLAS, CPU seconds per design (medians of "
-            f"{args.reps} targets, seed {args.seed}), the machine shared with other jobs.\n\n"
+            f"{args.reps} targets, seed {args.seed}; the engine and the re-used minimal SDP: each the "
+            f"median of {REPEATS} calls when a call takes under {REPEAT_BELOW} s), the machine shared with "
+            "other jobs.\n\n"
             + table(summaries) + "\n\n"
             "Random continuous plants (A ~ N(0, 1/n), C ~ N(0, 1), R = I), targets = poles of the Kalman "
             "filter of Q = F F' / n.  'verified': scipy's Riccati solver with the returned Q reproduces the "
@@ -582,8 +727,9 @@ def main() -> None:
             "hand-written minimal cvxpy SDP at the engine's L (a reference for the cost of one SDP at a "
             "known gain, not a design: its point is not polished).  'engine vs nlp objective': trace Q of "
             "the engine vs the NLP's (both local optima over L; 1e-7 relative is 'equal').  With one output "
-            "the poles fix L: the engine is the fixed-gain SDP on Clarabel in its smallest form "
-            "(P = P0 + N X N').  Last column, per target: the rounding floor of the poles "
+            "the poles fix L: the engine is the fixed-gain SDP in its smallest form (P = P0 + N X N'), "
+            "at n - p >= 9 with computable targets by the dense IPM (optdesign.solvers.fixed_gain_ipm), "
+            "else (and when it fails) on Clarabel.  Last column, per target: the rounding floor of the poles "
             "(eigenvalue_rounding_floor: 10 eps times their condition, an upper estimate) and the relative "
             "pole error of the engine's gain (what rounding did); 'not computable': that error exceeds the "
             "verb's cap of 1e-6 -- the poles' condition is so large (floor 6e-2 .. 2) that the gain the "

@@ -75,12 +75,14 @@ from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
 from ..results import Check, DesignResult, SolverStats, Status, Verification
 from .clarabel_fixed_gain import FamilyMap, FixedGainSolution, family_map, fixed_gain_family, solve_fixed_gain
+from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
 
 __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inverse_kalman",
-           "engine_applies", "ONE_OUTPUT_FIRST_TRY", "ONE_OUTPUT_FIRST_TRY_MIN_DIM"]
+           "engine_applies", "ONE_OUTPUT_FIRST_TRY", "ONE_OUTPUT_FIRST_TRY_MIN_DIM",
+           "ONE_OUTPUT_IPM_MIN_DIM"]
 
 _EPS = float(np.finfo(float).eps)
 #: the pole tolerance is never raised above this, however ill-conditioned the poles (as the verb)
@@ -714,52 +716,83 @@ ONE_OUTPUT_FIRST_TRY: dict[str, Any] = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6
 #: Newton polish from the looser point costs more (+3 ms) than Clarabel saves (-1 ms); at n >= 15
 #: Clarabel's savings win (n = 20: 100 -> 55 ms in the SDP, +2 ms of polish)
 ONE_OUTPUT_FIRST_TRY_MIN_DIM = 14
+#: the dense IPM first (``"full"`` / ``"min_trace"``, one output) at ``n - p`` at least this: CPU per
+#: SDP 1.3-2.5x Clarabel's at n <= 7 (Python overhead per iteration), 0.9x at n = 8, 0.55-0.75x at
+#: n = 9-12, 0.3x at n = 14-20 (``--ipm``, benchmarks/results/inverse_kalman_one_output_ipm.md)
+ONE_OUTPUT_IPM_MIN_DIM = 9
 
 
 def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineResult:
-    """One output: the poles fix L (``g_b = 1``); the fixed-gain SDP at it answers globally.  For
-    ``"min_trace"`` with ``n - p >=`` :data:`ONE_OUTPUT_FIRST_TRY_MIN_DIM` first with Clarabel's
-    :data:`ONE_OUTPUT_FIRST_TRY` settings, kept only when the polished point is ``optimal`` and
-    passes its own KKT test (or the targets are not computable); otherwise (and for the other
-    objectives and smaller systems) at :data:`~optdesign.solvers.clarabel_fixed_gain.CLARABEL_OPTIONS`."""
+    """One output: the poles fix L (``g_b = 1``); the fixed-gain SDP at it answers globally.
+
+    Tried in turn, each kept only when the polished point is ``optimal`` and passes its own KKT
+    test, or (as ``optimal_inaccurate``) when the unique gain misses the targets beyond the
+    verification's cap (not computable): for ``"full"`` / ``"min_trace"`` with ``n - p >=``
+    :data:`ONE_OUTPUT_IPM_MIN_DIM` and computable targets the dense IPM
+    (:func:`~optdesign.solvers.fixed_gain_ipm.solve_fixed_gain_ipm`, an accelerator: when it does
+    not converge to its own test, the next try); for ``"min_trace"`` with ``n - p >=``
+    :data:`ONE_OUTPUT_FIRST_TRY_MIN_DIM` Clarabel at :data:`ONE_OUTPUT_FIRST_TRY`; finally (and
+    for the other objectives and smaller systems) Clarabel at
+    :data:`~optdesign.solvers.clarabel_fixed_gain.CLARABEL_OPTIONS` -- the only source of
+    ``infeasible``."""
     plant = setup.plant
     R = np.asarray(plant.R, dtype=float)
     g = np.ones((len(terms), 1), dtype=complex)
     L, _ = spectral_blocks(terms, R, setup.Gd).gain(g)
     fam = fixed_gain_family(setup.family, L, R, Qn)
-    first = True
-    if setup.objective == "min_trace" and plant.n - plant.p >= ONE_OUTPUT_FIRST_TRY_MIN_DIM:
-        # low-rank optima, where the KKT test certifies the point; a large SDP
-        res = _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
-                             ONE_OUTPUT_FIRST_TRY)
-        kkt = res.details.get("kkt", {})
-        if (res.status == Status.OPTIMAL and kkt.get("passed")) or deadline.expired:
-            return res
-        miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
+    d = plant.n - plant.p
+    first = setup.objective == "min_trace" and d >= ONE_OUTPUT_FIRST_TRY_MIN_DIM
+    ipm = setup.objective == "min_trace" and setup.structure == "full" and d >= ONE_OUTPUT_IPM_MIN_DIM
+    miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target) if (first or ipm) else 0.0
+    # the IPM only where the targets are computable (its answer is kept only when certified)
+    tries = (["the dense IPM"] if ipm and miss <= POLE_FLOOR_CAP else []) + (
+        ["Clarabel at ONE_OUTPUT_FIRST_TRY"] if first else [])   # low-rank optima the KKT test certifies
+    notes: list[str] = []
+    for label in tries:
+        if label == "the dense IPM":
+            sol, rep = solve_fixed_gain_ipm(fam, deadline=deadline)
+            if sol is None:   # not converged to its test: an accelerator, not a verdict
+                notes.append(f"{label}: {rep.reason}")
+                continue
+            res = _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g, None, sol=sol)
+        else:
+            res = _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
+                                 ONE_OUTPUT_FIRST_TRY)
+        if (res.status == Status.OPTIMAL and res.details.get("kkt", {}).get("passed")) or deadline.expired:
+            return _noted(res, notes)
         if res.status.is_solved and miss > POLE_FLOOR_CAP:
             # the unique gain itself misses the targets beyond the verification's cap: no design
             # with these poles is computable in double precision, whatever the SDP's accuracy; not
             # certified, so at best optimal_inaccurate
-            note = (f"not KKT-certified after Clarabel at ONE_OUTPUT_FIRST_TRY, not solved again: the "
-                    f"unique gain misses the targets by {miss:.2g} (not computable)")
+            note = (f"not KKT-certified after {label}, not solved again: the unique gain misses the "
+                    f"targets by {miss:.2g} (not computable)")
             res.details["first_try"] = note
-            return replace(res, status=Status.OPTIMAL_INACCURATE, message=f"{res.message}; {note}")
-        first = False
+            return _noted(replace(res, status=Status.OPTIMAL_INACCURATE, message=f"{res.message}; {note}"),
+                          notes)
+        notes.append(f"{label}: not certified")
     res = _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g, None)
-    if not first:
+    if first:
         res.details["first_try"] = "Clarabel at ONE_OUTPUT_FIRST_TRY: not certified; solved again"
+    return _noted(res, notes)
+
+
+def _noted(res: EngineResult, notes: list[str]) -> EngineResult:
+    """``res`` with the earlier tries that were not kept in ``details["tries"]``."""
+    if notes:
+        res.details["tries"] = "; ".join(notes)
     return res
 
 
 def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
-                   options: dict[str, Any] | None) -> EngineResult:
+                   options: dict[str, Any] | None, sol: FixedGainSolution | None = None) -> EngineResult:
     """The one-output design from the fixed-gain SDP of ``fam`` solved with Clarabel ``options``
-    (over :data:`CLARABEL_OPTIONS`), polished on its face."""
+    (over :data:`CLARABEL_OPTIONS`), or from the given solution ``sol``, polished on its face."""
     plant = setup.plant
     R = np.asarray(plant.R, dtype=float)
     L = fam.L
-    sol = solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, options=options,
-                           deadline=deadline)
+    if sol is None:
+        sol = solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, options=options,
+                               deadline=deadline)
     details: dict[str, Any] = {"sdp": _sdp_record(sol), "L_unique": L}
     common = dict(tol=tol, native=sol.native_status, details=details)
     if sol.status.is_infeasible:
@@ -795,7 +828,8 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
         status = Status.OPTIMAL
     else:   # the SDP inaccurate: the dual slack of the Newton point is the certificate
         status = Status.OPTIMAL if (converged and kkt.get("passed")) else Status.OPTIMAL_INACCURATE
-    msg = (f"one output: the poles fix L; fixed-gain SDP (Clarabel {sol.native_status}) {how} (rank "
+    solver = "dense IPM" if sol.native_status.startswith("ipm") else "Clarabel"
+    msg = (f"one output: the poles fix L; fixed-gain SDP ({solver} {sol.native_status}) {how} (rank "
            f"{cand.problem.rank}, Newton {cand.history[-1]['reason'] if cand.history else 'not run'}"
            f"{'; KKT certificate' if kkt.get('passed') else ''})")
     return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
