@@ -151,6 +151,12 @@ def minimal_sdp(plant: Plant, L, reuse: bool) -> tuple[float, float]:
     return float(np.trace(Q.value)) if Q.value is not None else float("nan"), t
 
 
+def write_md(name: str, heading: str, text: str) -> None:
+    """Print ``text`` and write it under ``heading`` to ``benchmarks/results/<name>``."""
+    print(text)
+    (OUT / name).write_text(heading + "\n\n" + text + "\n", encoding="utf-8")
+
+
 def verb_ratio(reps: int = 7) -> str:
     """The public verb ``kalman_for_poles(plant, poles)`` against the re-used minimal SDP at its gain, per
     target of the main run (n = 2, 10, 20, one output), each the median of ``reps`` calls, interleaved
@@ -656,47 +662,39 @@ def main() -> None:
     solve_inverse_kalman(prepare_inverse_kalman(warm[0]), warm[1].poles)
     kalman_for_poles(warm[0], warm[1].poles, method="nlp")
     if args.stages:
-        text = one_output_stages()
-        print(text)
-        (OUT / "inverse_kalman_stages_one_output.md").write_text(
-            "# kalman_for_poles, one output: CPU per stage\n\n`python benchmarks/bench_inverse_kalman.py "
-            "--stages` (means over 10 repetitions of the main run's targets; n = 20: 5 of its first, the "
-            "computable one)\n\n" + text + "\n", encoding="utf-8")
+        write_md("inverse_kalman_stages_one_output.md",
+                 "# kalman_for_poles, one output: CPU per stage\n\n`python "
+                 "benchmarks/bench_inverse_kalman.py --stages` (means over 10 repetitions of the main run's "
+                 "targets; n = 20: 5 of its first, the computable one)", one_output_stages())
         return
     if args.verify_ab:
         print(verify_ab())
         return
     if args.verb_ratio:
-        text = verb_ratio()
-        print(text)
-        (OUT / "inverse_kalman_verb_ratio.md").write_text(
-            "# kalman_for_poles (the verb), one output, vs the re-used minimal cvxpy SDP\n\n`python "
-            "benchmarks/bench_inverse_kalman.py --verb-ratio` (CPU time, medians of 7 interleaved calls per "
-            "target, the main run's targets)\n\n" + text + "\n", encoding="utf-8")
+        write_md("inverse_kalman_verb_ratio.md",
+                 "# kalman_for_poles (the verb), one output, vs the re-used minimal cvxpy SDP\n\n`python "
+                 "benchmarks/bench_inverse_kalman.py --verb-ratio` (CPU time, medians of 7 interleaved calls "
+                 "per target, the main run's targets)", verb_ratio())
         return
     if args.first_try:
-        text = first_try_ab()
-        print(text)
-        (OUT / "inverse_kalman_one_output_tolerances.md").write_text(
-            "# The one-output first try: Clarabel at ONE_OUTPUT_FIRST_TRY vs the tight tolerances\n\n"
-            "`python benchmarks/bench_inverse_kalman.py --first-try` (the machine shared with other jobs)\n\n"
-            + text + "\n", encoding="utf-8")
+        write_md("inverse_kalman_one_output_tolerances.md",
+                 "# The one-output first try: Clarabel at ONE_OUTPUT_FIRST_TRY vs the tight tolerances\n\n"
+                 "`python benchmarks/bench_inverse_kalman.py --first-try` (the machine shared with other "
+                 "jobs)", first_try_ab())
         return
     if args.ipm:
         text, raw_json = ipm_ab()
-        print(text)
-        (OUT / "inverse_kalman_one_output_ipm.md").write_text(
-            "# The one-output fixed-gain SDP: the dense IPM vs Clarabel\n\n`python "
-            "benchmarks/bench_inverse_kalman.py --ipm` (CPU time, the machine shared with other jobs)\n\n"
-            + text + "\n", encoding="utf-8")
+        write_md("inverse_kalman_one_output_ipm.md",
+                 "# The one-output fixed-gain SDP: the dense IPM vs Clarabel\n\n`python "
+                 "benchmarks/bench_inverse_kalman.py --ipm` (CPU time, the machine shared with other jobs)",
+                 text)
         (OUT / "inverse_kalman_one_output_ipm.json").write_text(raw_json + "\n", encoding="utf-8")
         return
     if args.sdp_forms:
-        text = sdp_forms()
-        (OUT / "inverse_kalman_sdp_forms.md").write_text(
-            "# The fixed-gain SDP on Clarabel: direct vs sparse form, KKT solvers\n\n"
-            "`python benchmarks/bench_inverse_kalman.py --sdp-forms` (CPU ms per SDP, medians of 3; the "
-            "machine shared with other jobs)\n\n" + text + "\n", encoding="utf-8")
+        write_md("inverse_kalman_sdp_forms.md",
+                 "# The fixed-gain SDP on Clarabel: direct vs sparse form, KKT solvers\n\n"
+                 "`python benchmarks/bench_inverse_kalman.py --sdp-forms` (CPU ms per SDP, medians of 3; the "
+                 "machine shared with other jobs)", sdp_forms())
         return
     if args.profile:
         text = profile([(20, 4), (40, 8)], args.seed)

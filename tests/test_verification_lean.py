@@ -171,6 +171,20 @@ def _one_output_targets():
     return out
 
 
+def _spy_on_solve_fixed_gain(monkeypatch) -> list:
+    """The Clarabel ``options`` of every engine call of ``solve_fixed_gain`` from now on (a list that
+    fills as the calls happen)."""
+    calls: list = []
+    real = engine.solve_fixed_gain
+
+    def spy(*a, **k):
+        calls.append(k.get("options"))
+        return real(*a, **k)
+
+    monkeypatch.setattr(engine, "solve_fixed_gain", spy)
+    return calls
+
+
 TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
 
 
@@ -205,14 +219,7 @@ def test_first_try_that_fails_is_solved_again_at_full_accuracy(monkeypatch):
 
 def test_other_objectives_and_small_systems_skip_the_first_try(monkeypatch):
     plant, poles = _one_output_targets()[1]
-    calls = []
-    real = engine.solve_fixed_gain
-
-    def spy(*a, **k):
-        calls.append(k.get("options"))
-        return real(*a, **k)
-
-    monkeypatch.setattr(engine, "solve_fixed_gain", spy)
+    calls = _spy_on_solve_fixed_gain(monkeypatch)
     kalman_for_poles(plant, poles)   # n - p = 2: below ONE_OUTPUT_FIRST_TRY_MIN_DIM
     assert calls and all(o is None for o in calls)
     monkeypatch.setattr(engine, "ONE_OUTPUT_FIRST_TRY_MIN_DIM", 0)
@@ -251,14 +258,7 @@ def _uncomputable_target():
 
 def test_an_uncomputable_target_is_not_solved_twice(monkeypatch):
     plant, poles = _uncomputable_target()
-    calls = []
-    real = engine.solve_fixed_gain
-
-    def spy(*a, **k):
-        calls.append(k.get("options"))
-        return real(*a, **k)
-
-    monkeypatch.setattr(engine, "solve_fixed_gain", spy)
+    calls = _spy_on_solve_fixed_gain(monkeypatch)
     res = kalman_for_poles(plant, poles)
     assert len(calls) == 1 and calls[0] == engine.ONE_OUTPUT_FIRST_TRY
     assert res.status == Status.OPTIMAL_INACCURATE and not res.success
