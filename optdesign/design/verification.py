@@ -330,13 +330,7 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     Qs = 0.5 * (Q + Q.T)
     err = filter_are_error(plant, P, Qs=Qs)
     err_rel = err.relative if np.isfinite(err.relative) else float("inf")
-    checks = [
-        Check.at_most("riccati_residual", filter_are_residual(plant, P, Qs=Qs), RESIDUAL_TOL,
-                      f"relative residual of the filter ARE for the returned P with {what}"),
-        forward_error_check(err),
-        psd_check("Q_min_eig", Qs, what="Q"),
-        psd_check("P_min_eig", P, error=min(err_rel, 1.0), what="P"),
-    ]
+    checks = _kalman_checks(filter_are_residual(plant, P, Qs=Qs), err, Qs, P, what)
     if not resolve:
         return checks, None, err
     resolved = plant.replace(G=None, Q=_psd_part(Qs))  # one plant for the solve and its error
@@ -349,6 +343,20 @@ def riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, what: st
     gtol = _gain_tolerance(plant, L, P, err_rel, err_are if np.isfinite(err_are) else 1.0)
     checks.append(_gain_check(are.L, L, gtol, what))
     return checks, are, err
+
+
+def _kalman_checks(residual: float, err: AREErrorEstimate, Qs: NDArray, P: NDArray, what: str, *,
+                   q_eigenvalues: NDArray | None = None, p_eigenvalues: NDArray | None = None) -> list[Check]:
+    """``riccati_residual``, ``forward_error``, ``Q_min_eig``, ``P_min_eig`` of :func:`riccati_checks`
+    (the eigenvalues of the symmetric Qs and P, ascending, when already at hand)."""
+    err_rel = err.relative if np.isfinite(err.relative) else float("inf")
+    return [
+        Check.at_most("riccati_residual", residual, RESIDUAL_TOL,
+                      f"relative residual of the filter ARE for the returned P with {what}"),
+        forward_error_check(err),
+        psd_check("Q_min_eig", Qs, what="Q", eigenvalues=q_eigenvalues),
+        psd_check("P_min_eig", P, error=min(err_rel, 1.0), what="P", eigenvalues=p_eigenvalues),
+    ]
 
 
 def _gain_check(La: NDArray, L: NDArray, gtol: float, what: str) -> Check:
@@ -377,17 +385,10 @@ def lean_riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, wha
     res, terms = filter_are_terms(A, C, R, Qs, P, False)
     err = are_error_of_terms(A, C, R, P, res, terms, False)
     err_rel = err.relative if np.isfinite(err.relative) else float("inf")
-    lam, U = np.linalg.eigh(Qs)
-    checks = [
-        Check.at_most("riccati_residual", relative_residual(res, terms), RESIDUAL_TOL,
-                      f"relative residual of the filter ARE for the returned P with {what}"),
-        forward_error_check(err),
-        psd_check("Q_min_eig", Qs, what="Q", eigenvalues=lam),
-        psd_check("P_min_eig", P, error=min(err_rel, 1.0), what="P",
-                  eigenvalues=np.linalg.eigvalsh(0.5 * (P + P.T))),
-    ]
-    Qp = (U * np.maximum(lam, 0.0)) @ U.T
-    Qp = 0.5 * (Qp + Qp.T)
+    eig_q = np.linalg.eigh(Qs)
+    checks = _kalman_checks(relative_residual(res, terms), err, Qs, P, what, q_eigenvalues=eig_q[0],
+                            p_eigenvalues=np.linalg.eigvalsh(0.5 * (P + P.T)))
+    Qp = _psd_part(Qs, eig=eig_q)
     try:
         with np.errstate(all="ignore"):
             Pa = hamiltonian_are(A.T, C.T, Qp, R, trusted=True)
@@ -514,7 +515,8 @@ def bound_check(name: str, value: float, bound: float, rtol: float, what: str) -
     return Check.at_most(name, value, bound * (1.0 + rtol), what)
 
 
-def _psd_part(X: NDArray) -> NDArray:
-    lam, U = np.linalg.eigh(0.5 * (X + X.T))
+def _psd_part(X: NDArray, eig: tuple[NDArray, NDArray] | None = None) -> NDArray:
+    """The PSD part of the symmetric part of X (``eig``: its eigendecomposition, when at hand)."""
+    lam, U = np.linalg.eigh(0.5 * (X + X.T)) if eig is None else eig
     Y = (U * np.maximum(lam, 0.0)) @ U.T
     return 0.5 * (Y + Y.T)

@@ -97,11 +97,12 @@ def svec(X: NDArray) -> NDArray[np.float64]:
 
 
 def smat(x: NDArray, n: int) -> NDArray[np.float64]:
-    """Inverse of :func:`svec`."""
+    """Inverse of :func:`svec`; a stack ``x`` of shape (..., n(n+1)/2) gives (..., n, n)."""
     I, J, w = _svec_index(n)
-    X = np.zeros((n, n))
-    X[I, J] = np.asarray(x, dtype=float) / w
-    X[J, I] = X[I, J]
+    x = np.asarray(x, dtype=float)
+    X = np.zeros(x.shape[:-1] + (n, n))
+    X[..., I, J] = x / w
+    X[..., J, I] = X[..., I, J]
     return X
 
 

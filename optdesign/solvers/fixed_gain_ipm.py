@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from .._deadline import Deadline
 from .._validate import as_int, as_positive_float
 from ..results import Status
-from .clarabel_fixed_gain import FixedGainFamily, FixedGainSolution
+from .clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
 
 __all__ = ["IPM_TOL", "IPM_MAX_ITER", "IpmReport", "symmetric_basis", "solve_fixed_gain_ipm"]
 
@@ -85,15 +85,7 @@ def symmetric_basis(T: NDArray, n: int) -> NDArray[np.float64]:
         Columns in Clarabel's scaled triangle (:func:`~optdesign.solvers.clarabel_fixed_gain.svec`).
     n : int
     """
-    T = np.asarray(T, dtype=float)
-    I, J = np.triu_indices(n)
-    order = np.lexsort((I, J))
-    I, J = I[order], J[order]
-    w = np.where(I == J, 1.0, np.sqrt(2.0))
-    B = np.zeros((T.shape[1], n, n))
-    B[:, I, J] = T.T / w
-    B[:, J, I] = T.T / w
-    return B
+    return smat(np.asarray(T, dtype=float).T, n)
 
 
 def _max_step(Li: NDArray, D: NDArray) -> float:
