@@ -101,6 +101,18 @@ def test_merge_pool_dedupes_and_carries_what_did_not_run(dis2):
     assert len(merge_pool(res, [], 5, 1e-3)) == 2
 
 
+@pytest.mark.parametrize(
+    ("args", "match"),
+    [((0, 1e-3), "size must be an integer >= 1"), ((2, -1.0), "rtol must be"),
+     ((2, 1e-3, float("nan")), "objective_rtol must be")],
+)
+def test_merge_pool_errors(dis2, args, match):
+    prob = WellConditionedProblem(dis2, route="nlp", kalman_start=False, pole_scale=RADIUS, starts=1)
+    res = prob.solve(region=_region(1.0, 0.5), seed=0)
+    with pytest.raises(ValidationError, match=match):
+        merge_pool(res, [], *args)
+
+
 ALPHA = float(np.linspace(0.5, 3.0, 40)[20])  # the block of benchmarks/results/sweep.md
 ZETAS = [float(z) for z in np.linspace(0.9, 0.2, 25)[:4]]
 

@@ -70,11 +70,12 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
 from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
-from ..design.well_conditioned.problem import Objective, warm_start_origin
+from ..design.well_conditioned.problem import Objective
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
 from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from .pool import merge_pool
 
 __all__ = [
     "RegionSweepDesigner",
@@ -524,45 +525,6 @@ def _pool_rtol(options: Mapping[str, Any] | None) -> tuple[float, float]:
     IPOPT's ``tol`` (two answers whose objectives agree to it are one optimum value)."""
     opts = {**SWEEP_IPOPT_OPTIONS, **(options or {})}
     return (math.sqrt(float(opts.get("ipopt.acceptable_tol", 1e-6))), float(opts.get("ipopt.tol", 1e-8)))
-
-
-def merge_pool(res: ObserverDesign, previous: list[tuple[float, NDArray[np.float64]]], size: int,
-               rtol: float, objective_rtol: float = 0.0) -> list[tuple[float, NDArray[np.float64]]]:
-    """The distinct verified local optima of a point, best first: its design's gain, the answers of its
-    starts (``res.extra["local_optima"]``), then the members of ``previous`` (the point's warm starts,
-    in order) that did not run at this point (the point ended early); at most ``size``.
-
-    Two gains are one optimum when ``||L1 - L2||_2 <= rtol max(||L1||_2, ||L2||_2)``; two answers of
-    this point are also one when their objectives agree to ``objective_rtol`` (relative): e.g. the
-    mirror images of one design under a symmetry of the plant, whose chains stay images of each other.
-
-    Parameters
-    ----------
-    res : ObserverDesign
-        The point's design (verified).
-    previous : list of (objective, (n, p) ndarray)
-        The point's warm starts (objective when they last ran), in the order given.
-    size : int
-        The largest pool.
-    rtol, objective_rtol : float
-
-    Returns
-    -------
-    list of (objective, (n, p) ndarray)
-    """
-    ran = {r.origin for r in res.starts}
-    found = [(float(getattr(res, res.objective)), np.asarray(res.L, dtype=float))]
-    found += [(o.objective, o.L) for o in res.extra.get("local_optima", ())]
-    carried = [m for i, m in enumerate(previous) if warm_start_origin(i) not in ran]
-    out: list[tuple[float, NDArray[np.float64]]] = []
-    for f, L in found + carried:
-        nL = float(np.linalg.norm(L, 2))
-        if all(float(np.linalg.norm(L - M, 2)) > rtol * max(nL, float(np.linalg.norm(M, 2)))
-               and not abs(f - g) <= objective_rtol * abs(g) for g, M in out):
-            out.append((f, L))
-        if len(out) >= size:
-            break
-    return out
 
 
 # --------------------------------------------------------------------------- generic point result
