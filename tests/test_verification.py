@@ -14,6 +14,7 @@ from optdesign.design.verification import (
     ARE_SOLVERS,
     check_violation,
     independent_are,
+    resolve_pole_tolerance,
     riccati_checks,
 )
 from optdesign.errors import ValidationError
@@ -78,3 +79,30 @@ def test_check_violation_is_zero_when_passed_and_relative_beyond_the_tolerance()
     # ordering: a larger excess is a larger violation
     vals = [check_violation(Check.at_most("x", v, 1e-6)) for v in (2e-6, 1e-5, 1e-3)]
     assert vals == sorted(vals)
+
+
+def test_resolve_pole_tolerance_covers_the_poles_of_a_nearby_gain(rng):
+    """The tolerance of a second gain's poles: the first gain's pole error plus the first-order
+    movement of its poles by the gain difference.  Random ill-conditioned closed loops and gain
+    differences from 1e-9 to 1e-6 relative: the second gain's actual pole error is always within it,
+    and the tolerance tracks it (within ESTIMATE_FACTOR + rounding); no difference, no raise."""
+    from optdesign.classical.placement import pole_error
+    for n in (4, 8, 12):
+        for scale in (1e-9, 1e-7, 1e-6):
+            A, C = rng.standard_normal((n, n)), rng.standard_normal((1, n))
+            L = rng.standard_normal((n, 1)) * 10
+            F = A - L @ C
+            target = np.linalg.eigvals(F)
+            dL = scale * np.linalg.norm(L) * rng.standard_normal((n, 1))
+            err = pole_error(np.linalg.eigvals(F - dL @ C), target)
+            tol = resolve_pole_tolerance(F, dL @ C, 0.0, 1e-12)
+            assert err <= tol <= 1e-12 + 5.0 * max(err, 1e-12)
+    F = rng.standard_normal((5, 5))
+    assert resolve_pole_tolerance(F, np.zeros((5, 5)), 0.0, 1e-8) == 1e-8
+    assert resolve_pole_tolerance(F, np.zeros((5, 5)), 3e-7, 1e-8) == 3e-7
+
+
+def test_resolve_pole_tolerance_of_a_defective_matrix_is_not_raised():
+    """A Jordan block has no eigenvector basis: no first-order movement, the tolerance as given."""
+    J = np.array([[-1.0, 1.0], [0.0, -1.0]])
+    assert resolve_pole_tolerance(J, 1e-6 * np.ones((2, 2)), 0.0, 1e-8) == 1e-8

@@ -31,7 +31,10 @@ Tolerance table (value -> tolerance, and why):
     ``4 (err_P + err_are + 10 n eps cond) ||P|| ||dL/dP|| / max(1, ||L||)``, capped at 1e-6: the two
     gains differ by what the errors of the two P (and the gain formula's rounding) explain.
 ``are_resolve_poles``
-    poles of that solve vs the targets -> as ``pole_error``.
+    poles of that solve vs the targets -> as ``pole_error``; when that gain passed its check but its
+    poles miss, raised to the design's pole error plus the first-order movement of its poles by the
+    gain difference (:func:`resolve_pole_tolerance`: a gain that agrees to 1e-9 moves poles of
+    condition 1e5 by more than their rounding floor).
 ``cross_check``
     ``||P - P_other|| / max(||P||, ||P_other||)`` -> ``4 (err_P + err_other) + 10 n eps``: two
     solvers agree to what their own error estimates explain (a difference explained by the other
@@ -82,7 +85,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._validate import as_str
-from ..analysis.metrics import eigenvalue_rounding_floor
+from ..analysis.metrics import eigenvalue_rounding_floor, eigenvector_matrix
 from ..classical.placement import pole_error
 from ..classical.riccati import (
     AREErrorEstimate,
@@ -108,6 +111,7 @@ __all__ = [
     "POLE_FLOOR_CAP",
     "pole_tolerance",
     "pole_check",
+    "resolve_pole_tolerance",
     "stability_check",
     "psd_check",
     "psd_tolerance",
@@ -196,6 +200,32 @@ def pole_check(F: NDArray, target: NDArray, tol: float, *, name: str = "pole_err
     if ptol > tol:
         detail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
     return Check.at_most(name, pole_error(poles, target), ptol, detail), poles
+
+
+def resolve_pole_tolerance(F: NDArray, dLC: NDArray, own_error: float, tol: float) -> float:
+    """The pole tolerance of a second gain that agrees with a verified one to its error estimates:
+    ``max(tol, own_error + ESTIMATE_FACTOR max_i |d_i| / max(1, |lambda_i|))``.
+
+    ``F`` (n, n) is ``A - L C`` of the verified gain, whose poles miss the targets by ``own_error``;
+    ``dLC`` (n, n) is ``(L_other - L) C``.  To first order the other gain moves pole i by
+    ``d_i = -(V^-1 dLC V)_ii`` (V the eigenvector matrix of F), so its poles miss the targets by
+    about ``own_error`` plus that.  A gain difference that is small but far above rounding (an
+    independent Riccati re-solve agrees with L to its forward error, 1e-9 to 1e-6, not to eps)
+    moves ill-conditioned poles by more than their rounding floor.  Where the first-order estimate
+    does not hold -- F (numerically) defective, or a movement beyond a tenth of the pole's distance to
+    the nearest other pole -- ``tol``."""
+    V, w = eigenvector_matrix(F, return_eigenvalues=True)
+    if not np.all(np.isfinite(V)):
+        return tol
+    try:
+        d = np.diag(np.linalg.solve(V, dLC @ V))
+    except np.linalg.LinAlgError:
+        return tol
+    gap = np.abs(w[:, None] - w[None, :]) + np.diag(np.full(w.size, np.inf))
+    if not (np.all(np.isfinite(d)) and np.all(np.abs(d) <= 0.1 * np.min(gap, axis=1))):
+        return tol
+    move = float(np.max(np.abs(d) / np.maximum(1.0, np.abs(w))))
+    return max(tol, own_error + ESTIMATE_FACTOR * move)
 
 
 def stability_check(F: NDArray, discrete: bool) -> Check:

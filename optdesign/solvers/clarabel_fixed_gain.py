@@ -32,6 +32,7 @@ objectives", arXiv:2405.12762 (2024).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -82,12 +83,17 @@ GAIN_RELATION_RTOL = float(np.sqrt(np.finfo(float).eps))
 _SQRT2 = float(np.sqrt(2.0))
 
 
+@functools.lru_cache(maxsize=64)
 def _svec_index(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
-    """Rows, columns and weights of Clarabel's triangle: (i, j) with i <= j, column by column."""
+    """Rows, columns and weights of Clarabel's triangle: (i, j) with i <= j, column by column
+    (built once per n; read-only)."""
     I, J = np.triu_indices(n)  # i <= j
     order = np.lexsort((I, J))  # by column j, then row i
     I, J = I[order].astype(np.intp), J[order].astype(np.intp)
-    return I, J, np.where(I == J, 1.0, _SQRT2)
+    out = (I, J, np.where(I == J, 1.0, _SQRT2))
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def svec(X: NDArray) -> NDArray[np.float64]:
