@@ -53,7 +53,8 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy.linalg as sl  # noqa: E402
 
-from optdesign import Plant, kalman_for_poles  # noqa: E402
+from optdesign import InverseKalmanProblem, Plant, kalman_for_poles  # noqa: E402
+
 from optdesign.analysis.metrics import eigenvalue_rounding_floor  # noqa: E402
 from optdesign.classical.placement import pole_error  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
@@ -157,24 +158,38 @@ def write_md(name: str, heading: str, text: str) -> None:
     (OUT / name).write_text(heading + "\n\n" + text + "\n", encoding="utf-8")
 
 
+#: the sizes of ``--verb-ratio`` beyond the main run's (one output; 3 targets each, drawn from seed n)
+VERB_SIZES = (3, 4, 5, 6, 8, 12, 15)
+
+
 def verb_ratio(reps: int = 7) -> str:
-    """The public verb ``kalman_for_poles(plant, poles)`` against the re-used minimal SDP at its gain, per
-    target of the main run (n = 2, 10, 20, one output), each the median of ``reps`` calls, interleaved
-    in one process: the issue's ratio for the verb itself."""
+    """The public verb ``kalman_for_poles(plant, poles)`` and a held ``InverseKalmanProblem(plant)``
+    (built once per plant, as the reference compiles once) against the re-used minimal SDP at the
+    verb's gain, per target, each the median of ``reps`` calls, interleaved in one process: the main
+    run's targets (n = 2, 10, 20), then 3 targets at each of :data:`VERB_SIZES`."""
     rng = np.random.default_rng(0)
-    lines = ["| n, p | target | verb status | verified | verb CPU ms | min-SDP re-used CPU ms "
-             "| verb / min-SDP |",
-             "|---|---|---|---|---|---|---|"]
-    for size in SIZES[:3]:
-        for k, (plant, are) in enumerate([random_target(rng, *size) for _ in range(3)]):
-            tv, tr = [], []
-            for _ in range(reps):
-                r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
-                tv.append(t)
-                tr.append(minimal_sdp(plant, r.L, reuse=True)[1])
-            v, m = float(np.median(tv)), float(np.median(tr))
-            lines.append(f"| {size[0]}, {size[1]} | {k} | {r.status.value} | {r.success} | {1e3 * v:.2f} | "
-                         f"{1e3 * m:.2f} | {v / m:.2f}x |")
+    drawn = [(size[0], k, t) for size in SIZES[:3]
+             for k, t in enumerate([random_target(rng, *size) for _ in range(3)])]
+    for n in VERB_SIZES:
+        rn = np.random.default_rng(n)
+        drawn += [(n, k, random_target(rn, n, 1)) for k in range(3)]
+    lines = ["| n, p | target | rounding floor of its poles | verb status | verified | verb CPU ms "
+             "| held problem CPU ms | min-SDP re-used CPU ms | verb / min-SDP | held / min-SDP |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for n, k, (plant, are) in sorted(drawn, key=lambda d: (d[0], d[1])):
+        held = InverseKalmanProblem(plant)
+        held.solve(are.poles)
+        tv, th, tr = [], [], []
+        for _ in range(reps):
+            r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+            tv.append(t)
+            th.append(timed(lambda tg=are.poles: held.solve(tg))[1])
+            tr.append(minimal_sdp(plant, r.L, reuse=True)[1])
+        v, h, m = float(np.median(tv)), float(np.median(th)), float(np.median(tr))
+        floor = eigenvalue_rounding_floor(plant.A - are.L @ plant.C)
+        lines.append(f"| {n}, 1 | {k} | {floor:.1e} | {r.status.value} | {r.success} | {1e3 * v:.2f} | "
+                     f"{1e3 * h:.2f} | {1e3 * m:.2f} | {v / m:.2f}x | {h / m:.2f}x |")
+        print(lines[-1], flush=True)
     return "\n".join(lines)
 
 
@@ -674,7 +689,8 @@ def main() -> None:
         write_md("inverse_kalman_verb_ratio.md",
                  "# kalman_for_poles (the verb), one output, vs the re-used minimal cvxpy SDP\n\n`python "
                  "benchmarks/bench_inverse_kalman.py --verb-ratio` (CPU time, medians of 7 interleaved calls "
-                 "per target, the main run's targets)", verb_ratio())
+                 "per target; the main run's targets, then 3 at each of n = " + ", ".join(map(str, VERB_SIZES))
+                 + ")", verb_ratio())
         return
     if args.first_try:
         write_md("inverse_kalman_one_output_tolerances.md",
