@@ -426,8 +426,8 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
     return cand
 
 
-#: SQP iterations per start before the restoration (measured: 20 loses a cross-validation target,
-#: 40 none; beyond, the SQP mostly oscillates at n >= 20 -- the restoration is cheaper)
+#: SQP iterations per start before the restoration (measured: 20 loses a cross-validation target, 40
+#: none; beyond, the SQP mostly oscillates at n >= 20 -- the restoration is cheaper)
 _SQP_MAX_ITER = 40
 
 #: relative tolerance of the dual slack's smallest eigenvalue in the KKT test
@@ -486,14 +486,11 @@ def _certify(setup: EngineSetup, best: _Candidate, Qn: NDArray | None, deadline:
 def _design(setup: EngineSetup, cand: _Candidate):
     """(L, P, Q, Qw, Wdec) in physical units from a feasible point.
 
-    The gain of the null vectors, ``L' = G W^-1``, places the poles to rounding but is itself
-    accurate only to ``eps cond(W)`` in the directions that keep them; P, the solution of the
-    Lyapunov equation of ``A - L C`` with ``L R L' + Q`` (the Riccati solution for Q), is
-    insensitive to that error, so L is then taken from P by the Kalman gain formula (one step of
-    refinement: ``P C' R^-1``, discrete ``A P C' (C P C' + R)^-1``).  With one output the poles fix the
-    gain and the gain of the null vectors is that gain to rounding: it is kept (the formula would add
-    the rounding of P: on random n = 15 targets it moved the poles by 1.9e-6 against 6.6e-7 for the
-    unique gain, beyond the verification's cap, and the verb then fell back on the cvxpy route)."""
+    The gain of the null vectors, ``L' = G W^-1``, places the poles to rounding but is accurate only
+    to ``eps cond(W)`` in the directions that keep them; P, the Lyapunov solution of ``A - L C`` with
+    ``L R L' + Q`` (the Riccati solution for Q), is insensitive to that error, so L is then taken from
+    P by the Kalman gain formula (``P C' R^-1``, discrete ``A P C' (C P C' + R)^-1``).  One output: the
+    poles fix the gain, kept (the formula adds P's rounding: at n = 15, poles off 1.9e-6, not 6.6e-7)."""
     plant = setup.plant
     V, t, g = cand.parts()
     Qdec = cand.problem.qdec(V, t) * cand.scale
@@ -715,10 +712,9 @@ def _sdp_record(sol: FixedGainSolution | None) -> dict[str, Any]:
 #: iterations instead of 8-9 at n = 20, the same statuses and optima (to 3e-13 relative) on 49 targets.
 ONE_OUTPUT_FIRST_TRY: dict[str, Any] = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-6,
                                         "iterative_refinement_max_iter": 3}
-#: the first try only where Clarabel dominates: ``n - p`` at least this (the dense KKT matrix of the
-#: direct form then has more than 200 rows).  Measured (``--first-try``, ``--stages``): at n = 10 the
-#: Newton polish from the looser point costs more (+3 ms) than Clarabel saves (-1 ms); at n >= 15
-#: Clarabel's savings win (n = 20: 100 -> 55 ms in the SDP, +2 ms of polish)
+#: the first try only where Clarabel dominates: ``n - p`` at least this (its dense KKT matrix has over
+#: 200 rows).  Measured (``--first-try``, ``--stages``): at n = 10 the polish from the looser point costs
+#: more (+3 ms) than Clarabel saves (-1 ms); at n >= 15 it wins (n = 20: SDP 100 -> 55 ms, polish +2 ms)
 ONE_OUTPUT_FIRST_TRY_MIN_DIM = 14
 #: the dense IPM first (``"full"`` / ``"min_trace"``, one output) at ``n - p`` at least this: CPU per
 #: SDP 1.3-2.5x Clarabel's at n <= 7 (Python overhead per iteration), 0.9x at n = 8, 0.55-0.75x at
