@@ -70,7 +70,9 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
 from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
+from ..design.well_conditioned.normal_probe import normal_closed_loop, normal_freedom
 from ..design.well_conditioned.problem import Objective
+from ..design.verification import kappa2_agreement_tol
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
@@ -462,6 +464,10 @@ class RegionSweepDesigner:
         return _RegionSession(self)(**point)
 
 
+#: the normal-closed-loop probe's budget in a sweep (measured: benchmarks/results/sweep_grid.md)
+_PROBE: dict[str, int] = {"random_starts": 1, "max_iter": 20}
+
+
 class _RegionSession:
     """One chunk of a sweep: the previous point's verified design is the next point's warm start.
 
@@ -477,11 +483,33 @@ class _RegionSession:
         #: the sweepable parameters of the previous point and its verified local optima (gains, best first)
         self.prev_params: frozenset[str] | None = None
         self.pool: list[tuple[float, NDArray[np.float64]]] = []
+        #: the closest normal closed loop of the last probe (its next start)
+        self.probe_F: NDArray[np.float64] | None = None
 
     def _stale(self) -> bool:
         """The placement starts must run again: no pool, or a pool of one optimum (the placement
         starts' chains have merged into the best one or were lost)."""
         return len(self.pool) < 2
+
+    def _normal_probe(self, pool: list[tuple[float, NDArray[np.float64]]], region: Region,
+                      point: Mapping[str, float]) -> NDArray[np.float64] | None:
+        """``placement="pool"``, objective kappa2, a pool whose best is above the lower bound 1: a gain
+        with a normal closed loop in the region (:func:`normal_closed_loop`), or None (also when the
+        probe does not apply).  Its starts: the closest normal matrix of the chunk's previous probe
+        (a continuation of the probe's own problem) and one random start per block layout; the
+        pool's designs as starts did not help (measured: ``benchmarks/results/sweep_grid.md``)."""
+        d = self.d
+        if d.placement != "pool" or d.objective != "kappa2" or not pool:
+            return None
+        if pool[0][0] <= 1.0 + kappa2_agreement_tol(1.0):
+            return None
+        plant = d._plant()
+        if normal_freedom(plant.n, plant.p) < 0:
+            return None
+        L, self.probe_F = normal_closed_loop(
+            plant.A, plant.C, region, starts=[] if self.probe_F is None else [self.probe_F],
+            seed=np.random.SeedSequence(d.seed_for(**point)), full_output=True, **_PROBE)
+        return L
 
     def __call__(self, **point: float) -> ObserverDesign:
         """The design of one point on the designer's problem object (:meth:`WellConditionedProblem.solve`)."""
@@ -502,6 +530,9 @@ class _RegionSession:
         warm: dict[str, Any] = {}
         if pool:
             warm = {"warm_start": pool[0][1], "warm_starts": [L for _, L in pool[1:]]}
+        probe = self._normal_probe(pool, region, point)
+        if probe is not None:  # a normal closed loop (kappa2 = 1) first, the pool after it
+            warm = {"warm_start": probe, "warm_starts": [L for _, L in pool]}
         res = None
         if pool and (d.placement == "fallback" or (d.placement == "pool" and not self._stale())):
             # the warm starts alone first
