@@ -241,9 +241,12 @@ class RegionSweepDesigner:
         lower bound); the placement starts run at a chunk's first point and whenever the pool has
         collapsed to one optimum (the same gain, or the same kappa2: mirror images).  Measured on
         DIS2 (``benchmarks/results/sweep.md``): 0.25-0.65x the CPU of ``"always"``, its kappa2 (to 5e-9)
-        at every point of the 40-point block, the 200-point sweep and the grid's first 50 points,
-        but on the 1,000-point grid 9 points up to 1.16x worse (a fresh placement start of
-        ``"always"`` finds the lower bound a few points before the pool's chains reach it).
+        at every point of the 40-point block, the 200-point sweep and the grid's first 50 points.
+        With objective kappa2, where the pool's best is above 1 the pool first probes for a normal
+        closed loop (kappa2 = 1) in the region (an accelerator only:
+        :func:`~optdesign.design.well_conditioned.normal_probe.normal_closed_loop`): on the
+        1,000-point grid (``benchmarks/results/sweep_grid.md``) 0 points worse than ``"always"`` (9
+        without the probe, up to 1.16x), 9 better, 0.6x its CPU.
     reuse : bool, default True
         Solve every point on one problem object per worker thread (:meth:`design_problem`), so that
         its NLPs are built once and re-solved; False builds a new problem for every point (for

@@ -81,7 +81,8 @@ def _blocks(layout: tuple[int, ...], lam: NDArray) -> tuple[NDArray, NDArray]:
 
 
 def _start_from(X: NDArray | None, V0: NDArray, region: Region, layout: tuple[int, ...] | None,
-                rng: np.random.Generator, samples: dict[int, NDArray]) -> tuple[tuple[int, ...], NDArray, NDArray]:
+                rng: np.random.Generator,
+                samples: dict[int, NDArray]) -> tuple[tuple[int, ...], NDArray, NDArray]:
     """``(layout, M0, eigenvalue parameters)``: from the real Schur form ``X = Z T Z'`` (its own layout,
     ``M0 = Z' V0``, its poles projected into the region), or for ``X`` None a random ``M0`` and
     poles in ``layout`` drawn from ``samples`` (``{1: real region samples, 2: complex ones}``)."""
@@ -124,7 +125,8 @@ def _gram_residual(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, 
 
 
 def _solve_layout(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, ...], M0: NDArray,
-                  lam0: NDArray, delta: float, iters: int, tol: float) -> tuple[bool, float, NDArray, NDArray]:
+                  lam0: NDArray, delta: float, iters: int,
+                  tol: float) -> tuple[bool, float, NDArray, NDArray]:
     """Levenberg-Marquardt (forward-difference Jacobian) from one start: ``(converged, residual norm,
     M, Lambda)`` at the last iterate (converged: the residual below ``tol``)."""
     k = M0.shape[1]
@@ -164,7 +166,8 @@ def _normal_from(A: NDArray, V0: NDArray, M: NDArray, Lam: NDArray) -> NDArray:
 
 def normal_closed_loop(A: ArrayLike, C: ArrayLike, region: Region, *, starts: Sequence[ArrayLike] = (),
                        random_starts: int = 4, seed: object = 0, max_iter: int = 20,
-                       full_output: bool = False) -> NDArray | None | tuple[NDArray | None, NDArray | None]:
+                       full_output: bool = False
+                       ) -> NDArray | None | tuple[NDArray | None, NDArray | None]:
     """An observer gain whose closed loop ``A - L C`` is normal with its poles in ``region``.
 
     A normal closed loop has ``kappa2 = 1`` (an orthonormal eigenbasis), the lower bound of the
