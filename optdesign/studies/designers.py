@@ -509,9 +509,11 @@ class _RegionSession:
         plant = d._plant()
         if normal_freedom(plant.n, plant.p) < 0:
             return None
-        L, self.probe_F = normal_closed_loop(
-            plant.A, plant.C, region, starts=[] if self.probe_F is None else [self.probe_F],
-            seed=np.random.SeedSequence(d.seed_for(**point)), full_output=True, **_PROBE)
+        starts = [] if self.probe_F is None else [self.probe_F]
+        out = normal_closed_loop(plant.A, plant.C, region, starts=starts,
+                                 seed=np.random.SeedSequence(d.seed_for(**point)), full_output=True, **_PROBE)
+        assert isinstance(out, tuple), "full_output=True returns (L, closest normal matrix)"
+        L, self.probe_F = out
         return L
 
     def __call__(self, **point: float) -> ObserverDesign:

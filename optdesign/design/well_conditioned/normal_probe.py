@@ -88,6 +88,7 @@ def _start_from(X: NDArray | None, V0: NDArray, region: Region, layout: tuple[in
     poles in ``layout`` drawn from ``samples`` (``{1: real region samples, 2: complex ones}``)."""
     n, k = V0.shape
     if X is None:
+        assert layout is not None, "a random start needs its block layout"
         lam: list[float] = []
         for s in layout:
             z = samples[s][rng.integers(len(samples[s]))]
@@ -253,7 +254,7 @@ def normal_closed_loop(A: ArrayLike, C: ArrayLike, region: Region, *, starts: Se
     scale = max(1.0, float(np.linalg.norm(A, 2)))
     delta = 100.0 * _EPS * scale  # aim inside: a normal matrix's eigenvalues round by ~eps ||F||
     tol = 100.0 * _EPS * scale * scale  # G2 is quadratic in A
-    tries = [(X, None) for X in mats]
+    tries: list[tuple[NDArray | None, tuple[int, ...] | None]] = [(X, None) for X in mats]
     tries += [(None, lay) for _ in range(random_starts) for lay in _layouts(n)]
     samples: dict[int, NDArray] = {}
     if random_starts:
