@@ -10,10 +10,10 @@ A. Time per point, one process, the same points (a block of the grid), for
    2. ``RegionSweepDesigner(reuse=False, warm_start=False)``: the sweep algorithm (its
       ``WellConditionedProblem`` on the NLP route), a new problem (NLPs rebuilt) per point,
    3. ``RegionSweepDesigner(reuse=True, warm_start=False)``: one problem, NLPs built once, cold starts,
-   4. ``RegionSweepDesigner()`` (default, ``placement="always"``): re-use + warm start from the previous
-      point + the placement starts at every point,
+   4. ``RegionSweepDesigner(placement="always")`` (the default before the pool): re-use + warm start
+      from the previous point + the placement starts at every point,
    5. ``RegionSweepDesigner(placement="fallback")``: re-use + warm start, placement only when needed;
-   6. ``RegionSweepDesigner(placement="pool")``: re-use + every start's local optimum
+   6. ``RegionSweepDesigner()`` (default, ``placement="pool"``): re-use + every start's local optimum
       carried to the next point as a warm start, placement on a chunk's first point and when the pool
       collapses to one optimum;
    with the CPU time per point (median and mean), the deterministic work per point (IPOPT iterations,
@@ -108,11 +108,11 @@ def part_a(problem: str, points: list[dict], which: list[int] | None = None) -> 
 
     variants = [
         ("public verb per point (rebuild, starts=2)", lambda: None),
-        ("designer, NLP rebuilt per point, cold", variant(reuse=False, warm_start=False)),
-        ("designer, NLP re-used, cold", variant(warm_start=False)),
-        ("designer, re-used + warm start + placement (default)", variant()),
+        ("designer, NLP rebuilt per point, cold", variant(reuse=False, warm_start=False, placement="always")),
+        ("designer, NLP re-used, cold", variant(warm_start=False, placement="always")),
+        ("designer, re-used + warm start + placement at every point", variant(placement="always")),
         ("designer, re-used + warm start, placement as fallback", variant(placement="fallback")),
-        ("designer, re-used + pool of local optima (placement='pool')", variant(placement="pool")),
+        ("designer, re-used + pool of local optima (placement='pool', the default)", variant()),
     ]
     if which is not None:
         variants = [variants[i - 1] for i in which]
@@ -200,7 +200,7 @@ def main(argv=None) -> int:
     ap.add_argument("--skip-b", action="store_true", help="part A alone")
     ap.add_argument("--variants", default=None,
                     help="part A: the variants to run, by number (1-6, see above), e.g. 4,5")
-    ap.add_argument("--b-placement", default="always", help="part B: the designer's placement mode")
+    ap.add_argument("--b-placement", default="pool", help="part B: the designer's placement mode")
     ap.add_argument("--start", type=int, default=None,
                     help="part A: index of its first grid point (default: a block from the middle)")
     ap.add_argument("--json-out", default=None, help="part A: also write its rows (with kappa2) as JSON")

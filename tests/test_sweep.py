@@ -17,6 +17,7 @@ import pytest
 from conftest import FULL
 
 from optdesign import Plant, problems
+from optdesign.design.verification import kappa2_agreement_tol
 from optdesign.design.well_conditioned import WellConditionedProblem
 from optdesign.errors import (
     NotConjugateClosedError,
@@ -271,7 +272,9 @@ def test_progress_bar_shown_on_a_terminal_after_a_second(monkeypatch):
 
 def test_region_designer_reuses_its_nlp_and_verifies_every_point():
     clear_cache()
-    session = DESIGNER.start_chunk()
+    # placement="always": the first point runs the placement starts on the NLP (the default "pool"
+    # probes a chunk's first point for a normal closed loop first, which attains kappa2 = 1 here)
+    session = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, placement="always").start_chunk()
     first = session(alpha=1.0, zeta=0.5)
     second = session(alpha=1.2, zeta=0.5)
     assert first.success and second.success
@@ -295,6 +298,22 @@ def test_region_designer_reuses_its_nlp_and_verifies_every_point():
     rebuilt = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, reuse=False)(alpha=1.2, zeta=0.5)
     assert rebuilt.solver_stats.extra["nlp_builds"] >= 1
     assert rebuilt.success and rebuilt.kappa2 >= 1.0
+
+
+def test_region_designer_probes_a_chunks_first_point():
+    """The default placement="pool" probes a chunk's first point for a normal closed loop in the
+    region: at (alpha 1, zeta 0.5) it finds one, kappa2 = 1 (the lower bound) with no NLP built and no
+    IPOPT iteration; placement="always" reaches kappa2 = 1 there through its placement starts."""
+    clear_cache()
+    first = DESIGNER.start_chunk()(alpha=1.0, zeta=0.5)
+    assert DESIGNER.placement == "pool"
+    assert first.success and first.kappa2 <= 1.0 + kappa2_agreement_tol(1.0)
+    assert first.solver_stats.extra["nlp_builds"] == 0 and first.solver_stats.iterations == 0
+    poles = np.linalg.eigvals(DESIGNER._plant().A - first.L @ DESIGNER._plant().C)
+    assert (HalfPlane(1.0) & Sector.from_damping(0.5) & Disk(0.0, 20.0)).contains(poles, tol=1e-9)
+    always = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, placement="always")(alpha=1.0, zeta=0.5)
+    assert always.success and always.solver_stats.iterations > 0
+    assert always.kappa2 == pytest.approx(1.0, abs=1e-6)
 
 
 def test_region_designer_holds_one_problem_object():

@@ -229,24 +229,22 @@ class RegionSweepDesigner:
         depend on where or when it runs).
     warm_start : bool, default True
         Start from the previous point's solution (within a chunk of the sweep).
-    placement : {"always", "fallback", "pool"}, default "always"
+    placement : {"pool", "always", "fallback"}, default "pool"
+        ``"pool"``: the session keeps the distinct verified local optima of the previous point (its
+        design and every start's answer, :func:`merge_pool`) and warm-starts them all at the next
+        point (each: the last continuation stages, best first, stopping at a design that attains the
+        objective's lower bound); the placement starts run at a chunk's first point and whenever the
+        pool has collapsed to one optimum (the same gain, or the same kappa2: mirror images).  With
+        objective kappa2, at a chunk's first point and wherever the pool's best is above 1, the
+        session first probes for a normal closed loop (kappa2 = 1) in the region (an accelerator
+        only: :func:`~optdesign.design.well_conditioned.normal_probe.normal_closed_loop`).
         ``"always"``: every point also runs the ``starts`` placement starts (robust: a point does
         not depend on the warm start alone), the previous point's design as the warm start;
         ``"fallback"``: a solve from the warm start alone first, the placement starts only when
         there is no warm start or its solve does not succeed (first point of a chunk) -- fast along
-        smooth paths, but it follows one local optimum along the chunk; ``"pool"``: the session
-        keeps the distinct verified local optima of the previous point (its design and every
-        start's answer, :func:`merge_pool`) and warm-starts them all at the next point (each: the
-        last continuation stages, best first, stopping at a design that attains the objective's
-        lower bound); the placement starts run at a chunk's first point and whenever the pool has
-        collapsed to one optimum (the same gain, or the same kappa2: mirror images).  Measured on
-        DIS2 (``benchmarks/results/sweep.md``): 0.25-0.65x the CPU of ``"always"``, its kappa2 (to 5e-9)
-        at every point of the 40-point block, the 200-point sweep and the grid's first 50 points.
-        With objective kappa2, where the pool's best is above 1 the pool first probes for a normal
-        closed loop (kappa2 = 1) in the region (an accelerator only:
-        :func:`~optdesign.design.well_conditioned.normal_probe.normal_closed_loop`): on the
-        1,000-point grid (``benchmarks/results/sweep_grid.md``) 0 points worse than ``"always"`` (9
-        without the probe, up to 1.16x), 9 better, 0.6x its CPU.
+        smooth paths, but it follows one local optimum along the chunk.  Measured on DIS2's
+        1,000-point grid (``benchmarks/results/sweep_grid.md``): ``"pool"`` 0.6x the CPU of ``"always"``,
+        never worse than it (by 0.1 %), better at 14 points (the probe's normal closed loops).
     reuse : bool, default True
         Solve every point on one problem object per worker thread (:meth:`design_problem`), so that
         its NLPs are built once and re-solved; False builds a new problem for every point (for
@@ -290,7 +288,7 @@ class RegionSweepDesigner:
     starts: int = 2
     seed: int = 0
     warm_start: bool = True
-    placement: str = "always"
+    placement: str = "pool"
     reuse: bool = True
     pole_scale: float | None = None
     options: Mapping[str, Any] | None = None
@@ -496,15 +494,15 @@ class _RegionSession:
 
     def _normal_probe(self, pool: list[tuple[float, NDArray[np.float64]]], region: Region,
                       point: Mapping[str, float]) -> NDArray[np.float64] | None:
-        """``placement="pool"``, objective kappa2, a pool whose best is above the lower bound 1: a gain
-        with a normal closed loop in the region (:func:`normal_closed_loop`), or None (also when the
-        probe does not apply).  Its starts: the closest normal matrix of the chunk's previous probe
+        """``placement="pool"`` with warm starts, objective kappa2, a chunk's first point or a pool whose
+        best is above the lower bound 1: a gain with a normal closed loop in the region
+        (:func:`normal_closed_loop`), or None (also when the probe does not apply).  Its starts: the closest normal matrix of the chunk's previous probe
         (a continuation of the probe's own problem) and one random start per block layout; the
         pool's designs as starts did not help (measured: ``benchmarks/results/sweep_grid.md``)."""
         d = self.d
-        if d.placement != "pool" or d.objective != "kappa2" or not pool:
+        if d.placement != "pool" or d.objective != "kappa2" or not d.warm_start:
             return None
-        if pool[0][0] <= 1.0 + kappa2_agreement_tol(1.0):
+        if pool and pool[0][0] <= 1.0 + kappa2_agreement_tol(1.0):
             return None
         plant = d._plant()
         if normal_freedom(plant.n, plant.p) < 0:

@@ -111,16 +111,22 @@ def _start_from(X: NDArray | None, V0: NDArray, region: Region, layout: tuple[in
     return tuple(sizes), Z.T @ V0, np.asarray(lam)
 
 
-def _gram_residual(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, ...], k: int, x: NDArray,
-                   delta: float) -> tuple[NDArray, NDArray, NDArray]:
+def _q_factor(Y: NDArray) -> NDArray:
+    """The Q factor of ``Y = Q R`` ((n, k), n >= k), as ``np.linalg.qr(Y)[0]`` (the same LAPACK
+    Householder routines ``dgeqrf`` + ``dorgqr``, without its wrapper: 4 against 21 us at n = 3)."""
+    qr, tau, _, _ = scipy.linalg.lapack.dgeqrf(Y)
+    return scipy.linalg.lapack.dorgqr(qr, tau)[0]
+
+
+def _gram_residual(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, ...], iu: tuple[NDArray, NDArray],
+                   x: NDArray, delta: float) -> tuple[NDArray, NDArray, NDArray]:
     """``(residual, M, Lambda)``: ``M = qf(Y)`` (orthonormal columns), residual ``M' Lam M - G1``,
     the upper triangle of ``M' Lam' Lam M - G2`` and the region hinge ``max(0, g + delta)``."""
-    n = sum(layout)
-    M = np.linalg.qr(x[:n * k].reshape(n, k))[0]
+    n, k = sum(layout), G1.shape[0]
+    M = _q_factor(x[:n * k].reshape(n, k))
     Lam, poles = _blocks(layout, x[n * k:])
     LM = Lam @ M
     g = np.asarray(region.constraints(poles.real, poles.imag), dtype=float) + delta
-    iu = np.triu_indices(k)
     r = np.concatenate([(M.T @ LM - G1).ravel(), (LM.T @ LM - G2)[iu], np.maximum(0.0, g).ravel()])
     return r, M, Lam
 
@@ -133,18 +139,19 @@ def _solve_layout(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, .
     k = M0.shape[1]
     x = np.concatenate([M0.ravel(), lam0])
     h = math.sqrt(_EPS) * max(1.0, float(np.max(np.abs(x))))
-    r, M, Lam = _gram_residual(G1, G2, region, layout, k, x, delta)
+    iu = np.triu_indices(k)  # (the upper triangle of the k x k Gram residual; once per start)
+    r, M, Lam = _gram_residual(G1, G2, region, layout, iu, x, delta)
     cost, mu = float(r @ r), 1e-3
     eye = np.eye(x.size)
     for _ in range(iters):
         if np.linalg.norm(r) <= tol:
             return True, float(np.linalg.norm(r)), M, Lam
-        J = np.column_stack([(_gram_residual(G1, G2, region, layout, k, x + h * e, delta)[0] - r) / h
+        J = np.column_stack([(_gram_residual(G1, G2, region, layout, iu, x + h * e, delta)[0] - r) / h
                              for e in eye])
         JtJ, grad = J.T @ J, J.T @ r
         while mu < 1e10:
             xn = x - np.linalg.solve(JtJ + mu * (np.diag(np.diag(JtJ)) + 1e-12 * eye), grad)
-            out = _gram_residual(G1, G2, region, layout, k, xn, delta)
+            out = _gram_residual(G1, G2, region, layout, iu, xn, delta)
             cn = float(out[0] @ out[0])
             if cn < cost:
                 x, cost, mu = xn, cn, max(mu / 3.0, 1e-12)
