@@ -15,7 +15,8 @@ references: ``always``, ``cold`` and the issue's baseline, the cold mode on the 
 
     git clone -q . /tmp/base && git -C /tmp/base checkout -q 4b45ef1
     cp benchmarks/bench_sweep_grid.py /tmp/base/benchmarks/
-    cd /tmp/base/benchmarks && PYTHONPATH=/tmp/base python bench_sweep_grid.py run cold --label baseline --json base.json
+    cd /tmp/base/benchmarks
+    PYTHONPATH=/tmp/base python bench_sweep_grid.py run cold --label baseline --json base.json
 
 Numbers, not pass/fail.
 """
@@ -41,8 +42,8 @@ CHUNK = 25
 #: the label of the issue's baseline run (the cold mode on the code of BASELINE_COMMIT)
 BASELINE = "baseline"
 BASELINE_COMMIT = "4b45ef1"
-MODES = {"always": {"placement": "always"}, "pool": {"placement": "pool"}, "fallback": {"placement": "fallback"},
-         "cold": {"warm_start": False, "placement": "always"}}
+MODES = {"always": {"placement": "always"}, "pool": {"placement": "pool"},
+         "fallback": {"placement": "fallback"}, "cold": {"warm_start": False, "placement": "always"}}
 
 
 def points() -> list[dict]:
@@ -95,7 +96,8 @@ def report(files: list[str], out: str) -> None:
         "",
         "| mode | points | verified | mean CPU ms/point | median CPU ms/point | total CPU s "
         + "".join(f"| {k} mean / mean " for k in refs)
-        + "".join(f"| kappa2 worse than {k} by > 0.1 % | worst / {k} | better than {k} by > 0.1 % " for k in refs)
+        + "".join(f"| kappa2 worse than {k} by > 0.1 % | worst / {k} | better than {k} by > 0.1 % "
+                  for k in refs)
         + "|",
         "|---|---|---|---|---|---|" + "---|" * (4 * len(refs)),
     ]

@@ -311,7 +311,8 @@ def test_region_designer_probes_a_chunks_first_point():
     assert first.solver_stats.extra["nlp_builds"] == 0 and first.solver_stats.iterations == 0
     poles = np.linalg.eigvals(DESIGNER._plant().A - first.L @ DESIGNER._plant().C)
     assert (HalfPlane(1.0) & Sector.from_damping(0.5) & Disk(0.0, 20.0)).contains(poles, tol=1e-9)
-    always = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, placement="always")(alpha=1.0, zeta=0.5)
+    always = RegionSweepDesigner(problem="compleib_dis2", radius=20.0, placement="always")
+    always = always(alpha=1.0, zeta=0.5)
     assert always.success and always.solver_stats.iterations > 0
     assert always.kappa2 == pytest.approx(1.0, abs=1e-6)
 

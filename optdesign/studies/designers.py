@@ -69,10 +69,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
+from ..design.verification import kappa2_agreement_tol
 from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
 from ..design.well_conditioned.normal_probe import normal_closed_loop, normal_freedom
 from ..design.well_conditioned.problem import Objective
-from ..design.verification import kappa2_agreement_tol
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
@@ -496,9 +496,10 @@ class _RegionSession:
                       point: Mapping[str, float]) -> NDArray[np.float64] | None:
         """``placement="pool"`` with warm starts, objective kappa2, a chunk's first point or a pool whose
         best is above the lower bound 1: a gain with a normal closed loop in the region
-        (:func:`normal_closed_loop`), or None (also when the probe does not apply).  Its starts: the closest normal matrix of the chunk's previous probe
-        (a continuation of the probe's own problem) and one random start per block layout; the
-        pool's designs as starts did not help (measured: ``benchmarks/results/sweep_grid.md``)."""
+        (:func:`normal_closed_loop`), or None (also when the probe does not apply).  Its starts: the
+        closest normal matrix of the chunk's previous probe (a continuation of the probe's own
+        problem) and one random start per block layout; the pool's designs as starts did not help
+        (measured: ``benchmarks/results/sweep_grid.md``)."""
         d = self.d
         if d.placement != "pool" or d.objective != "kappa2" or not d.warm_start:
             return None
