@@ -54,7 +54,6 @@ import numpy as np  # noqa: E402
 import scipy.linalg as sl  # noqa: E402
 
 from optdesign import InverseKalmanProblem, Plant, kalman_for_poles  # noqa: E402
-
 from optdesign.analysis.metrics import eigenvalue_rounding_floor  # noqa: E402
 from optdesign.classical.placement import pole_error  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
@@ -118,35 +117,44 @@ def timed_median(fn):
     return out, float(np.median(times))
 
 
-def minimal_sdp(plant: Plant, L, reuse: bool) -> tuple[float, float]:
+def _min_sdp_problem(A, C, LR, LRL):
+    """The issue's minimal SDP (cvxpy) for the data ``L R`` and ``L R L'`` (arrays or Parameters):
+    ``(problem, Q variable)``."""
+    import cvxpy as cp
+
+    n = A.shape[0]
+    P = cp.Variable((n, n), symmetric=True)
+    Q = cp.Variable((n, n), PSD=True)
+    return cp.Problem(cp.Minimize(cp.trace(Q)), [P @ C.T == LR, Q == LRL - A @ P - P @ A.T]), Q
+
+
+def minimal_sdp(plant: Plant, L, reuse: bool, check_target=None) -> tuple[float, float]:
     """The issue's minimal SDP at the gain L: ``(trace Q, CPU seconds of the timed solve)``.
     ``reuse``: L R and L R L' are cvxpy Parameters, solved once (compilation), re-bound and the
-    re-solves timed (:func:`timed_median`); else built and solved once, all timed."""
+    re-solves timed (:func:`timed_median`); else built and solved once, all timed.  ``check_target``
+    (poles; with ``reuse``): each timed re-solve is followed by the check a careful user adds by hand,
+    :func:`independent_check` (scipy's Riccati re-solve with the SDP's Q reproduces L and the poles)."""
     import cvxpy as cp
 
     A, C, R = plant.A, plant.C, plant.R
     n, p = A.shape[0], C.shape[0]
-
-    def build(LR, LRL):
-        P = cp.Variable((n, n), symmetric=True)
-        Q = cp.Variable((n, n), PSD=True)
-        return cp.Problem(cp.Minimize(cp.trace(Q)), [P @ C.T == LR, Q == LRL - A @ P - P @ A.T]), Q
-
     LRv, LRLv = L @ R, L @ R @ L.T
     LRLv = 0.5 * (LRLv + LRLv.T)
     if not reuse:
         t0 = time.process_time()
-        prob, Q = build(LRv, LRLv)
+        prob, Q = _min_sdp_problem(A, C, LRv, LRLv)
         prob.solve(solver="CLARABEL")
         return float(np.trace(Q.value)) if Q.value is not None else float("nan"), time.process_time() - t0
     LR, LRL = cp.Parameter((n, p)), cp.Parameter((n, n), symmetric=True)
-    prob, Q = build(LR, LRL)
+    prob, Q = _min_sdp_problem(A, C, LR, LRL)
     LR.value, LRL.value = LRv, LRLv
     prob.solve(solver="CLARABEL")
 
     def resolve():
         LR.value, LRL.value = LRv.copy(), LRLv.copy()
         prob.solve(solver="CLARABEL")
+        if check_target is not None and Q.value is not None:
+            independent_check(plant, check_target, L, Q.value)
 
     _, t = timed_median(resolve)
     return float(np.trace(Q.value)) if Q.value is not None else float("nan"), t
@@ -174,8 +182,9 @@ def verb_ratio(reps: int = 7) -> str:
         rn = np.random.default_rng(n)
         drawn += [(n, k, random_target(rn, n, 1)) for k in range(3)]
     lines = ["| n, p | target | rounding floor of its poles | verb status | verified | verb CPU ms "
-             "| held problem CPU ms | min-SDP re-used CPU ms | verb / min-SDP | held / min-SDP |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| held problem CPU ms | min-SDP re-used CPU ms | verb / min-SDP | held / min-SDP "
+             "| min-SDP + scipy check CPU ms | verb / (min-SDP + check) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for n, k, (plant, are) in sorted(drawn, key=lambda d: (d[0], d[1])):
         held = InverseKalmanProblem(plant)
         held.solve(are.poles)
@@ -183,12 +192,14 @@ def verb_ratio(reps: int = 7) -> str:
         for _ in range(reps):
             r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
             tv.append(t)
-            th.append(timed(lambda tg=are.poles: held.solve(tg))[1])
+            th.append(timed(lambda tg=are.poles, h=held: h.solve(tg))[1])
             tr.append(minimal_sdp(plant, r.L, reuse=True)[1])
         v, h, m = float(np.median(tv)), float(np.median(th)), float(np.median(tr))
+        mc = minimal_sdp(plant, r.L, reuse=True, check_target=are.poles)[1]
         floor = eigenvalue_rounding_floor(plant.A - are.L @ plant.C)
         lines.append(f"| {n}, 1 | {k} | {floor:.1e} | {r.status.value} | {r.success} | {1e3 * v:.2f} | "
-                     f"{1e3 * h:.2f} | {1e3 * m:.2f} | {v / m:.2f}x | {h / m:.2f}x |")
+                     f"{1e3 * h:.2f} | {1e3 * m:.2f} | {v / m:.2f}x | {h / m:.2f}x | {1e3 * mc:.2f} | "
+                     f"{v / mc:.2f}x |")
         print(lines[-1], flush=True)
     return "\n".join(lines)
 
@@ -689,8 +700,8 @@ def main() -> None:
         write_md("inverse_kalman_verb_ratio.md",
                  "# kalman_for_poles (the verb), one output, vs the re-used minimal cvxpy SDP\n\n`python "
                  "benchmarks/bench_inverse_kalman.py --verb-ratio` (CPU time, medians of 7 interleaved calls "
-                 "per target; the main run's targets, then 3 at each of n = " + ", ".join(map(str, VERB_SIZES))
-                 + ")", verb_ratio())
+                 "per target; the main run's targets, then 3 at each of n = "
+                 + ", ".join(map(str, VERB_SIZES)) + ")", verb_ratio())
         return
     if args.first_try:
         write_md("inverse_kalman_one_output_tolerances.md",
