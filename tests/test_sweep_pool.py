@@ -166,3 +166,43 @@ def test_pool_equals_placement_always_on_a_short_chunk():
         ir += b.solver_stats.iterations
     np.testing.assert_allclose(kp, kr, rtol=1e-6)
     assert ip < ir
+
+
+def test_pool_leaves_out_a_starts_unimproved_gain():
+    """COMPleib HE1, alpha 0.75: at zeta 0.8 a start whose NLP stages all fail answers with its own gain
+    (stage "start gain"); that is not a local optimum, so it is not in ``extra["local_optima"]`` nor in
+    the pool.  With it the pool looked like two optima, the placement starts did not run again at zeta
+    0.6 and the chunk stayed at kappa2 43.5 (then 39.7); without it they run and reach 26.16, the kappa2
+    of placement="always" there."""
+    chunk = RegionSweepDesigner(problem="compleib_he1", objective="kappa2", radius=10.0, starts=2,
+                                placement="pool").start_chunk()
+    first = chunk(alpha=0.75, zeta=0.8)
+    assert first.success
+    unimproved = {r.index for r in first.starts if r.message.endswith("[start gain]")}
+    assert {o.index for o in first.extra["local_optima"]}.isdisjoint(unimproved)
+    second = chunk(alpha=0.75, zeta=0.6)
+    assert second.success and second.kappa2 < 30.0
+
+
+def test_local_optima_are_improved_verified_answers():
+    """``local_optima``: verified, finite answers best first; a failed answer is left out, and so is a
+    start's own unimproved gain (stage "start gain") unless it attains the objective's lower bound (a
+    global optimum)."""
+    from optdesign.design.well_conditioned.evaluation import Candidate
+    from optdesign.design.well_conditioned.problem import local_optima
+    from optdesign.results import Check, Status, Verification
+
+    passed = Verification.of([Check.at_most("x", 0.0, 1.0)])
+    failed = Verification.of([Check.at_most("x", 2.0, 1.0)])
+
+    def cand(v, stage):
+        return Candidate(np.full((2, 1), v), None, None, Status.OPTIMAL, "", "", 0, 0.0, stage=stage)
+
+    evaluated = [(3.0, 0, {}, passed, cand(3.0, "RegionNLP J=12")),
+                 (1.5, 1, {}, passed, cand(1.5, "start gain")),
+                 (2.0, 2, {}, passed, cand(2.0, "FixedPoleNLP J=12")),
+                 (1.0, 3, {}, failed, cand(1.0, "x"))]
+    assert [(o.objective, o.index) for o in local_optima(evaluated)] == [(2.0, 2), (3.0, 0)]
+    at_bound = evaluated + [(1.0, 4, {}, passed, cand(1.0, "start gain"))]
+    assert [o.index for o in local_optima(at_bound, bound=1.0)] == [4, 2, 0]
+    assert [o.index for o in local_optima(at_bound)] == [2, 0]

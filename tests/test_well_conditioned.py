@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -212,6 +213,40 @@ def test_region_warm_start_runs_only_the_last_stages(monkeypatch):
                        warm_start=tight, starts=0)
     assert loose.success and loose.kappa2 <= tight.kappa2 * (1 + 1e-9)
     assert calls == {"ipopt": 2, "placement": 0}
+
+
+def test_a_start_that_fails_two_stages_still_runs_its_last_stage(monkeypatch):
+    """kappa2: after two failed (unverified) stages a start runs only its last stage, once, from its own
+    gain -- not all the stages, and not none (giving up kept COMPleib HE1's start gain, kappa2 725, where
+    the last stage reaches 50.24: test_sweep.py).  A start whose first stage passes runs them all."""
+    from optdesign.design.well_conditioned import nlp_route
+
+    def run(passing):
+        ran, inits = [], []
+
+        class FakeNLP:
+            def continuation(self, stages):
+                return (0, 3, 6, 12), ran.append
+
+            def set_initial_gain(self, L):
+                inits.append(len(ran))
+
+            def warm_start(self, snap):
+                pass
+
+            def snapshot(self, value):
+                return value
+
+        monkeypatch.setattr(nlp_route, "solve_nlp", lambda nlp, opts, deadline: SimpleNamespace(value=None))
+        monkeypatch.setattr(nlp_route, "read_candidate", lambda nlp, rep, stage: (stage, True))
+        hist = nlp_route.run_start(FakeNLP(), np.zeros((2, 1)), "kappa2", {}, verified=passing)
+        return ran, inits, hist
+
+    ran, inits, hist = run(lambda stage: stage.endswith("J=12"))
+    assert ran == [0, 3, 12] and hist == ["FakeNLP J=0", "FakeNLP J=3", "FakeNLP J=12"]
+    assert inits == [0, 1, 2]  # from the start's gain before each stage while none has passed
+    assert run(lambda stage: False)[0] == [0, 3, 12]
+    assert run(lambda stage: True)[0] == [0, 3, 6, 12]
 
 
 def test_region_polish_last_runs_fewer_solves(monkeypatch):
