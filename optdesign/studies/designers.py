@@ -71,6 +71,7 @@ from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
 from ..design.verification import kappa2_agreement_tol
 from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
+from ..design.well_conditioned.evaluation import objective_lower_bound
 from ..design.well_conditioned.normal_probe import normal_closed_loop, normal_freedom
 from ..design.well_conditioned.problem import Objective
 from ..errors import ValidationError
@@ -503,9 +504,10 @@ class _RegionSession:
         d = self.d
         if d.placement != "pool" or d.objective != "kappa2" or not d.warm_start:
             return None
-        if pool and pool[0][0] <= 1.0 + kappa2_agreement_tol(1.0):
-            return None
         plant = d._plant()
+        bound = objective_lower_bound(d.objective, plant.n)
+        if bound is None or (pool and pool[0][0] <= bound * (1.0 + kappa2_agreement_tol(bound))):
+            return None
         if normal_freedom(plant.n, plant.p) < 0:
             return None
         starts = [] if self.probe_F is None else [self.probe_F]

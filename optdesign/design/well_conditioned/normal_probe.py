@@ -30,7 +30,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..._validate import as_int, as_matrix, as_rng
+from ..._validate import as_int, as_matrix, as_rng, as_square
 from ...analysis import metrics
 from ...errors import DimensionError, ValidationError
 from ...model.regions import Region
@@ -99,10 +99,8 @@ def normal_closed_loop(A: ArrayLike, C: ArrayLike, region: Region, *, starts: Se
         ``region`` not a Region; ``C`` rank deficient; ``random_starts`` or ``max_iter`` not an
         integer in range; a bad ``seed``.
     """
-    A = as_matrix("A", A)
+    A = as_square("A", A)
     n = A.shape[0]
-    if A.shape != (n, n):
-        raise DimensionError(f"A must be square; found shape {A.shape}")
     C = as_matrix("C", C)
     if C.shape[1] != n or not 1 <= C.shape[0] <= n:
         raise DimensionError(f"C must be (p, {n}) with 1 <= p <= {n}; found shape {C.shape}")
