@@ -20,6 +20,16 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20261124)
 
 
+@pytest.fixture
+def general_one_output_route(monkeypatch):
+    """The one-output engine without its first route, the n-constraint form
+    (:mod:`optdesign.solvers.one_output_sdp`): for the tests of what runs when that form certifies
+    nothing (the dense IPM, Clarabel on the direct form, the first try, the repair)."""
+    from optdesign.solvers import inverse_kalman_engine as engine
+
+    monkeypatch.setattr(engine, "_one_output_form", lambda *a, **k: None)
+
+
 def random_observable_plant(rng: np.random.Generator, n: int, p: int, *, stable: bool | None = None,
                             dt: float | None = None, noise: bool = True):
     """A random observable plant (continuous unless dt), optionally forced stable/unstable."""

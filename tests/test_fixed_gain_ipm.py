@@ -136,7 +136,8 @@ def _route(res):
 
 
 @pytest.mark.parametrize("n", [10, 20])
-def test_bench_targets_through_kalman_for_poles_are_verified_and_equal_the_clarabel_route(n, monkeypatch):
+def test_bench_targets_through_kalman_for_poles_are_verified_and_equal_the_clarabel_route(
+        n, monkeypatch, general_one_output_route):
     plant, are = _bench_targets(n)[0]      # the computable target of each size (floor <= 3e-6)
     res = kalman_for_poles(plant, are.poles)
     assert res.success, res.message
@@ -149,7 +150,7 @@ def test_bench_targets_through_kalman_for_poles_are_verified_and_equal_the_clara
     assert res.status == ref.status
 
 
-def test_failed_ipm_falls_back_to_clarabel(monkeypatch):
+def test_failed_ipm_falls_back_to_clarabel(monkeypatch, general_one_output_route):
     plant, are = _bench_targets(10)[1]
     ref = kalman_for_poles(plant, are.poles)
     assert _route(ref)["sdp"]["native"] == "ipm: optimal"
@@ -162,7 +163,7 @@ def test_failed_ipm_falls_back_to_clarabel(monkeypatch):
     assert abs(res.objective_value - ref.objective_value) <= AGREE * (1.0 + abs(ref.objective_value))
 
 
-def test_perturbed_ipm_point_still_ends_at_the_optimum(monkeypatch):
+def test_perturbed_ipm_point_still_ends_at_the_optimum(monkeypatch, general_one_output_route):
     """The IPM point only seeds the polish: a point far off the optimum (P moved along null(C)) is
     either polished to a KKT-certified optimum or solved again -- the design is the same."""
     plant, are = _bench_targets(10)[1]
@@ -182,7 +183,7 @@ def test_perturbed_ipm_point_still_ends_at_the_optimum(monkeypatch):
     assert abs(res.objective_value - ref.objective_value) <= AGREE * (1.0 + abs(ref.objective_value))
 
 
-def test_uncertified_ipm_point_is_solved_again_on_clarabel(monkeypatch):
+def test_uncertified_ipm_point_is_solved_again_on_clarabel(monkeypatch, general_one_output_route):
     """An IPM design whose KKT test fails is not kept: Clarabel solves the SDP as without the IPM."""
     plant, are = _bench_targets(10)[1]
     ref = kalman_for_poles(plant, are.poles)
@@ -200,7 +201,7 @@ def test_uncertified_ipm_point_is_solved_again_on_clarabel(monkeypatch):
     assert abs(res.objective_value - ref.objective_value) <= AGREE * (1.0 + abs(ref.objective_value))
 
 
-def test_other_objectives_and_small_systems_do_not_use_the_ipm():
+def test_other_objectives_and_small_systems_do_not_use_the_ipm(general_one_output_route):
     plant, are = _bench_targets(10)[1]
     res = kalman_for_poles(plant, are.poles, objective="nearest", Q_nominal=np.eye(10))
     assert _route(res)["sdp"]["native"] != "ipm: optimal"

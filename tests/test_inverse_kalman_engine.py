@@ -18,6 +18,7 @@ import pytest
 import scipy.linalg as sl
 from conftest import FULL, random_observable_plant
 
+import optdesign.solvers.inverse_kalman_engine as engine_module
 from optdesign import Plant, Status, kalman_for_poles, problems
 from optdesign._deadline import Deadline
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
@@ -506,19 +507,24 @@ def test_cross_validation_reduced():
     assert seen == 9
 
 
-def test_single_output_inaccurate_sdp_point_is_repaired_and_certified():
+def test_single_output_inaccurate_sdp_point_is_repaired_and_certified(monkeypatch):
     """Target 152 of the generator (n = 10, one output, rank-one Q: a boundary target): Clarabel
-    solves its fixed-gain SDP only to reduced accuracy, with eigenvalues of Q down to -5e-3 of the
-    largest -- no face fits; Gauss-Newton and Newton from its PSD part reach the exact optimum, whose
-    dual slack certifies it (the verb needs its spectral SDP there)."""
+    solves its fixed-gain SDP in the direct form only to reduced accuracy, with eigenvalues of Q down
+    to -5e-3 of the largest -- no face fits; Gauss-Newton and Newton from its PSD part reach the
+    exact optimum, whose dual slack certifies it (the verb needs its spectral SDP there).  The
+    n-constraint form (the engine's first route) solves and certifies it directly: the same optimum."""
     rng = np.random.default_rng(3)
     for k in range(153):
         plant, are, _ = _cv_target(rng, k)
+    first = solve_inverse_kalman(prepare_inverse_kalman(plant), are.poles)
+    assert first.details["sdp"]["form"] == "n constraints" and first.details["kkt"]["passed"]
+    monkeypatch.setattr(engine_module, "_one_output_form", lambda *a, **k: None)   # the general route
     res = solve_inverse_kalman(prepare_inverse_kalman(plant), are.poles)
     _assert_kalman(res, plant, are.poles)
-    assert res.status == Status.OPTIMAL and res.details["kkt"]["passed"]
+    assert res.status == Status.OPTIMAL and res.details["kkt"]["passed"] and "form" not in res.details["sdp"]
     ref = kalman_for_poles(plant, are.poles, method="sdp")
     assert res.objective_value == pytest.approx(ref.objective_value, rel=OBJ_RTOL)
+    assert first.objective_value == pytest.approx(res.objective_value, rel=OBJ_RTOL)
 
 
 @pytest.mark.slow

@@ -19,7 +19,12 @@ from optdesign.classical.riccati import (
     filter_are_terms,
     hamiltonian_are,
 )
-from optdesign.design.verification import AVOID_CHOICES, lean_riccati_checks, riccati_checks
+from optdesign.design.verification import (
+    AVOID_CHOICES,
+    lean_riccati_checks,
+    newton_kalman_checks,
+    riccati_checks,
+)
 from optdesign.errors import RiccatiError, ValidationError
 from optdesign.results import Status
 from optdesign.solvers import inverse_kalman_engine as engine
@@ -132,6 +137,72 @@ def test_discrete_designs_take_the_full_path():
     assert all(c.passed for c in checks)
 
 
+# ------------------------------------------------------- the Newton-step checks (one output)
+
+
+def _discrete_design(seed: int, n: int):
+    rng = np.random.default_rng(seed)
+    cplant = random_observable_plant(rng, n, 1, noise=True)
+    A = cplant.A / (1.1 * max(1.0, float(np.max(np.abs(np.linalg.eigvals(cplant.A))))))
+    plant = Plant(A, cplant.C, R=cplant.R, dt=0.1)
+    F = rng.standard_normal((n, n))
+    Q = F @ F.T / n
+    are = filter_are(plant.replace(G=None, Q=Q))
+    return plant, are.L, are.P, Q, are.poles
+
+
+@pytest.mark.parametrize("dt", [None, 0.1])
+@pytest.mark.parametrize("seed, n", [(0, 2), (1, 4), (2, 7), (3, 12)])
+def test_newton_checks_pass_exact_designs_with_the_full_checks_values(seed, n, dt):
+    if dt is None:
+        plant, L, P, Q = _design(seed, n)
+        target = np.linalg.eigvals(plant.A - L @ plant.C)
+    else:
+        plant, L, P, Q, target = _discrete_design(seed, n)
+    out = newton_kalman_checks(plant, L, P, Q, target, 1e-8)
+    assert out is not None
+    checks, poles = out
+    assert [c.name for c in checks] == ["pole_error", "riccati_residual", "forward_error", "Q_min_eig",
+                                        "P_min_eig", "are_resolve_gain", "are_resolve_poles"]
+    assert all(c.passed for c in checks)
+    full, _, err = riccati_checks(plant, L, P, Q, avoid="scipy")
+    by = {c.name: c for c in full}
+    for c in checks[1:5]:   # the same residual, estimate and PSD values as the full checks
+        assert c.value == pytest.approx(by[c.name].value, rel=1e3 * n * EPS, abs=10 * n * EPS)
+    # the Newton step's gain is the re-solve's to the error estimates of both
+    gain = checks[5]
+    assert gain.value <= gain.tolerance
+    assert abs(gain.value - by["are_resolve_gain"].value) <= 2 * gain.tolerance
+    assert np.array_equal(poles, np.sort_complex(poles)) or poles.size == np.unique(poles).size
+
+
+@pytest.mark.parametrize("dt", [None, 0.1])
+def test_newton_checks_defer_every_failure_to_the_full_checks(dt):
+    if dt is None:
+        plant, L, P, Q = _design(4, 5)
+        target = np.linalg.eigvals(plant.A - L @ plant.C)
+    else:
+        plant, L, P, Q, target = _discrete_design(4, 5)
+    assert newton_kalman_checks(plant, L, P, Q, target, 1e-8) is not None
+    assert newton_kalman_checks(plant, L, P * (1 + 1e-5), Q, target, 1e-8) is None         # residual
+    assert newton_kalman_checks(plant, L * (1 + 1e-7), P, Q, target, 1e-8) is None         # gain, poles
+    assert newton_kalman_checks(plant, L, P, Q, target * (1 + 1e-4), 1e-8) is None         # poles
+    w, U = np.linalg.eigh(Q)
+    Qneg = Q - (w[0] + 1e-3 * w[-1]) * np.outer(U[:, 0], U[:, 0])                          # not PSD
+    assert newton_kalman_checks(plant, L, P, Qneg, target, 1e-8) is None
+    assert newton_kalman_checks(plant.replace(R=None), L, P, Q, target, 1e-8) is None
+
+
+def test_kalman_for_poles_verifies_one_output_with_the_newton_checks():
+    plant = Plant([[0.0, 1.0], [-6.0, -5.0]], [[1.0, 0.0]], R=[[1.0]])
+    res = kalman_for_poles(plant, [-5, -8])
+    assert res.success and "Newton step" in res.verification["are_resolve_gain"].detail
+    # a target whose poles are not computable to tol: the full checks decide and report it
+    plant, poles = _uncomputable_target()
+    res = kalman_for_poles(plant, poles)
+    assert not res.success and "Newton step" not in res.verification["are_resolve_gain"].detail
+
+
 def test_bad_avoid_raises_even_without_a_re_solve():
     plant, L, P, Q = _design(0, 3)
     assert "none" in AVOID_CHOICES
@@ -189,7 +260,7 @@ TIGHT = {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10}
 
 
 @pytest.mark.parametrize("k", range(4))
-def test_first_try_gives_the_tight_solves_design(k, monkeypatch):
+def test_first_try_gives_the_tight_solves_design(k, monkeypatch, general_one_output_route):
     plant, poles = _one_output_targets()[k]
     monkeypatch.setattr(engine, "ONE_OUTPUT_FIRST_TRY_MIN_DIM", 0)   # small systems: fast tests
     fast = kalman_for_poles(plant, poles)
@@ -205,7 +276,7 @@ def test_first_try_gives_the_tight_solves_design(k, monkeypatch):
     np.testing.assert_allclose(fast.L, tight.L, rtol=0, atol=1e-7 * max(1.0, float(np.linalg.norm(tight.L))))
 
 
-def test_first_try_that_fails_is_solved_again_at_full_accuracy(monkeypatch):
+def test_first_try_that_fails_is_solved_again_at_full_accuracy(monkeypatch, general_one_output_route):
     plant, poles = _one_output_targets()[2]
     monkeypatch.setattr(engine, "ONE_OUTPUT_FIRST_TRY_MIN_DIM", 0)
     ref = kalman_for_poles(plant, poles)
@@ -217,7 +288,7 @@ def test_first_try_that_fails_is_solved_again_at_full_accuracy(monkeypatch):
     assert float(np.trace(again.Q)) == pytest.approx(float(np.trace(ref.Q)), rel=1e-9)
 
 
-def test_other_objectives_and_small_systems_skip_the_first_try(monkeypatch):
+def test_other_objectives_and_small_systems_skip_the_first_try(monkeypatch, general_one_output_route):
     plant, poles = _one_output_targets()[1]
     calls = _spy_on_solve_fixed_gain(monkeypatch)
     kalman_for_poles(plant, poles)   # n - p = 2: below ONE_OUTPUT_FIRST_TRY_MIN_DIM
@@ -256,7 +327,7 @@ def _uncomputable_target():
     return out
 
 
-def test_an_uncomputable_target_is_not_solved_twice(monkeypatch):
+def test_an_uncomputable_target_is_not_solved_twice(monkeypatch, general_one_output_route):
     plant, poles = _uncomputable_target()
     calls = _spy_on_solve_fixed_gain(monkeypatch)
     res = kalman_for_poles(plant, poles)

@@ -29,6 +29,7 @@ Sun, J.-G., "Perturbation theory for algebraic Riccati equations", SIAM J. Matri
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -104,19 +105,28 @@ def rounding_response(F: NDArray, magnitude: NDArray, discrete: bool, *, samples
                             seed=seed)
 
 
+@functools.lru_cache(maxsize=128)
+def _sign_patterns(n: int, samples: int, seed: int) -> tuple[NDArray, ...]:
+    """The seeded symmetric sign patterns of :func:`sampled_response` (drawn once per size; read-only)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(samples):
+        S = rng.choice([-1.0, 1.0], size=(n, n))
+        S = np.triu(S) + np.triu(S, 1).T
+        S.flags.writeable = False
+        out.append(S)
+    return tuple(out)
+
+
 def sampled_response(solve: Callable[[NDArray], NDArray], magnitude: NDArray, *, samples: int = 2,
                      seed: int = 0) -> float:
     """``max_k ||solve(magnitude o S_k)||_F`` over ``samples`` seeded random symmetric sign patterns
     ``S_k`` (``magnitude``: (n, n)): the sampling of :func:`rounding_response` for any solver of the
     operator equation (e.g. one that re-uses a Schur form); ``inf`` when a solve fails or is not
     finite."""
-    n = magnitude.shape[0]
-    rng = np.random.default_rng(seed)
     worst = 0.0
     with np.errstate(all="ignore"):
-        for _ in range(max(1, samples)):
-            S = rng.choice([-1.0, 1.0], size=(n, n))
-            S = np.triu(S) + np.triu(S, 1).T
+        for S in _sign_patterns(magnitude.shape[0], max(1, int(samples)), int(seed)):
             try:
                 nz = float(np.linalg.norm(solve(magnitude * S)))
             except (np.linalg.LinAlgError, ValueError):

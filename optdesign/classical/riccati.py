@@ -58,6 +58,7 @@ __all__ = [
     "filter_are_terms",
     "relative_residual",
     "are_error_of_terms",
+    "are_correction_of_terms",
     "hamiltonian_are",
     "symplectic_dare",
     "RESIDUAL_TOL",
@@ -625,13 +626,22 @@ def are_error_of_terms(A: NDArray, C: NDArray, R: NDArray, P: NDArray, res: NDAr
     arrays taken as validated).  In continuous time one real Schur form of ``F = A - L C`` serves
     the three Lyapunov solves of the estimate (the rounding response's two samples and the Newton
     correction), each as :func:`scipy.linalg.solve_continuous_lyapunov` does them."""
+    return are_correction_of_terms(A, C, R, P, res, terms, discrete)[0]
+
+
+def are_correction_of_terms(A: NDArray, C: NDArray, R: NDArray, P: NDArray, res: NDArray,
+                            terms: list[NDArray], discrete: bool) -> tuple[AREErrorEstimate, NDArray | None]:
+    """:func:`are_error_of_terms` and the Newton correction E itself (None when it could not be
+    computed): ``P + E`` is one Newton (Kleinman) step of the Riccati equation from P -- the
+    stabilizing solution to second order in the error of P when ``A - L C`` is stable."""
     n = A.shape[0]
+    inf = AREErrorEstimate(float("inf"), float("inf"), float("inf"))
     with np.errstate(all="ignore"):
         try:
             L = (A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R) if discrete
                  else np.linalg.solve(R, C @ P).T)
         except np.linalg.LinAlgError:
-            return AREErrorEstimate(float("inf"), float("inf"), float("inf"))
+            return inf, None
     F = A - L @ C
     magnitude = n * _EPS * (sum(np.abs(t) for t in terms) + np.abs(P))
     magnitude = 0.5 * (magnitude + magnitude.T)
@@ -641,15 +651,16 @@ def are_error_of_terms(A: NDArray, C: NDArray, R: NDArray, P: NDArray, res: NDAr
     else:
         solve, floor = _continuous_rounding_response(F, magnitude)
     if not np.isfinite(floor):
-        return AREErrorEstimate(float("inf"), float("inf"), float("inf"))
+        return inf, None
+    E: NDArray | None
     try:
         with np.errstate(all="ignore"):
             E = lyapunov_solve(F, res, discrete) if solve is None else solve(-res)
         corr = float(np.linalg.norm(E))
     except (np.linalg.LinAlgError, ValueError):
-        corr = float("inf")
+        E, corr = None, float("inf")
     nP = float(np.linalg.norm(P))
-    return AREErrorEstimate((corr + floor) / (nP if nP > 0 else 1.0), corr, floor)
+    return AREErrorEstimate((corr + floor) / (nP if nP > 0 else 1.0), corr, floor), E
 
 
 def _continuous_rounding_response(F: NDArray, magnitude: NDArray, samples: int = 2, seed: int = 0):

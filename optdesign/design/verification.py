@@ -90,6 +90,7 @@ from ..classical.placement import pole_error
 from ..classical.riccati import (
     AREErrorEstimate,
     AREResult,
+    are_correction_of_terms,
     are_error_of_terms,
     filter_are,
     filter_are_error,
@@ -112,11 +113,13 @@ __all__ = [
     "pole_tolerance",
     "pole_check",
     "resolve_pole_tolerance",
+    "resolve_poles_check",
     "stability_check",
     "psd_check",
     "psd_tolerance",
     "riccati_checks",
     "lean_riccati_checks",
+    "newton_kalman_checks",
     "forward_error_check",
     "independent_are",
     "ARE_SOLVERS",
@@ -228,6 +231,31 @@ def resolve_pole_tolerance(F: NDArray, dLC: NDArray, own_error: float, tol: floa
     return max(tol, own_error + ESTIMATE_FACTOR * move)
 
 
+def resolve_poles_check(A: NDArray, C: NDArray, L: NDArray, L_other: NDArray, other_poles: NDArray,
+                        target: NDArray, own: Check, gain_passed: bool, tol: float, detail: str, *,
+                        floor_known: bool = True) -> Check:
+    """``are_resolve_poles``: the poles ``other_poles`` of a second gain ``L_other`` (an independent
+    Riccati re-solve, or a Newton step from the design's P) against the targets.
+
+    The tolerance is the design's own (``own``, its ``pole_error`` check) when ``gain_passed`` (the
+    gains agree to their error estimates), else the rounding floor of the other gain's poles; when
+    that gain passed, the design's poles passed and the other poles still miss, it is raised by
+    :func:`resolve_pole_tolerance` (the first-order movement by the measured gain difference) --
+    after the rounding floor of the design's poles, when ``own`` was decided without it
+    (``floor_known`` False)."""
+    err = pole_error(other_poles, target)
+    ptol = own.tolerance if gain_passed else pole_tolerance(A - L_other @ C, tol)
+    if gain_passed and err > ptol and own.passed:
+        F = A - L @ C
+        if not floor_known:
+            ptol = max(ptol, pole_tolerance(F, tol))
+        if err > ptol:
+            ptol = resolve_pole_tolerance(F, (L_other - L) @ C, own.value, ptol)
+            detail += ("; tolerance: the design's pole error plus the first-order movement of its poles "
+                       "by the other gain's difference from L")
+    return Check.at_most("are_resolve_poles", err, ptol, detail)
+
+
 def stability_check(F: NDArray, discrete: bool) -> Check:
     """``stability_margin``: the poles of F must be stable by more than their rounding level."""
     poles = np.linalg.eigvals(F)
@@ -305,26 +333,33 @@ def independent_are(plant: Plant, *, avoid: str = "scipy") -> AREResult:
         return filter_are(plant, second, residual_tol=np.inf)
 
 
-def _gain_tolerance(plant: Plant, L: NDArray, P: NDArray, err_p: float, err_are: float) -> float:
+def _gain_tolerance(plant: Plant, L: NDArray, P: NDArray, err_p: float, err_are: float, *,
+                    norm_P: float | None = None) -> float:
     """How far two gains of (nearly) the same Riccati solution may differ: the gain is linear in P
     (``P C' R^-1``; discrete ``A P C' S^-1``, ``S = C P C' + R``), so by ``(err_p + err_are + the
     rounding of the gain formula, 10 n eps cond(R or S)) ||P|| ||dL/dP||``, relative to
-    ``max(1, ||L||)``; capped at :data:`FORWARD_ERROR_TOL`."""
+    ``max(1, ||L||)``; capped at :data:`FORWARD_ERROR_TOL`.  ``norm_P``: ``||P||_2`` when at hand."""
     C, R = plant.C, plant.R
     assert R is not None, "called after an independent filter_are of this plant, which needs its R"
     n = plant.n
     if plant.is_discrete:
         S = C @ P @ C.T + R
         Si = np.linalg.inv(S)
-        sens = float(np.linalg.norm(plant.A, 2)) * float(np.linalg.norm(C.T @ Si, 2)) * \
-            (1.0 + float(np.linalg.norm(C @ P @ C.T, 2)) * float(np.linalg.norm(Si, 2)))
-        cond = float(np.linalg.cond(S))
+        sens = float(np.linalg.norm(plant.A, 2)) * _norm2(C.T @ Si) * \
+            (1.0 + _norm2(C @ P @ C.T) * _norm2(Si))
+        cond = float(np.linalg.cond(S)) if S.shape[0] > 1 else 1.0
     else:
-        sens = float(np.linalg.norm(C.T @ np.linalg.inv(R), 2))
-        cond = float(np.linalg.cond(R))
+        sens = _norm2(C.T @ np.linalg.inv(R))
+        cond = float(np.linalg.cond(R)) if R.shape[0] > 1 else 1.0
     rel = err_p + err_are + 10.0 * n * _EPS * cond
-    tol = ESTIMATE_FACTOR * rel * float(np.linalg.norm(P, 2)) * sens / max(1.0, float(np.linalg.norm(L)))
+    nP = float(np.linalg.norm(P, 2)) if norm_P is None else float(norm_P)
+    tol = ESTIMATE_FACTOR * rel * nP * sens / max(1.0, float(np.linalg.norm(L)))
     return min(tol + 10.0 * n * _EPS, FORWARD_ERROR_TOL)
+
+
+def _norm2(X: NDArray) -> float:
+    """The 2-norm of a matrix (the Euclidean norm for a single row or column: no SVD)."""
+    return float(np.linalg.norm(X)) if min(X.shape) == 1 else float(np.linalg.norm(X, 2))
 
 
 def forward_error_check(err: AREErrorEstimate) -> Check:
@@ -439,6 +474,86 @@ def lean_riccati_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, *, wha
         return None
     are = AREResult(P=Pa, L=La, poles=poles, residual=relative_residual(res_a, terms_a), method="hamiltonian")
     return [*checks, gain], are, err
+
+
+def newton_kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, target: NDArray, tol: float, *,
+                         what: str = "the returned Q") -> tuple[list[Check], NDArray] | None:
+    """All the checks of a Kalman design with target poles that comes from no Riccati solver, at
+    the cost of its linear algebra (in continuous time one real Schur form): a pass, or None (the
+    caller then runs the full checks, which decide and report every failure).
+
+    The checks and their tolerance rules are those of :func:`pole_check` and :func:`riccati_checks`,
+    with two differences that make them cheap and keep them independent of the solver:
+
+    * ``pole_error`` is accepted within ``tol`` itself (the rounding floor of the poles -- an
+      eigenvector computation -- only ever raises the tolerance, and is left to the full checks);
+    * the Riccati re-solve is one Newton (Kleinman; discrete: Hewer) step of the equation with Q
+      from P, ``P1 = P + E`` with E the Newton correction that the forward error estimate computes
+      anyway (the Lyapunov / Stein operator of the closed loop of P's own gain; in continuous time
+      on the verification's own Schur form): the stabilizing solution to second order in the error
+      of P, since P's closed loop is stable (its poles are the targets) -- a Riccati solution whose
+      closed loop is stable is the stabilizing one.  ``are_resolve_gain`` compares the gain of P1
+      with L (tolerance :func:`_gain_tolerance` with the forward error of P for both solutions) and
+      ``are_resolve_poles`` its poles with the targets (:func:`resolve_poles_check`).
+
+    Parameters
+    ----------
+    plant : Plant
+        With R (continuous, or discrete: the predictor form, ``L = A P C' (C P C' + R)^-1``).
+    L : (n, p) ndarray
+    P, Q : (n, n) ndarray
+    target : (n,) ndarray of complex
+    tol : float
+        Pole accuracy required.
+
+    Returns
+    -------
+    (checks, poles) or None
+        ``pole_error``, ``riccati_residual``, ``forward_error``, ``Q_min_eig``, ``P_min_eig``,
+        ``are_resolve_gain``, ``are_resolve_poles`` -- every one passed -- and the poles of
+        ``A - L C`` sorted as :func:`pole_check` sorts them; None for a plant without R, or when
+        any check does not pass.
+    """
+    if plant.R is None:
+        return None
+    A, C, disc = plant.A, plant.C, plant.is_discrete
+    R = np.asarray(plant.R, dtype=float)
+    F = A - L @ C
+    poles = np.linalg.eigvals(F)
+    poles = poles[np.lexsort((poles.imag, poles.real))]
+    err = pole_error(poles, target)
+    ptol, detail = float(tol), "max relative distance of eig(A - L C) (numpy) to the targets"
+    if not err <= ptol:   # the rounding floor of the poles (an eigenvector computation) only when needed
+        ptol = pole_tolerance(F, tol)
+        detail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
+        if not err <= ptol:
+            return None
+    Qs = 0.5 * (Q + Q.T)
+    res, terms = filter_are_terms(A, C, R, Qs, P, disc)
+    est, E = are_correction_of_terms(A, C, R, P, res, terms, disc)
+    if E is None or not np.isfinite(est.relative):
+        return None
+    eig_p = np.linalg.eigvalsh(0.5 * (P + P.T))
+    checks = [Check.at_most("pole_error", err, ptol, detail),
+              *_kalman_checks(relative_residual(res, terms), est, Qs, P, what,
+                              q_eigenvalues=np.linalg.eigvalsh(Qs), p_eigenvalues=eig_p)]
+    with np.errstate(all="ignore"):
+        P1 = P + 0.5 * (E + E.T)
+        L1 = (np.linalg.solve(C @ P1 @ C.T + R, C @ P1 @ A.T).T if disc else np.linalg.solve(R, C @ P1).T)
+    if not np.all(np.isfinite(L1)):
+        return None
+    gtol = _gain_tolerance(plant, L, P, est.relative, est.relative, norm_P=float(np.max(np.abs(eig_p))))
+    checks.append(Check.at_most(
+        "are_resolve_gain", relative_difference(L1, L), gtol,
+        f"||L_are - L|| / max(1, ||L||), L_are the gain of one Newton step of the Riccati equation with "
+        f"{what} from P (the stabilizing solution to second order in P's error); tolerance from the "
+        f"error estimate of P"))
+    checks.append(resolve_poles_check(A, C, L, L1, np.linalg.eigvals(A - L1 @ C), target, checks[0],
+                                      checks[-1].passed, tol, "poles of that Newton step's gain vs the "
+                                      "targets", floor_known=ptol > tol))
+    if not all(c.passed for c in checks):
+        return None
+    return checks, poles
 
 
 def check_violation(check: Check, tolerance: float | None = None) -> float:

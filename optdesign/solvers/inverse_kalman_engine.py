@@ -58,6 +58,7 @@ Biegler, Math. Program. 106 (2006) (the filter line search).
 from __future__ import annotations
 
 import time
+import weakref
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -72,11 +73,20 @@ from ..classical.placement import pole_error
 from ..classical.riccati import filter_are_error, filter_are_residual
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
+from ..formulate.inverse_kalman.common import single_output_gain
 from ..model.plant import Plant
 from ..results import Check, DesignResult, SolverStats, Status, Verification
-from .clarabel_fixed_gain import FamilyMap, FixedGainSolution, family_map, fixed_gain_family, solve_fixed_gain
+from .clarabel_fixed_gain import (
+    GAIN_RELATION_RTOL,
+    FamilyMap,
+    FixedGainSolution,
+    family_map,
+    fixed_gain_family,
+    solve_fixed_gain,
+)
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
+from .one_output_sdp import OneOutputForm, lyapunov_P, one_output_form, solve_one_output
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
 
@@ -103,6 +113,12 @@ class EngineSetup:
         Noise input of the decision covariance (identity for ``"full"``, G otherwise).
     family : FamilyMap
         The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
+    one_output : OneOutputForm or None
+        One output, continuous time: the n-constraint form of the fixed-gain SDP
+        (:mod:`optdesign.solvers.one_output_sdp`), built once (in discrete time it depends on the
+        gain: built per target); None otherwise.
+    eig_A : (n,) ndarray
+        The eigenvalues of A (the applicability test of the one-output gain).
     verify : bool
         Check every returned design independently (:func:`solve_inverse_kalman`'s
         ``verification``); False when the caller verifies it itself (the public verb does, with
@@ -114,12 +130,19 @@ class EngineSetup:
     objective: str
     Gd: NDArray[np.float64]
     family: FamilyMap
+    one_output: OneOutputForm | None = None
+    eig_A: NDArray[np.complex128] | None = None
     verify: bool = True
 
     @property
     def k(self) -> int:
         """Size of the decision covariance."""
         return int(self.Gd.shape[1])
+
+    @property
+    def one_output_route(self) -> bool:
+        """The n-constraint form is tried first: one output, ``"full"`` / ``"min_trace"``."""
+        return self.plant.p == 1 and self.structure == "full" and self.objective == "min_trace"
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -201,8 +224,33 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
                               "has no R")
     plant.require_observable(what="placing every filter pole")
     Gd = np.eye(plant.n) if q_structure == "full" else np.asarray(plant.G, dtype=float)
-    return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd,
-                       family=family_map(plant.A, plant.C, plant.dt), verify=bool(verify))
+    parts = _plant_parts(plant)
+    return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=parts.family,
+                       one_output=parts.one_output, eig_A=parts.eig_A, verify=bool(verify))
+
+
+@dataclass(frozen=True, eq=False)
+class _PlantParts:
+    """What :func:`prepare_inverse_kalman` builds from A and C alone (arrays, never the plant)."""
+
+    family: FamilyMap
+    eig_A: NDArray[np.complex128]
+    one_output: OneOutputForm | None
+
+
+#: the plant-only parts, kept while their (immutable) plant lives: the verb, called again with the
+#: same Plant object, builds them once, as a held problem does (a weak key: the parts hold the
+#: plant's arrays, not the plant)
+_PARTS: weakref.WeakKeyDictionary[Plant, _PlantParts] = weakref.WeakKeyDictionary()
+
+
+def _plant_parts(plant: Plant) -> _PlantParts:
+    parts = _PARTS.get(plant)
+    if parts is None:
+        fmap = family_map(plant.A, plant.C, plant.dt)
+        form = one_output_form(fmap.T) if (plant.p == 1 and fmap.T is not None) else None
+        parts = _PARTS[plant] = _PlantParts(family=fmap, eig_A=np.linalg.eigvals(plant.A), one_output=form)
+    return parts
 
 
 def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
@@ -684,6 +732,11 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
         msg = f"infeasible: a target pole is not {where}, and every steady-state Kalman filter is stable"
         return _result(setup, target, Status.INFEASIBLE, msg, t0, cpu0,
                        details={"certificate": {"kind": "unstable_target"}}, **common)
+    if setup.one_output_route:
+        L = single_output_gain(plant.A, plant.C, target, plant.dt, setup.eig_A)
+        fast = None if L is None else _one_output_form(setup, target, L, deadline, t0, cpu0, tol)
+        if fast is not None:
+            return fast
     terms = spectral_terms(plant.A, plant.C, target, plant.dt)
     if terms is None:
         msg = ("not applicable: a target pole is an eigenvalue of A or of its mirror image (or a "
@@ -774,6 +827,45 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
     if first:
         res.details["first_try"] = "Clarabel at ONE_OUTPUT_FIRST_TRY: not certified; solved again"
     return _noted(res, notes)
+
+
+def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: Deadline, t0: float,
+                     cpu0: float, tol: float) -> EngineResult | None:
+    """One output, ``"full"`` / ``"min_trace"``: the fixed-gain SDP at the unique gain L in its
+    n-constraint form (the plant's in continuous time, the gain's in discrete time), Newton-polished and
+    KKT-certified
+    (:func:`~optdesign.solvers.one_output_sdp.solve_one_output`); None when that does not certify a
+    solution (the general one-output route then runs: the dense IPM, Clarabel on the direct form, a
+    repair, and every verdict).  P is the Lyapunov solution of ``A - L C`` with ``L R L' + Q``.
+    ``optimal_inaccurate`` when the unique gain misses the targets beyond the verification's cap
+    (not computable in double precision)."""
+    plant = setup.plant
+    fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float))
+    if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
+        return None
+    form = setup.one_output if setup.one_output is not None else one_output_form(fam.T)
+    if form is None:
+        return None
+    sol = solve_one_output(form, fam, deadline=deadline)
+    if sol.Q is None:
+        return None
+    Q = sol.Q
+    P = lyapunov_P(fam, Q)
+    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
+        return None
+    miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
+    status = Status.OPTIMAL if miss <= POLE_FLOOR_CAP else Status.OPTIMAL_INACCURATE
+    msg = (f"one output: the poles fix L; fixed-gain SDP in its n-constraint form (Clarabel "
+           f"{sol.native_status}, {sol.iterations} iterations), Newton-polished ({sol.newton_iterations} "
+           f"steps) to rank {sol.rank}; KKT certificate")
+    if status != Status.OPTIMAL:
+        msg += f"; the unique gain misses the targets by {miss:.2g} (not computable)"
+    details = {"sdp": {"status": "optimal", "native": sol.native_status, "iterations": sol.iterations,
+                       "form": "n constraints", "newton_iterations": sol.newton_iterations},
+               "L_unique": L, "kkt": sol.kkt}
+    return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, None),
+                   objective=float(np.trace(Q)), iterations=sol.iterations, rank=sol.rank, tol=tol,
+                   details=details, native=sol.native_status)
 
 
 def _noted(res: EngineResult, notes: list[str]) -> EngineResult:

@@ -25,11 +25,12 @@ from ...results import Check, SolverStats, Status, Verification
 from ...solvers.polish import min_norm_lstsq, sym
 from ..verification import (
     check_violation,
+    newton_kalman_checks,
     pole_check,
     pole_tolerance,
     psd_check,
     relative_difference,
-    resolve_pole_tolerance,
+    resolve_poles_check,
     riccati_checks,
 )
 from .results import InverseKalmanResult
@@ -131,8 +132,14 @@ def verify_design(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDAr
     ``"hamiltonian"`` for designs from no Riccati solver (SDP points, Lyapunov solves): the re-solve
     is then scipy's, the cheaper one; ``"none"`` for those too, with the lean re-solve in continuous
     time (:func:`~optdesign.design.verification.lean_riccati_checks`; the full one decides whatever
-    it does not pass)."""
+    it does not pass); with one output and a full Q, first the checks of
+    :func:`~optdesign.design.verification.newton_kalman_checks` (one Schur form, the re-solve a
+    Newton step from P; the full checks decide whatever they do not pass)."""
     A, C = plant.A, plant.C
+    if avoid == "none" and structure == "full" and plant.p == 1:
+        lean = newton_kalman_checks(plant, L, P, Q, target, tol)
+        if lean is not None:
+            return Verification.of(lean[0]), lean[1]
     pcheck, poles = pole_check(A - L @ C, target, tol)
     kalman, are, _ = riccati_checks(plant, L, P, Q, what="the returned Q", avoid=avoid)
     checks = [pcheck, *kalman]
@@ -141,14 +148,8 @@ def verify_design(plant: Plant, target: NDArray, L: NDArray, P: NDArray, Q: NDAr
         # the re-solved gain agrees with L (to its error estimates, at most 1e-6): A - L_are C is
         # A - L C to that level, and its poles miss the targets by at most L's pole error plus what
         # that gain difference moves them (resolve_pole_tolerance); otherwise its own rounding floor
-        err = pole_error(are.poles, target)
-        ptol = pcheck.tolerance if gain.passed else pole_tolerance(A - are.L @ C, tol)
-        detail = "poles of the independent filter_are solve vs the targets"
-        if gain.passed and err > ptol and pcheck.passed:
-            ptol = resolve_pole_tolerance(A - L @ C, (are.L - L) @ C, pcheck.value, ptol)
-            detail += ("; tolerance: the design's pole error plus the first-order movement of its poles "
-                       "by the re-solved gain's difference from L")
-        checks.append(Check.at_most("are_resolve_poles", err, ptol, detail))
+        checks.append(resolve_poles_check(A, C, L, are.L, are.poles, target, pcheck, gain.passed, tol,
+                                          "poles of the independent filter_are solve vs the targets"))
     if structure != "full" and Qw is not None:
         G = plant.G
         mis = rel(G @ Qw @ G.T, Q)

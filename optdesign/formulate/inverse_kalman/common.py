@@ -176,6 +176,60 @@ def spectral_terms(A: NDArray, C: NDArray, poles: NDArray, dt: float | None,
     return out
 
 
+def single_output_gain(A: NDArray, C: NDArray, poles: NDArray, dt: float | None, eig_A: NDArray | None = None,
+                       rtol: float = 1e-8) -> NDArray[np.float64] | None:
+    r"""The gain the poles fix for one output, from the resolvents at the targets -- the gain of
+    :func:`spectral_terms` and ``SpectralBlocks.gain`` with unit null vectors, bit for bit, in one
+    batched solve (no per-block terms).
+
+    Each target block ``(size, s)`` of :func:`modal_blocks` gives ``w = -(C (s I - A)^-1)'`` (a left
+    eigenvector of ``A - L C`` with ``L' w = 1``); ``L`` solves ``L' [Re w, Im w, ...] = [1, 0, ...]``.
+    None where :func:`spectral_terms` is None (a target at an eigenvalue of A or of its mirror image,
+    a discrete target at 0; ``eig_A``: the eigenvalues of A when at hand) or the eigenvector
+    matrix is singular (a repeated target).
+
+    Parameters
+    ----------
+    A : (n, n) ndarray
+    C : (1, n) ndarray
+    poles : (n,) ndarray of complex
+        Sorted as :func:`optdesign._validate.as_poles` does (pairs adjacent).
+    dt : float or None
+    eig_A : (n,) ndarray, optional
+    rtol : float
+
+    Returns
+    -------
+    (n, 1) ndarray or None
+    """
+    n = A.shape[0]
+    eig = np.linalg.eigvals(A) if eig_A is None else eig_A
+    blocks = modal_blocks(poles)
+    s = np.array([z for _, z in blocks], dtype=complex)
+    if dt is not None and np.any(np.abs(s) <= rtol):
+        return None
+    mirror = 1.0 / s if dt is not None else -s
+    for z in (s, mirror):
+        if np.any(np.min(np.abs(eig[None, :] - z[:, None]), axis=1) <= rtol * np.maximum(1.0, np.abs(z))):
+            return None
+    M = s[:, None, None] * np.eye(n) - A
+    G1 = np.linalg.solve(M.transpose(0, 2, 1), np.broadcast_to(C.T.astype(complex), (s.size, n, 1)))[..., 0]
+    cols, rhs = [], []
+    for b, (size, _) in enumerate(blocks):
+        wv = -G1[b]
+        if size == 1:
+            cols.append(wv.real)
+            rhs.append(1.0)
+        else:
+            cols += [wv.real, wv.imag]
+            rhs += [1.0, 0.0]
+    try:
+        L = np.linalg.solve(np.array(cols), np.array(rhs)[:, None])
+    except np.linalg.LinAlgError:
+        return None
+    return L if np.all(np.isfinite(L)) else None
+
+
 # ------------------------------------------------------- spectral NLP, exact derivatives
 #: structures and objectives the explicit-derivative spectral NLP supports (the others use
 #: :func:`build_spectral_nlp`)

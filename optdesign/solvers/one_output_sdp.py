@@ -1,0 +1,300 @@
+r"""The one-output fixed-gain SDP in its n-constraint form: Clarabel, then Newton on its optimality
+conditions.
+
+With one output the poles fix the gain L, and the process-noise covariances whose Kalman filter
+has that gain form the affine family ``Q(X) = Q0 + T(X)`` of
+:mod:`optdesign.solvers.clarabel_fixed_gain` (``T`` of dimension ``n(n - 1)/2``; in continuous time
+it depends on the plant only).  Its orthogonal complement in the symmetric matrices has dimension
+``n``: with an orthonormal basis ``W_1 .. W_n`` of it, Q is in the family iff
+``<W_k, Q> = b_k = <W_k, Q0>``.  So the min-trace SDP is the standard pair
+
+.. math::  \min\ \operatorname{tr} Q \ \ \text{s.t.}\ \ \langle W_k, Q\rangle = b_k,\ Q \succeq 0
+           \qquad\qquad
+           \max\ b' y \ \ \text{s.t.}\ \ Z = I - \textstyle\sum_k y_k W_k \succeq 0
+
+-- n constraints, where the direct form of :func:`~optdesign.solvers.clarabel_fixed_gain.solve_fixed_gain`
+has ``n(n - 1)/2`` variables, and the data are normalized by ``||b||``: the min-trace Q is often
+1e-5 to 1e-8 of ``L R L'``, the scale of the direct form's data, whose tolerances are then relative
+to the wrong size (measured: traces 1e-5 apart between two solvers at n = 10, and garbage at
+n >= 15, where this form solves every target).
+
+:func:`solve_one_output` solves the dual on Clarabel (variables y, one PSD cone whose multiplier is
+Q) to :data:`POLISH_START_TOL`, then runs Newton's method on the optimality conditions
+
+.. math::  W' \operatorname{svec}(Q) = b, \qquad (Q Z + Z Q)/2 = 0, \qquad Z = I - \operatorname{smat}(W y),
+
+(the AHO system: nonsingular at a strictly complementary, nondegenerate solution, where Newton
+converges quadratically -- Alizadeh, Haeberly & Overton 1998), truncates Q to its rank (exactly
+PSD: ``V V'``) and checks the KKT conditions: ``Z`` PSD, complementarity, feasibility.  They make
+the answer the global optimum over the Q of the gain (weak duality: ``b'y <= tr Q' `` for every
+feasible ``Q'``).  Anything else -- a Clarabel status other than solved, a singular or stalling
+Newton system, a KKT test that fails -- returns no solution and the reason; the caller then runs
+the general route (:mod:`optdesign.solvers.inverse_kalman_engine`), the only source of
+``infeasible``.
+
+References
+----------
+Alizadeh, F., Haeberly, J.-P. A. & Overton, M. L., "Primal-dual interior-point methods for
+semidefinite programming: convergence rates, stability and numerical results", SIAM J. Optim.
+8(3), 746-768 (1998).
+Vandenberghe, L. & Boyd, S., "Semidefinite programming", SIAM Review 38(1), 49-95 (1996).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import scipy.linalg as sl
+from numpy.typing import NDArray
+
+from .._backends import import_clarabel
+from .._deadline import Deadline
+from .clarabel_fixed_gain import CLARABEL_OPTIONS, FixedGainFamily, _svec_index, smat, svec
+from .status import CLARABEL_STATUS
+
+__all__ = ["POLISH_START_TOL", "KKT_TOL", "OneOutputForm", "one_output_form", "OneOutputSolution",
+           "solve_one_output", "symmetric_product_matrix"]
+
+_EPS = float(np.finfo(float).eps)
+
+#: Clarabel's gap and feasibility tolerances before the Newton polish (relative to the normalized
+#: data): the polish converges quadratically from there (measured: 2-3 Newton steps to rounding on
+#: 24 targets n = 2..20; Clarabel 9-14 iterations)
+POLISH_START_TOL = 1e-8
+#: Newton steps at most (quadratic convergence: 2-3 are used)
+POLISH_MAX_ITER = 8
+#: KKT test of the polished point: smallest eigenvalue of Z over ``||Z||`` at least ``-KKT_TOL``,
+#: complementarity ``||Q Z|| / (||Q|| ||Z||)`` and primal infeasibility ``||W' svec(Q) - b|| / ||b||``
+#: at most KKT_TOL (the polish reaches 1e-16 .. 1e-15; the engine's dual-slack test is 1e-9 too)
+KKT_TOL = 1e-9
+
+
+@dataclass(frozen=True, eq=False)
+class OneOutputForm:
+    """The n-constraint form of the fixed-gain SDP for the directions ``T`` of a family.
+
+    Attributes
+    ----------
+    n : int
+    W : (n(n+1)/2, n) ndarray
+        Orthonormal basis (Clarabel's scaled triangle, :func:`svec`) of the complement of
+        ``range(T)``.
+    clarabel_data : tuple
+        ``(P, A, h, cones)`` of the dual on Clarabel (P = 0, A = W, h = svec(I), one PSD cone),
+        built once.
+    """
+
+    n: int
+    W: NDArray[np.float64]
+    clarabel_data: tuple = field(repr=False)
+
+
+def one_output_form(T: NDArray) -> OneOutputForm | None:
+    """The form of the family directions ``T`` ((n(n+1)/2, m), m = n(n-1)/2 for one output): the
+    complement of ``range(T)`` by a complete QR factorization; None when T does not have full
+    column rank (a direction of the family does not move Q: the n-constraint form does not
+    describe the family)."""
+    import scipy.sparse as sp
+
+    clarabel = import_clarabel()
+    T = np.asarray(T, dtype=float)
+    t, m = T.shape
+    n = int(round((np.sqrt(8 * t + 1) - 1) / 2))
+    if m + n != t or not np.all(np.isfinite(T)):
+        return None
+    Qf, Rf = np.linalg.qr(T, mode="complete")
+    d = np.abs(np.diag(Rf))
+    if m and not d.min() > 1e3 * t * _EPS * max(float(d.max()), 1e-300):
+        return None
+    W = np.ascontiguousarray(Qf[:, m:])
+    data = (sp.csc_matrix((n, n)), sp.csc_matrix(W), svec(np.eye(n)), [clarabel.PSDTriangleConeT(n)])
+    return OneOutputForm(n=n, W=W, clarabel_data=data)
+
+
+@dataclass(frozen=True, eq=False)
+class OneOutputSolution:
+    """Outcome of :func:`solve_one_output`.
+
+    Attributes
+    ----------
+    Q : (n, n) ndarray or None
+        The min-trace process noise in physical units, ``V V'`` of its rank (None: no solution).
+    rank : int
+    y : (n,) ndarray or None
+        Dual variables (normalized units): ``Z = I - smat(W y)``.
+    kkt : dict
+        ``min_eig`` (of Z over ||Z||), ``complementarity``, ``infeasibility``, ``gap`` (``(tr Q -
+        b'y) / tr Q``), ``passed``.
+    native_status : str
+        Clarabel's status.
+    iterations : int
+        Clarabel's iterations.
+    newton_iterations : int
+    reason : str
+        Why there is no solution ("" with one).
+    """
+
+    Q: NDArray[np.float64] | None
+    rank: int
+    y: NDArray[np.float64] | None
+    kkt: dict[str, Any]
+    native_status: str
+    iterations: int
+    newton_iterations: int
+    reason: str = ""
+
+
+@functools.lru_cache(maxsize=64)
+def _product_index(n: int):
+    """Index arrays of :func:`symmetric_product_matrix` for size n (read-only)."""
+    I, J, w = _svec_index(n)
+    i, j, k, l = I[:, None], J[:, None], I[None, :], J[None, :]
+    coef = w[:, None] / (2.0 * w[None, :] * (1.0 + (k == l)))
+    out = (i, j, k, l, coef, (j == l).astype(float), (j == k).astype(float), (i == k).astype(float),
+           (i == l).astype(float))
+    for a in out:
+        a.flags.writeable = False
+    return out
+
+
+def symmetric_product_matrix(X: NDArray) -> NDArray[np.float64]:
+    """The matrix of ``H -> svec((X H + H X) / 2)`` acting on ``svec(H)`` (H, X symmetric (n, n);
+    :func:`svec` coordinates): the symmetrized Kronecker product ``X (*) I``."""
+    i, j, k, l, coef, djl, djk, dik, dil = _product_index(X.shape[0])
+    return coef * (X[i, k] * djl + X[i, l] * djk + dik * X[l, j] + dil * X[k, j])
+
+
+def _failed(reason: str, native: str = "", iterations: int = 0, newton: int = 0) -> OneOutputSolution:
+    return OneOutputSolution(None, 0, None, {}, native, iterations, newton, reason)
+
+
+def _settings(clarabel, deadline: Deadline | None):
+    st = clarabel.DefaultSettings()
+    st.verbose = False
+    for key, val in {**CLARABEL_OPTIONS, "tol_gap_abs": POLISH_START_TOL, "tol_gap_rel": POLISH_START_TOL,
+                     "tol_feas": POLISH_START_TOL}.items():
+        setattr(st, key, val)
+    if deadline is not None:
+        for key, val in deadline.sdp_options("CLARABEL").items():
+            setattr(st, key, val)
+    return st
+
+
+def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
+                     deadline: Deadline | None = None) -> OneOutputSolution:
+    """The min-trace Q over the family of one gain (structure ``"full"``), globally, or why not.
+
+    Parameters
+    ----------
+    form : OneOutputForm
+        Of ``family.T`` (:func:`one_output_form`).
+    family : FixedGainFamily
+        The gain's family (:func:`~optdesign.solvers.clarabel_fixed_gain.fixed_gain_family`).
+    deadline : Deadline, optional
+        Its remaining time becomes Clarabel's ``time_limit``.
+
+    Returns
+    -------
+    OneOutputSolution
+        With Q only when Clarabel solved the SDP, Newton converged and the KKT test passed.
+    """
+    clarabel = import_clarabel()
+    n, W = form.n, form.W
+    b = W.T @ svec(family.Q0)
+    beta = float(np.linalg.norm(b))
+    if not (np.isfinite(beta) and beta > 0.0):
+        return _failed(f"the family's data b has norm {beta:.3g} (Q = 0 is in the family, or not finite)")
+    bn = b / beta
+    Pm, Am, h, cones = form.clarabel_data
+    sol = clarabel.DefaultSolver(Pm, -bn, Am, h, cones, _settings(clarabel, deadline)).solve()
+    native = str(sol.status)
+    iters = int(getattr(sol, "iterations", 0) or 0)
+    if CLARABEL_STATUS.get(native) is None or not CLARABEL_STATUS[native].is_solved or native != "Solved":
+        return _failed(f"Clarabel {native}", native, iters)
+    q, y = np.array(sol.z, dtype=float), np.array(sol.x, dtype=float)
+    q, y, newton, why = _polish(W, bn, q, y, n)
+    if why:
+        return _failed(why, native, iters, newton)
+    Qn, Z, rank = _truncated(smat(q, n), smat(svec(np.eye(n)) - W @ y, n))
+    kkt = _kkt(W, bn, y, Qn, Z)
+    if not kkt["passed"]:
+        return _failed("the polished point fails its KKT test (" + ", ".join(
+            f"{k} {v:.2g}" for k, v in kkt.items() if k != "passed") + ")", native, iters, newton)
+    Q = (family.scale * beta) * Qn
+    return OneOutputSolution(0.5 * (Q + Q.T), rank, y, kkt, native, iters, newton)
+
+
+def _polish(W: NDArray, b: NDArray, q: NDArray, y: NDArray, n: int) -> tuple[NDArray, NDArray, int, str]:
+    """Newton's method on ``W' q = b``, ``svec(Q Z + Z Q)/2 = 0`` (``Q = smat(q)``, ``Z = I -
+    smat(W y)``) from Clarabel's point, until the residual stops decreasing (it reaches rounding in
+    2-3 steps); ``(q, y, steps, "")`` or a reason for failure."""
+    e = svec(np.eye(n))
+    t = q.size
+    best = None
+    for k in range(POLISH_MAX_ITER + 1):
+        Q, Z = smat(q, n), smat(e - W @ y, n)
+        r1 = W.T @ q - b
+        r2 = 0.5 * svec(Q @ Z + Z @ Q)
+        size = max(float(np.linalg.norm(Q)) * float(np.linalg.norm(Z)), 1e-300)
+        res = max(float(np.linalg.norm(r1)), float(np.linalg.norm(r2)) / size)
+        if not np.isfinite(res):
+            return q, y, k, "the Newton polish produced non-finite values"
+        if best is not None and res >= 0.5 * best[0]:   # stopped converging: rounding reached
+            return best[1], best[2], k, ""
+        best = (res, q, y)
+        if res <= 4.0 * _EPS:
+            return q, y, k, ""
+        if k == POLISH_MAX_ITER:
+            break
+        J = np.zeros((t + n, t + n))
+        J[:n, :t] = W.T
+        J[n:, :t] = symmetric_product_matrix(Z)
+        J[n:, t:] = -symmetric_product_matrix(Q) @ W
+        try:
+            d = np.linalg.solve(J, -np.concatenate([r1, r2]))
+        except np.linalg.LinAlgError:
+            return q, y, k, ("the Newton system of the polish is singular (no strictly complementary "
+                             "solution?)")
+        q, y = q + d[:t], y + d[t:]
+    return best[1], best[2], POLISH_MAX_ITER, ""
+
+
+def _truncated(Q: NDArray, Z: NDArray) -> tuple[NDArray, NDArray, int]:
+    """``(V V', Z, rank)``: Q truncated to the eigenvectors where it is, relatively, larger than Z
+    (strict complementarity: one of them vanishes in each direction), exactly PSD."""
+    lam, U = np.linalg.eigh(0.5 * (Q + Q.T))
+    zq = np.einsum("ij,ik,kj->j", U, Z, U)   # u_i' Z u_i
+    nq = max(float(np.max(np.abs(lam))), 1e-300)
+    nz = max(float(np.max(np.abs(zq))), 1e-300)
+    keep = lam / nq > zq / nz
+    V = U[:, keep] * np.sqrt(np.maximum(lam[keep], 0.0))
+    return V @ V.T, Z, int(np.sum(keep))
+
+
+def _kkt(W: NDArray, b: NDArray, y: NDArray, Q: NDArray, Z: NDArray) -> dict[str, Any]:
+    """The KKT test of ``(Q, y)`` (normalized units): Z PSD, complementarity, primal feasibility
+    (dual feasibility is exact: Z is defined from y), and the relative duality gap."""
+    zl = np.linalg.eigvalsh(0.5 * (Z + Z.T))
+    nz = max(float(np.max(np.abs(zl))), 1e-300)
+    nq = max(float(np.linalg.norm(Q)), 1e-300)
+    out = {"min_eig": float(zl[0]) / nz,
+           "complementarity": float(np.linalg.norm(Q @ Z)) / (nq * float(np.linalg.norm(Z)) + 1e-300),
+           "infeasibility": float(np.linalg.norm(W.T @ svec(Q) - b)) / max(float(np.linalg.norm(b)), 1e-300),
+           "gap": abs(float(np.trace(Q)) - float(b @ y)) / max(abs(float(np.trace(Q))), 1e-300)}
+    out["passed"] = bool(out["min_eig"] >= -KKT_TOL and out["complementarity"] <= KKT_TOL
+                         and out["infeasibility"] <= KKT_TOL)
+    return out
+
+
+def lyapunov_P(family: FixedGainFamily, Q: NDArray) -> NDArray[np.float64]:
+    """The Riccati solution of the family's gain for Q: the Lyapunov solution of ``F = A - L C`` with
+    ``L R L' + Q`` (continuous ``F P + P F' = -(L R L' + Q)``, discrete ``P = F P F' + L R L' + Q``)."""
+    A, C, L = family.map.A, family.map.C, family.L
+    F = A - L @ C
+    rhs = family.scale * family.LRL + Q
+    P = (sl.solve_discrete_lyapunov(F, rhs) if family.map.dt is not None
+         else sl.solve_continuous_lyapunov(F, -rhs))
+    return 0.5 * (P + P.T)
