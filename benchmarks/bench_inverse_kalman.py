@@ -24,13 +24,17 @@ engine and the re-used minimal SDP are timed as the median of 5 calls when a cal
 (40, 8) the verb (533 s per design in the README's run) is run only with ``--slow``.
 
 Run:  python benchmarks/bench_inverse_kalman.py [--reps 3] [--sizes 2x1,10x4 [--merge]] [--slow]
-      [--profile | --stages | --sdp-forms | --verify-ab | --first-try | --ipm]
+      [--profile | --stages | --sdp-forms | --verify-ab | --first-try | --ipm | --form | --verb-ratio]
 Writes benchmarks/results/inverse_kalman.md, .csv and .json; ``--profile`` writes
 benchmarks/results/inverse_kalman_profile.md (cProfile of the engine at (20, 4) and (40, 8), time
 per stage); ``--stages`` benchmarks/results/inverse_kalman_stages_one_output.md (CPU per stage of the
 one-output verb); ``--sdp-forms`` benchmarks/results/inverse_kalman_sdp_forms.md (one fixed-gain
 SDP on Clarabel: the direct form vs a sparse form, Clarabel's KKT solvers); ``--ipm``
-benchmarks/results/inverse_kalman_one_output_ipm.md and .json (the one-output dense IPM vs Clarabel).
+benchmarks/results/inverse_kalman_one_output_ipm.md and .json (the one-output dense IPM vs Clarabel;
+``--first-try`` and ``--ipm`` measure the general one-output route, the fallback of the n-constraint
+form); ``--form`` benchmarks/results/inverse_kalman_one_output_form.md (the n-constraint form vs the
+general route); ``--verb-ratio`` benchmarks/results/inverse_kalman_verb_ratio.md (the verb against the
+re-used minimal cvxpy SDP, continuous and discrete).
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from _common import random_observable_plant  # first: single-threaded BLAS befor
 # isort: on
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import cProfile  # noqa: E402
 import csv  # noqa: E402
 import json  # noqa: E402
@@ -70,6 +75,23 @@ def random_target(rng: np.random.Generator, n: int, p: int, tries: int = 50):
     ``Q = F F' / n``, or None when no draw gives a Riccati equation scipy can solve."""
     for _ in range(tries):
         plant = random_observable_plant(rng, n, p, noise=True)
+        F = rng.standard_normal((n, n)) / np.sqrt(n)
+        try:
+            return plant, filter_are(plant.replace(Q=F @ F.T), residual_tol=1e-6)
+        except OptDesignError:
+            continue
+    return None
+
+
+def random_discrete_target(rng: np.random.Generator, n: int, tries: int = 50):
+    """A random observable discrete plant (one output, dt = 0.1, A ~ N(0, 1/n) scaled to spectral
+    radius below 1/1.05, R = 1) and the poles of the Kalman filter (predictor form) of ``Q = F F' / n``."""
+    for _ in range(tries):
+        A = rng.standard_normal((n, n)) / np.sqrt(n)
+        A = A / (1.05 * max(1.0, float(np.max(np.abs(np.linalg.eigvals(A))))))
+        plant = Plant(A, rng.standard_normal((1, n)), R=np.eye(1), dt=0.1)
+        if not plant.is_observable():
+            continue
         F = rng.standard_normal((n, n)) / np.sqrt(n)
         try:
             return plant, filter_are(plant.replace(Q=F @ F.T), residual_tol=1e-6)
@@ -128,6 +150,43 @@ def _min_sdp_problem(A, C, LR, LRL):
     return cp.Problem(cp.Minimize(cp.trace(Q)), [P @ C.T == LR, Q == LRL - A @ P - P @ A.T]), Q
 
 
+def _min_sdp_problem_discrete(n: int, C):
+    """The minimal discrete SDP in a DPP form (cvxpy compiles it once): with ``F = A - L C``,
+    ``F P C' = L R`` and ``Q = P - F P F' - L R L'`` (the predictor DARE at a fixed gain), the
+    products with F written as ``(C kron F) vec(P)`` and ``(F kron F) vec(P)`` with the Kronecker
+    products as Parameters.  ``(problem, Q variable, parameters CF, FF, LR, LRL)``."""
+    import cvxpy as cp
+
+    P = cp.Variable((n, n), symmetric=True)
+    Q = cp.Variable((n, n), PSD=True)
+    CF, FF = cp.Parameter((C.shape[0] * n, n * n)), cp.Parameter((n * n, n * n))
+    LR, LRL = cp.Parameter((n * C.shape[0],)), cp.Parameter((n, n), symmetric=True)
+    FPF = cp.reshape(FF @ cp.vec(P, order="F"), (n, n), order="F")
+    cons = [CF @ cp.vec(P, order="F") == LR, Q == P - FPF - LRL]
+    return cp.Problem(cp.Minimize(cp.trace(Q)), cons), Q, (CF, FF, LR, LRL)
+
+
+def minimal_sdp_discrete(plant: Plant, L) -> tuple[float, float]:
+    """:func:`minimal_sdp` (re-used) for a discrete plant: the DPP form of
+    :func:`_min_sdp_problem_discrete`, its Parameters bound to the gain L, compiled by a first solve,
+    re-bound and re-solved (timed, :func:`timed_median`)."""
+    A, C, R = plant.A, plant.C, plant.R
+    n = A.shape[0]
+    F = A - L @ C
+    LRL = L @ R @ L.T
+    vals = (np.kron(C, F), np.kron(F, F), (L @ R).ravel(order="F"), 0.5 * (LRL + LRL.T))
+    prob, Q, params = _min_sdp_problem_discrete(n, C)
+
+    def bind_and_solve():
+        for par, v in zip(params, vals, strict=True):
+            par.value = v.copy()
+        prob.solve(solver="CLARABEL")
+
+    bind_and_solve()
+    _, t = timed_median(bind_and_solve)
+    return float(np.trace(Q.value)) if Q.value is not None else float("nan"), t
+
+
 def minimal_sdp(plant: Plant, L, reuse: bool, check_target=None) -> tuple[float, float]:
     """The issue's minimal SDP at the gain L: ``(trace Q, CPU seconds of the timed solve)``.
     ``reuse``: L R and L R L' are cvxpy Parameters, solved once (compilation), re-bound and the
@@ -168,24 +227,32 @@ def write_md(name: str, heading: str, text: str) -> None:
 
 #: the sizes of ``--verb-ratio`` beyond the main run's (one output; 3 targets each, drawn from seed n)
 VERB_SIZES = (3, 4, 5, 6, 8, 12, 15)
+#: the discrete sizes of ``--verb-ratio`` (one output; 2 targets each, drawn from seed 1000 + n)
+VERB_SIZES_DISCRETE = (2, 5, 8, 10)
 
 
 def verb_ratio(reps: int = 7) -> str:
     """The public verb ``kalman_for_poles(plant, poles)`` and a held ``InverseKalmanProblem(plant)``
     (built once per plant, as the reference compiles once) against the re-used minimal SDP at the
     verb's gain, per target, each the median of ``reps`` calls, interleaved in one process: the main
-    run's targets (n = 2, 10, 20), then 3 targets at each of :data:`VERB_SIZES`."""
+    run's targets (n = 2, 10, 20), then 3 targets at each of :data:`VERB_SIZES`; then discrete
+    targets (:data:`VERB_SIZES_DISCRETE`) against the DPP form of :func:`minimal_sdp_discrete`."""
     rng = np.random.default_rng(0)
     drawn = [(size[0], k, t) for size in SIZES[:3]
              for k, t in enumerate([random_target(rng, *size) for _ in range(3)])]
     for n in VERB_SIZES:
         rn = np.random.default_rng(n)
         drawn += [(n, k, random_target(rn, n, 1)) for k in range(3)]
+    discrete = []
+    for n in VERB_SIZES_DISCRETE:
+        rn = np.random.default_rng(1000 + n)
+        discrete += [(n, k, random_discrete_target(rn, n)) for k in range(2)]
     lines = ["| n, p | target | rounding floor of its poles | verb status | verified | verb CPU ms "
              "| held problem CPU ms | min-SDP re-used CPU ms | verb / min-SDP | held / min-SDP "
              "| min-SDP + scipy check CPU ms | verb / (min-SDP + check) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-    for n, k, (plant, are) in sorted(drawn, key=lambda d: (d[0], d[1])):
+    rows = [(False, d) for d in sorted(drawn, key=lambda d: (d[0], d[1]))] + [(True, d) for d in discrete]
+    for disc, (n, k, (plant, are)) in rows:
         held = InverseKalmanProblem(plant)
         held.solve(are.poles)
         tv, th, tr = [], [], []
@@ -193,13 +260,14 @@ def verb_ratio(reps: int = 7) -> str:
             r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
             tv.append(t)
             th.append(timed(lambda tg=are.poles, h=held: h.solve(tg))[1])
-            tr.append(minimal_sdp(plant, r.L, reuse=True)[1])
+            tr.append((minimal_sdp_discrete(plant, r.L) if disc else minimal_sdp(plant, r.L, reuse=True))[1])
         v, h, m = float(np.median(tv)), float(np.median(th)), float(np.median(tr))
-        mc = minimal_sdp(plant, r.L, reuse=True, check_target=are.poles)[1]
+        mc = float("nan") if disc else minimal_sdp(plant, r.L, reuse=True, check_target=are.poles)[1]
         floor = eigenvalue_rounding_floor(plant.A - are.L @ plant.C)
-        lines.append(f"| {n}, 1 | {k} | {floor:.1e} | {r.status.value} | {r.success} | {1e3 * v:.2f} | "
-                     f"{1e3 * h:.2f} | {1e3 * m:.2f} | {v / m:.2f}x | {h / m:.2f}x | {1e3 * mc:.2f} | "
-                     f"{v / mc:.2f}x |")
+        label = f"{n}, 1{' (discrete)' if disc else ''}"
+        lines.append(f"| {label} | {k} | {floor:.1e} | {r.status.value} | {r.success} | {1e3 * v:.2f} | "
+                     f"{1e3 * h:.2f} | {1e3 * m:.2f} | {v / m:.2f}x | {h / m:.2f}x | "
+                     + ("- | - |" if disc else f"{1e3 * mc:.2f} | {v / mc:.2f}x |"))
         print(lines[-1], flush=True)
     return "\n".join(lines)
 
@@ -332,21 +400,25 @@ def profile(sizes, rng_seed: int) -> str:
 #: (module, attribute, label) of the one-output stages timed by :func:`one_output_stages`
 ONE_OUTPUT_STAGES = [
     ("optdesign.design.inverse_kalman.verb:InverseKalmanProblem", "_early_answer", "early answers"),
-    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (family map)"),
+    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (parts kept)"),
     ("optdesign.design.inverse_kalman.engine_route", "solve_inverse_kalman", "engine"),
-    ("optdesign.solvers.inverse_kalman_engine", "spectral_terms", "  gain: spectral terms"),
-    ("optdesign.solvers.inverse_kalman_engine", "spectral_blocks", "  gain: spectral blocks"),
-    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain", "  SDP: Clarabel"),
-    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain_ipm", "  SDP: dense IPM"),
-    ("optdesign.solvers.inverse_kalman_engine", "_from_sdp", "  polish: face projection"),
-    ("optdesign.solvers.inverse_kalman_engine", "_optimize", "  polish: Newton"),
-    ("optdesign.solvers.inverse_kalman_engine", "_design", "  design (Lyapunov P, L from P)"),
+    ("optdesign.solvers.inverse_kalman_engine", "single_output_gain", "  gain (one batched solve)"),
+    ("optdesign.solvers.inverse_kalman_engine", "fixed_gain_family", "  the gain's family"),
+    ("optdesign.solvers.inverse_kalman_engine", "solve_one_output", "  SDP, n-constraint form (all of it)"),
+    ("optdesign.solvers.one_output_sdp", "_polish", "  Newton polish (part of the SDP row)"),
+    ("optdesign.solvers.one_output_sdp", "_kkt", "  KKT test (part of the SDP row)"),
+    ("optdesign.solvers.inverse_kalman_engine", "lyapunov_P", "  design (Lyapunov P)"),
+    ("optdesign.solvers.inverse_kalman_engine", "spectral_terms", "  general route: spectral terms"),
+    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain", "  general route: Clarabel, direct form"),
+    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain_ipm", "  general route: dense IPM"),
+    ("optdesign.solvers.inverse_kalman_engine", "_optimize", "  general route: polish"),
     ("optdesign.design.inverse_kalman.engine_route", "verify_design", "verification"),
-    ("optdesign.design.verification", "hamiltonian_are", "  re-solve (lean: Hamiltonian)"),
-    ("optdesign.design.verification", "independent_are", "  re-solve (full, fallback)"),
-    ("optdesign.design.verification", "are_error_of_terms", "  forward error estimates (lean: shared Schur)"),
-    ("optdesign.design.verification", "filter_are_error", "  forward error estimates (full, fallback)"),
-    ("optdesign.design.inverse_kalman.common", "pole_check", "  poles and their rounding floor"),
+    ("optdesign.design.inverse_kalman.common", "newton_kalman_checks", "  Newton-step checks (all of them)"),
+    ("optdesign.design.verification", "are_correction_of_terms",
+     "  Newton correction and forward error (part of the row above)"),
+    ("optdesign.design.verification", "hamiltonian_are", "  full checks: re-solve (lean: Hamiltonian)"),
+    ("optdesign.design.verification", "independent_are", "  full checks: re-solve (scipy)"),
+    ("optdesign.design.inverse_kalman.common", "pole_check", "  full checks: poles and their rounding floor"),
 ]
 
 
@@ -514,6 +586,74 @@ def verify_ab(rounds: int = 15) -> str:
     return "\n".join(lines)
 
 
+@contextlib.contextmanager
+def general_route():
+    """The one-output engine without its first route, the n-constraint form
+    (``optdesign.solvers.one_output_sdp``): what runs when that form certifies nothing -- the A/B
+    modes of the general route's own choices (``--first-try``, ``--ipm``) measure it."""
+    import optdesign.solvers.inverse_kalman_engine as eng
+
+    real = eng._one_output_form
+    eng._one_output_form = lambda *a, **k: None
+    try:
+        yield
+    finally:
+        eng._one_output_form = real
+
+
+def form_ab(count: int = 40, discrete: int = 10) -> str:
+    """The n-constraint form (``optdesign.solvers.one_output_sdp``, the engine's first one-output
+    route) against the general route it replaces (the direct form on Clarabel or the dense IPM,
+    polished on its face), on the main run's one-output targets, ``count`` random continuous ones
+    (n = 2..20, seed 123, as ``--ipm``) and ``discrete`` random discrete ones (n = 2..12, seed 7):
+    statuses, verified designs, the largest relative objective difference, Clarabel's status on each
+    form, CPU per design (interleaved per target, medians of 3)."""
+    rng = np.random.default_rng(0)
+    targets = [t for size in SIZES[:3] for t in (random_target(rng, *size) for _ in range(3))]
+    rng = np.random.default_rng(123)
+    targets += [t for t in (random_target(rng, int(rng.integers(2, 21)), 1) for _ in range(count)) if t]
+    rng = np.random.default_rng(7)
+    targets += [t for t in (random_discrete_target(rng, int(rng.integers(2, 13))) for _ in range(discrete))
+                if t]
+    out: dict[str, list] = {"n-constraint form": [], "general route": []}
+    for plant, are in targets:
+        for name in out:
+            ts = []
+            for _ in range(3):
+                if name == "general route":
+                    with general_route():
+                        r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                else:
+                    r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                ts.append(t)
+            sdp = r.extra.get("engine", {}).get("sdp", {})
+            out[name].append((plant.n, plant.is_discrete, r.status.value, r.success, r.objective_value,
+                              sdp.get("native", "-"), statistics.median(ts)))
+    ref = out["general route"]
+    lines = [f"{len(targets)} one-output min-trace targets (the main run's 9 at n = 2, 10, 20, {count} "
+             f"random continuous n = 2..20 (seed 123), {discrete} random discrete n = 2..12 (seed 7))", "",
+             "| route | verified | optimal | same status as the general route | max rel. objective diff "
+             "(both verified) | Clarabel's status | CPU per design, median (ms) | n <= 8 | n >= 15 | "
+             "discrete |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for name, rows in out.items():
+        same = sum(a[2] == b[2] for a, b in zip(rows, ref, strict=True))
+        dif = max((abs(a[4] - b[4]) / max(1e-300, abs(b[4])) for a, b in zip(rows, ref, strict=True)
+                   if a[3] and b[3]), default=0.0)
+        natives = ", ".join(f"{k} {sum(r[5] == k for r in rows)}" for k in sorted({r[5] for r in rows}))
+
+        def med(sel, rr=rows):
+            vals = [r[6] for r in rr if sel(r)]
+            return f"{1e3 * statistics.median(vals):.2f}" if vals else "-"
+
+        lines.append(f"| {name} | {sum(r[3] for r in rows)}/{len(rows)} | "
+                     f"{sum(r[2] == 'optimal' for r in rows)}/{len(rows)} | {same}/{len(rows)} | {dif:.1e} | "
+                     f"{natives} | {med(lambda r: True)} | {med(lambda r: r[0] <= 8 and not r[1])} | "
+                     f"{med(lambda r: r[0] >= 15)} | {med(lambda r: r[1])} |")
+        print(lines[-1], flush=True)
+    return "\n".join(lines)
+
+
 def first_try_ab(count: int = 40) -> str:
     """The one-output first try (``ONE_OUTPUT_FIRST_TRY``) against Clarabel at the tight
     ``CLARABEL_OPTIONS`` as first try, on the main run's one-output targets and ``count`` random
@@ -532,18 +672,19 @@ def first_try_ab(count: int = 40) -> str:
     configs = (("tight (1e-10)", tight), ("ONE_OUTPUT_FIRST_TRY", chosen))
     out: dict[str, list] = {name: [] for name, _ in configs}
     try:
-        for plant, are in targets:   # the two settings interleaved per target (a shared machine)
-            for name, opts in configs:
-                eng.ONE_OUTPUT_FIRST_TRY.clear()
-                eng.ONE_OUTPUT_FIRST_TRY.update(opts)
-                ts = []
-                for _ in range(3):
-                    r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
-                    ts.append(t)
-                e = r.extra.get("engine", {})
-                its = e.get("sdp", {}).get("iterations", 0)
-                out[name].append((r.status.value, r.success, r.objective_value, its, "first_try" in e,
-                                  statistics.median(ts)))
+        with general_route():
+            for plant, are in targets:   # the two settings interleaved per target (a shared machine)
+                for name, opts in configs:
+                    eng.ONE_OUTPUT_FIRST_TRY.clear()
+                    eng.ONE_OUTPUT_FIRST_TRY.update(opts)
+                    ts = []
+                    for _ in range(3):
+                        r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                        ts.append(t)
+                    e = r.extra.get("engine", {})
+                    its = e.get("sdp", {}).get("iterations", 0)
+                    out[name].append((r.status.value, r.success, r.objective_value, its, "first_try" in e,
+                                      statistics.median(ts)))
     finally:
         eng.ONE_OUTPUT_FIRST_TRY.clear()
         eng.ONE_OUTPUT_FIRST_TRY.update(chosen)
@@ -604,7 +745,8 @@ def ipm_ab(count: int = 40) -> tuple[str, str]:
                 eng.ONE_OUTPUT_IPM_MIN_DIM = dim
                 ts = []
                 for _ in range(3):
-                    r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
+                    with general_route():
+                        r, t = timed(lambda pl=plant, tg=are.poles: kalman_for_poles(pl, tg))
                     ts.append(t)
                 native = r.extra.get("engine", {}).get("sdp", {}).get("native", "")
                 design[name].append((plant.n, r.status.value, r.success, r.objective_value,
@@ -678,6 +820,8 @@ def main() -> None:
                     help="only the one-output first try vs the tight Clarabel tolerances")
     ap.add_argument("--ipm", action="store_true",
                     help="only the one-output dense IPM vs Clarabel (one SDP, and the whole design)")
+    ap.add_argument("--form", action="store_true",
+                    help="only the one-output n-constraint form vs the general route it replaces")
     ap.add_argument("--verb-ratio", action="store_true",
                     help="only the one-output verb vs the re-used minimal SDP, per target (medians of 7)")
     ap.add_argument("--profile", action="store_true",
@@ -702,6 +846,13 @@ def main() -> None:
                  "benchmarks/bench_inverse_kalman.py --verb-ratio` (CPU time, medians of 7 interleaved calls "
                  "per target; the main run's targets, then 3 at each of n = "
                  + ", ".join(map(str, VERB_SIZES)) + ")", verb_ratio())
+        return
+    if args.form:
+        write_md("inverse_kalman_one_output_form.md",
+                 "# One output: the n-constraint form vs the general route\n\n`python "
+                 "benchmarks/bench_inverse_kalman.py --form` (CPU time, the two routes interleaved per "
+                 "target)",
+                 form_ab())
         return
     if args.first_try:
         write_md("inverse_kalman_one_output_tolerances.md",

@@ -16,6 +16,7 @@ import pytest
 from test_fixed_gain_ipm import _bench_targets, _family
 
 import optdesign.solvers.inverse_kalman_engine as engine
+import optdesign.solvers.inverse_kalman_setup as ik_setup
 import optdesign.solvers.one_output_sdp as oo
 from optdesign import InverseKalmanProblem, Plant, kalman_for_poles
 from optdesign._validate import as_poles
@@ -210,10 +211,10 @@ def test_plant_parts_are_built_once_per_plant_object_and_released_with_it():
     other = Plant(plant.A, plant.C, R=[[1.0]])
     assert engine.prepare_inverse_kalman(other).family is not first.family
     gc.collect()
-    before = len(engine._PARTS)
+    before = len(ik_setup._PARTS)
     del plant, first, again, other
     gc.collect()
-    assert len(engine._PARTS) == before - 2
+    assert len(ik_setup._PARTS) == before - 2
     # the verb and a held problem answer alike, with the parts kept or not
     plant = Plant([[0.0, 1.0], [-6.0, -5.0]], [[1.0, 0.0]], R=[[1.0]])
     a, b = kalman_for_poles(plant, [-5, -8]), InverseKalmanProblem(plant).solve([-5, -8])

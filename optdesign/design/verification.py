@@ -493,7 +493,7 @@ def newton_kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, targe
       on the verification's own Schur form): the stabilizing solution to second order in the error
       of P, since P's closed loop is stable (its poles are the targets) -- a Riccati solution whose
       closed loop is stable is the stabilizing one.  ``are_resolve_gain`` compares the gain of P1
-      with L (tolerance :func:`_gain_tolerance` with the forward error of P for both solutions) and
+      with L (tolerance: the gain check's rule, with the forward error of P for both solutions) and
       ``are_resolve_poles`` its poles with the targets (:func:`resolve_poles_check`).
 
     Parameters

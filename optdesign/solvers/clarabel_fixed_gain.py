@@ -58,6 +58,8 @@ __all__ = [
     "solve_fixed_gain",
     "svec",
     "smat",
+    "svec_index",
+    "clarabel_settings",
 ]
 
 #: Clarabel's native statuses (``str(solution.status)``) in the one status set
@@ -84,7 +86,7 @@ _SQRT2 = float(np.sqrt(2.0))
 
 
 @functools.lru_cache(maxsize=64)
-def _svec_index(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
+def svec_index(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]]:
     """Rows, columns and weights of Clarabel's triangle: (i, j) with i <= j, column by column
     (built once per n; read-only)."""
     I, J = np.triu_indices(n)  # i <= j
@@ -98,13 +100,13 @@ def _svec_index(n: int) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.
 
 def svec(X: NDArray) -> NDArray[np.float64]:
     """Clarabel's scaled upper-triangle vector of a symmetric matrix."""
-    I, J, w = _svec_index(X.shape[0])
+    I, J, w = svec_index(X.shape[0])
     return np.asarray(X, dtype=float)[I, J] * w
 
 
 def smat(x: NDArray, n: int) -> NDArray[np.float64]:
     """Inverse of :func:`svec`; a stack ``x`` of shape (..., n(n+1)/2) gives (..., n, n)."""
-    I, J, w = _svec_index(n)
+    I, J, w = svec_index(n)
     x = np.asarray(x, dtype=float)
     X = np.zeros(x.shape[:-1] + (n, n))
     X[..., I, J] = x / w
@@ -115,8 +117,8 @@ def smat(x: NDArray, n: int) -> NDArray[np.float64]:
 def _triangle_map(Kmat: NDArray, n_out: int, n_in: int) -> NDArray[np.float64]:
     """The matrix of ``svec(Y)`` as a function of ``svec(X)`` for ``vec(Y) = Kmat vec(X)``
     (column-major vec, Y (n_out, n_out) and X (n_in, n_in) symmetric)."""
-    Io, Jo, wo = _svec_index(n_out)
-    Ii, Ji, wi = _svec_index(n_in)
+    Io, Jo, wo = svec_index(n_out)
+    Ii, Ji, wi = svec_index(n_in)
     rows = Kmat[Jo * n_out + Io] * wo[:, None]
     # vec(X) = sum_c x_c / w_c (e_{i j} + e_{j i}) (once on the diagonal)
     T = rows[:, Ji * n_in + Ii] / wi
@@ -267,7 +269,9 @@ class FixedGainSolution:
     solve_time: float
 
 
-def _settings(clarabel, options: dict[str, Any] | None, deadline: Deadline | None):
+def clarabel_settings(clarabel, options: dict[str, Any] | None, deadline: Deadline | None):
+    """Clarabel's settings: :data:`CLARABEL_OPTIONS` with ``options`` over them (an unknown key is a
+    ValidationError) and the deadline's remaining time as ``time_limit``."""
     st = clarabel.DefaultSettings()
     st.verbose = False
     for key, val in {**CLARABEL_OPTIONS, **(options or {})}.items():
@@ -308,7 +312,7 @@ def _structure_rows(G: NDArray, structure: str, n: int):
 
 def _vec_of_svec(n: int) -> NDArray[np.float64]:
     """D with ``vec(X) = D svec(X)`` (symmetric X, column-major vec)."""
-    I, J, w = _svec_index(n)
+    I, J, w = svec_index(n)
     D = np.zeros((n * n, I.size))
     c = np.arange(I.size)
     D[J * n + I, c] = 1.0 / w
@@ -318,7 +322,7 @@ def _vec_of_svec(n: int) -> NDArray[np.float64]:
 
 def _svec_rows(n: int) -> NDArray[np.float64]:
     """S with ``svec(X) = S vec(X)``."""
-    I, J, w = _svec_index(n)
+    I, J, w = svec_index(n)
     S = np.zeros((I.size, n * n))
     S[np.arange(I.size), J * n + I] = w
     return S
@@ -422,7 +426,7 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
     q = np.zeros(nz)
     Pm = sp.csc_matrix((nz, nz))
     if objective == "min_trace":
-        Id, Jd, _ = _svec_index(n)
+        Id, Jd, _ = svec_index(n)
         diag_w = (Id == Jd).astype(float)
         q[:nx] = diag_w @ T
     elif objective == "feasibility":
@@ -445,8 +449,8 @@ def solve_fixed_gain(family: FixedGainFamily, structure: str = "full", G: NDArra
     bv = np.concatenate(b)
     it, stime = 0, 0.0
     for retry in CLARABEL_RETRIES:   # a numerical failure (not a verdict) is retried
-        sol = clarabel.DefaultSolver(Pm, q, Am, bv, cones,
-                                     _settings(clarabel, {**(options or {}), **retry}, deadline)).solve()
+        settings = clarabel_settings(clarabel, {**(options or {}), **retry}, deadline)
+        sol = clarabel.DefaultSolver(Pm, q, Am, bv, cones, settings).solve()
         native = str(sol.status)
         status = CLARABEL_STATUS.get(native, Status.SOLVER_ERROR)
         it += int(getattr(sol, "iterations", 0) or 0)

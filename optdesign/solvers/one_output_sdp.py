@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 
 from .._backends import import_clarabel
 from .._deadline import Deadline
-from .clarabel_fixed_gain import CLARABEL_OPTIONS, FixedGainFamily, _svec_index, smat, svec
+from .clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec, svec_index
 from .status import CLARABEL_STATUS
 
 __all__ = ["POLISH_START_TOL", "KKT_TOL", "OneOutputForm", "one_output_form", "OneOutputSolution",
@@ -150,7 +150,7 @@ class OneOutputSolution:
 @functools.lru_cache(maxsize=64)
 def _product_index(n: int):
     """Index arrays of :func:`symmetric_product_matrix` for size n (read-only)."""
-    I, J, w = _svec_index(n)
+    I, J, w = svec_index(n)
     i, j, k, l = I[:, None], J[:, None], I[None, :], J[None, :]
     coef = w[:, None] / (2.0 * w[None, :] * (1.0 + (k == l)))
     out = (i, j, k, l, coef, (j == l).astype(float), (j == k).astype(float), (i == k).astype(float),
@@ -172,15 +172,10 @@ def _failed(reason: str, native: str = "", iterations: int = 0, newton: int = 0)
 
 
 def _settings(clarabel, deadline: Deadline | None):
-    st = clarabel.DefaultSettings()
-    st.verbose = False
-    for key, val in {**CLARABEL_OPTIONS, "tol_gap_abs": POLISH_START_TOL, "tol_gap_rel": POLISH_START_TOL,
-                     "tol_feas": POLISH_START_TOL}.items():
-        setattr(st, key, val)
-    if deadline is not None:
-        for key, val in deadline.sdp_options("CLARABEL").items():
-            setattr(st, key, val)
-    return st
+    """:func:`~optdesign.solvers.clarabel_fixed_gain.clarabel_settings` with the tolerances at
+    :data:`POLISH_START_TOL` (the polish finishes the point)."""
+    tol = {"tol_gap_abs": POLISH_START_TOL, "tol_gap_rel": POLISH_START_TOL, "tol_feas": POLISH_START_TOL}
+    return clarabel_settings(clarabel, tol, deadline)
 
 
 def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
@@ -233,7 +228,7 @@ def _polish(W: NDArray, b: NDArray, q: NDArray, y: NDArray, n: int) -> tuple[NDA
     2-3 steps); ``(q, y, steps, "")`` or a reason for failure."""
     e = svec(np.eye(n))
     t = q.size
-    best = None
+    best: tuple[float, NDArray, NDArray] | None = None
     for k in range(POLISH_MAX_ITER + 1):
         Q, Z = smat(q, n), smat(e - W @ y, n)
         r1 = W.T @ q - b
@@ -259,6 +254,7 @@ def _polish(W: NDArray, b: NDArray, q: NDArray, y: NDArray, n: int) -> tuple[NDA
             return q, y, k, ("the Newton system of the polish is singular (no strictly complementary "
                              "solution?)")
         q, y = q + d[:t], y + d[t:]
+    assert best is not None   # set at the first iteration
     return best[1], best[2], POLISH_MAX_ITER, ""
 
 

@@ -1,0 +1,140 @@
+"""The per-plant state of the inverse Kalman engine (:mod:`optdesign.solvers.inverse_kalman_engine`):
+what does not depend on the target poles, built once by :func:`prepare_inverse_kalman` and kept with its
+plant object -- the family map of the fixed-gain SDP, the eigenvalues of A and, with one output in
+continuous time, the n-constraint form of that SDP (:mod:`optdesign.solvers.one_output_sdp`)."""
+
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._validate import as_poles
+from ..errors import ValidationError
+from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
+from ..model.plant import Plant
+from .clarabel_fixed_gain import FamilyMap, family_map
+from .one_output_sdp import OneOutputForm, one_output_form
+
+__all__ = ["EngineSetup", "prepare_inverse_kalman", "engine_applies"]
+
+
+@dataclass(frozen=True, eq=False)
+class EngineSetup:
+    """What :func:`solve_inverse_kalman` needs of a plant, built once (:func:`prepare_inverse_kalman`).
+
+    Attributes
+    ----------
+    plant : Plant
+    structure : {"full", "input", "diagonal"}
+    objective : {"min_trace", "nearest", "feasibility"}
+    Gd : (n, k) ndarray
+        Noise input of the decision covariance (identity for ``"full"``, G otherwise).
+    family : FamilyMap
+        The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
+    one_output : OneOutputForm or None
+        One output, continuous time: the n-constraint form of the fixed-gain SDP
+        (:mod:`optdesign.solvers.one_output_sdp`), built once (in discrete time it depends on the
+        gain: built per target); None otherwise.
+    eig_A : (n,) ndarray
+        The eigenvalues of A (the applicability test of the one-output gain).
+    verify : bool
+        Check every returned design independently (:func:`solve_inverse_kalman`'s
+        ``verification``); False when the caller verifies it itself (the public verb does, with
+        :mod:`optdesign.design.verification`: the same checks are not run twice).
+    """
+
+    plant: Plant
+    structure: str
+    objective: str
+    Gd: NDArray[np.float64]
+    family: FamilyMap
+    one_output: OneOutputForm | None = None
+    eig_A: NDArray[np.complex128] | None = None
+    verify: bool = True
+
+    @property
+    def k(self) -> int:
+        """Size of the decision covariance."""
+        return int(self.Gd.shape[1])
+
+    @property
+    def one_output_route(self) -> bool:
+        """The n-constraint form is tried first: one output, ``"full"`` / ``"min_trace"``."""
+        return self.plant.p == 1 and self.structure == "full" and self.objective == "min_trace"
+
+
+
+def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
+                           objective: str = "min_trace", verify: bool = True) -> EngineSetup:
+    """Build the per-plant state of the engine.
+
+    Parameters
+    ----------
+    plant : Plant
+        With R (positive definite; validated by Plant); its G (identity by default) carries the
+        noise of ``"input"`` / ``"diagonal"``; ``(C, A)`` observable.
+    q_structure : {"full", "input", "diagonal"}
+        ``Q`` any n x n ``Q >= 0``; ``Q = G Qw G'`` with ``Qw >= 0``; ``Q = G diag(qw) G'``.
+    objective : {"min_trace", "nearest", "feasibility"}
+
+    Returns
+    -------
+    EngineSetup
+
+    Raises
+    ------
+    ValidationError
+        Not a Plant, no R, unknown structure / objective, C with dependent rows.
+    NotObservableError
+        (C, A) is not observable (the modes are named).
+    """
+    if not isinstance(plant, Plant):
+        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
+    if q_structure not in STRUCTURES:
+        raise ValidationError(f"q_structure must be one of {STRUCTURES}; found {q_structure!r}")
+    if objective not in OBJECTIVES:
+        raise ValidationError(f"objective must be one of {OBJECTIVES}; found {objective!r}")
+    if plant.R is None:
+        raise ValidationError("the inverse Kalman engine needs the measurement-noise covariance R: the plant "
+                              "has no R")
+    plant.require_observable(what="placing every filter pole")
+    Gd = np.eye(plant.n) if q_structure == "full" else np.asarray(plant.G, dtype=float)
+    parts = _plant_parts(plant)
+    return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=parts.family,
+                       one_output=parts.one_output, eig_A=parts.eig_A, verify=bool(verify))
+
+
+@dataclass(frozen=True, eq=False)
+class _PlantParts:
+    """What :func:`prepare_inverse_kalman` builds from A and C alone (arrays, never the plant)."""
+
+    family: FamilyMap
+    eig_A: NDArray[np.complex128]
+    one_output: OneOutputForm | None
+
+
+#: the plant-only parts, kept while their (immutable) plant lives: the verb, called again with the
+#: same Plant object, builds them once, as a held problem does (a weak key: the parts hold the
+#: plant's arrays, not the plant)
+_PARTS: weakref.WeakKeyDictionary[Plant, _PlantParts] = weakref.WeakKeyDictionary()
+
+
+def _plant_parts(plant: Plant) -> _PlantParts:
+    parts = _PARTS.get(plant)
+    if parts is None:
+        fmap = family_map(plant.A, plant.C, plant.dt)
+        form = one_output_form(fmap.T) if (plant.p == 1 and fmap.T is not None) else None
+        eig_A = np.linalg.eigvals(plant.A).astype(complex)
+        parts = _PARTS[plant] = _PlantParts(family=fmap, eig_A=eig_A, one_output=form)
+    return parts
+
+
+def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
+    """Whether the spectral form applies: no target (relatively, 1e-8) at an eigenvalue of A or of
+    its mirror image (``-A`` / ``A^-1``) and no discrete target at 0 (the resolvents are singular
+    there; :func:`optdesign.formulate.inverse_kalman.spectral_terms`)."""
+    target = as_poles("poles", poles, setup.plant.n)
+    return spectral_terms(setup.plant.A, setup.plant.C, target, setup.plant.dt) is not None
