@@ -38,14 +38,17 @@ and keeps the best local optimum, then
 What optimum: a local optimum over L of the objective (several starts, the best kept), at which
 the returned Q is the global optimum of the convex family of Q of the returned L.
 
-One output: L is fixed by the poles (``g_b = 1``) and step 3 alone answers, globally -- an
-infeasible SDP (or a negative maximal margin) is a certificate that no ``Q >= 0`` of the
-structure reaches the targets (status ``infeasible``).  Several outputs: when no start gives a
-Kalman filter with the targets the status is ``not_found`` (a local method: feasibility
-unknown), never ``infeasible``.
+One output: L is fixed by the poles (``g_b = 1``) and step 3 alone answers, globally -- for a full Q
+and the minimal trace first in the SDP's n-constraint form (:mod:`optdesign.solvers.one_output_sdp`:
+Clarabel, a Newton polish, a KKT certificate), and where that certifies nothing in the direct form
+(the dense IPM or Clarabel, polished on its face, repaired if need be) -- an infeasible SDP (or a
+negative maximal margin) is a certificate that no ``Q >= 0`` of the structure reaches the targets
+(status ``infeasible``).  Several outputs: when no start gives a Kalman filter with the targets the
+status is ``not_found`` (a local method: feasibility unknown), never ``infeasible``.
 
 The state that depends only on the plant and the fixed choices (structure, objective) is built
-once by :func:`prepare_inverse_kalman` -- in continuous time the SDP's constraint matrix -- and
+once by :func:`prepare_inverse_kalman` (:mod:`optdesign.solvers.inverse_kalman_setup`) -- in
+continuous time the SDP's constraint matrix and, with one output, its n-constraint form -- and
 re-used for every target, as a caller-held problem object would.
 
 References

@@ -1,11 +1,11 @@
 """The per-plant state of the inverse Kalman engine (:mod:`optdesign.solvers.inverse_kalman_engine`):
-what does not depend on the target poles, built once by :func:`prepare_inverse_kalman` and kept with its
-plant object -- the family map of the fixed-gain SDP, the eigenvalues of A and, with one output in
-continuous time, the n-constraint form of that SDP (:mod:`optdesign.solvers.one_output_sdp`)."""
+what does not depend on the target poles, built by :func:`prepare_inverse_kalman` and held by the caller
+(a held :class:`~optdesign.InverseKalmanProblem` builds it once) -- the family map of the fixed-gain
+SDP, the eigenvalues of A and, with one output in continuous time, the n-constraint form of that SDP
+(:mod:`optdesign.solvers.one_output_sdp`)."""
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,9 +35,9 @@ class EngineSetup:
     family : FamilyMap
         The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
     one_output : OneOutputForm or None
-        One output, continuous time: the n-constraint form of the fixed-gain SDP
-        (:mod:`optdesign.solvers.one_output_sdp`), built once (in discrete time it depends on the
-        gain: built per target); None otherwise.
+        One output, ``"full"`` / ``"min_trace"``, continuous time: the n-constraint form of the
+        fixed-gain SDP (:mod:`optdesign.solvers.one_output_sdp`), built once (in discrete time it
+        depends on the gain: built per target); None otherwise.
     eig_A : (n,) ndarray
         The eigenvalues of A (the applicability test of the one-output gain).
     verify : bool
@@ -102,34 +102,11 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
                               "has no R")
     plant.require_observable(what="placing every filter pole")
     Gd = np.eye(plant.n) if q_structure == "full" else np.asarray(plant.G, dtype=float)
-    parts = _plant_parts(plant)
-    return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=parts.family,
-                       one_output=parts.one_output, eig_A=parts.eig_A, verify=bool(verify))
-
-
-@dataclass(frozen=True, eq=False)
-class _PlantParts:
-    """What :func:`prepare_inverse_kalman` builds from A and C alone (arrays, never the plant)."""
-
-    family: FamilyMap
-    eig_A: NDArray[np.complex128]
-    one_output: OneOutputForm | None
-
-
-#: the plant-only parts, kept while their (immutable) plant lives: the verb, called again with the
-#: same Plant object, builds them once, as a held problem does (a weak key: the parts hold the
-#: plant's arrays, not the plant)
-_PARTS: weakref.WeakKeyDictionary[Plant, _PlantParts] = weakref.WeakKeyDictionary()
-
-
-def _plant_parts(plant: Plant) -> _PlantParts:
-    parts = _PARTS.get(plant)
-    if parts is None:
-        fmap = family_map(plant.A, plant.C, plant.dt)
-        form = one_output_form(fmap.T) if (plant.p == 1 and fmap.T is not None) else None
-        eig_A = np.linalg.eigvals(plant.A).astype(complex)
-        parts = _PARTS[plant] = _PlantParts(family=fmap, eig_A=eig_A, one_output=form)
-    return parts
+    fmap = family_map(plant.A, plant.C, plant.dt)
+    one = plant.p == 1 and q_structure == "full" and objective == "min_trace"
+    form = one_output_form(fmap.T) if (one and fmap.T is not None) else None
+    return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=fmap,
+                       one_output=form, eig_A=np.linalg.eigvals(plant.A).astype(complex), verify=bool(verify))
 
 
 def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
