@@ -156,6 +156,22 @@ def test_engine_falls_back_to_the_general_route_when_the_form_certifies_nothing(
     np.testing.assert_array_equal(again.L, res.L)
 
 
+def test_a_unique_gain_that_misses_the_cap_is_refined_for_its_poles(monkeypatch):
+    """A gain off by 1e-5 (relative) misses its poles beyond the verification's cap: Newton steps on
+    its poles (the same gain in exact arithmetic) bring it back, and the design is the exact one's."""
+    plant, are = _bench_targets(10)[1]
+    ref = kalman_for_poles(plant, are.poles)
+    assert ref.success and not ref.extra["engine"]["gain_refined"]
+    real = engine.single_output_gain
+    monkeypatch.setattr(engine, "single_output_gain", lambda *a, **k: real(*a, **k) * (1 + 1e-5))
+    res = kalman_for_poles(plant, are.poles)
+    assert res.success and res.status == Status.OPTIMAL and res.extra["engine"]["gain_refined"]
+    assert "refined for its poles" in res.message
+    assert res.verification["pole_error"].value <= 1e-8
+    np.testing.assert_allclose(res.L, ref.L, rtol=1e-8)
+    assert res.objective_value == pytest.approx(ref.objective_value, rel=1e-7)
+
+
 def test_the_form_certifies_targets_the_direct_form_does_not(general_one_output_route):
     """The benchmark's computable n = 20 target: the direct form's data are scaled by ||L R L'||,
     about 1e5 times the optimal Q -- Clarabel stops AlmostSolved there and the general route needs

@@ -82,6 +82,7 @@ from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_setup import EngineSetup, engine_applies, prepare_inverse_kalman
 from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
 from .one_output_sdp import lyapunov_P, one_output_form, solve_one_output
+from .polish import refine_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
 
@@ -715,9 +716,15 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     (:func:`~optdesign.solvers.one_output_sdp.solve_one_output`); None when that does not certify a
     solution (the general one-output route then runs: the dense IPM, Clarabel on the direct form, a
     repair, and every verdict).  P is the Lyapunov solution of ``A - L C`` with ``L R L' + Q``.
-    ``optimal_inaccurate`` when the unique gain misses the targets beyond the verification's cap
-    (not computable in double precision)."""
+    A unique gain that misses the targets beyond the verification's cap is first refined by Newton
+    steps on its poles (:func:`~optdesign.solvers.polish.refine_gain`: the same gain in exact
+    arithmetic, its poles placed better in floating point; measured: an n = 15 target's 1.4e-6 ->
+    7.5e-7); ``optimal_inaccurate`` when it still does (not computable in double precision)."""
     plant = setup.plant
+    miss = first = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
+    if miss > POLE_FLOOR_CAP:
+        L = refine_gain(plant.A, plant.C, L, target)
+        miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
     fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float))
     if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
         return None
@@ -731,16 +738,17 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     P = lyapunov_P(fam, Q)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
         return None
-    miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
     status = Status.OPTIMAL if miss <= POLE_FLOOR_CAP else Status.OPTIMAL_INACCURATE
     msg = (f"one output: the poles fix L; fixed-gain SDP in its n-constraint form (Clarabel "
            f"{sol.native_status}, {sol.iterations} iterations), Newton-polished ({sol.newton_iterations} "
            f"steps) to rank {sol.rank}; KKT certificate")
+    if miss < first:
+        msg += f"; the unique gain refined for its poles (pole error {first:.2g} -> {miss:.2g})"
     if status != Status.OPTIMAL:
         msg += f"; the unique gain misses the targets by {miss:.2g} (not computable)"
     details = {"sdp": {"status": "optimal", "native": sol.native_status, "iterations": sol.iterations,
                        "form": "n constraints", "newton_iterations": sol.newton_iterations},
-               "L_unique": L, "kkt": sol.kkt}
+               "L_unique": L, "gain_refined": bool(miss < first), "kkt": sol.kkt}
     return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, None),
                    objective=float(np.trace(Q)), iterations=sol.iterations, rank=sol.rank, tol=tol,
                    details=details, native=sol.native_status)

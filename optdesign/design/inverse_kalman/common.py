@@ -22,7 +22,7 @@ from ...formulate.inverse_kalman import (
 )
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
-from ...solvers.polish import min_norm_lstsq, sym
+from ...solvers.polish import refine_gain, sym
 from ..verification import (
     check_violation,
     newton_kalman_checks,
@@ -64,45 +64,6 @@ def noise_of(structure: str, G: NDArray | None, Wdec: NDArray) -> tuple[NDArray,
 
 def project_psd(X: NDArray) -> NDArray:
     return sym(psd_part(X))
-
-
-def refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int = 6) -> NDArray:
-    """Newton steps on ``eig(A - L C) = target`` (min-norm corrections); keeps the best L."""
-    from scipy.optimize import linear_sum_assignment
-
-    best, best_err = L, pole_error(np.linalg.eigvals(A - L @ C), target)
-    if best_err == 0.0:
-        return L
-    n, p = L.shape
-    for _ in range(iters):
-        F = A - best @ C
-        lam, X = np.linalg.eig(F)
-        try:
-            Y = np.linalg.inv(X).conj().T  # left eigenvectors, y_i^H x_i = 1
-        except np.linalg.LinAlgError:
-            return best
-        cost = np.abs(lam[:, None] - target[None, :])
-        r, c = linear_sum_assignment(cost)
-        rows, rhs = [], []
-        for i, j in zip(r, c, strict=True):
-            if lam[i].imag < -1e-12 * max(1.0, abs(lam[i])):
-                continue  # the conjugate equation is implied
-            # d lambda_i = -y_i^H dL C x_i
-            g = -np.outer(Y[:, i].conj(), C @ X[:, i]).reshape(-1)  # d/d vec_rowmajor(dL)
-            d = target[j] - lam[i]
-            rows.append(g.real)
-            rhs.append(d.real)
-            if abs(lam[i].imag) > 1e-12 * max(1.0, abs(lam[i])):
-                rows.append(g.imag)
-                rhs.append(d.imag)
-        J = np.asarray(rows)
-        dL = min_norm_lstsq(J, np.asarray(rhs))
-        cand = best + dL.reshape(n, p)
-        err = pole_error(np.linalg.eigvals(A - cand @ C), target)
-        if not err < best_err:
-            break
-        best, best_err = cand, err
-    return best
 
 
 def placed_gain(plant: Plant, target: NDArray) -> NDArray:

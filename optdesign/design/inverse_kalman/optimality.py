@@ -18,8 +18,9 @@ from ...errors import ValidationError
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
+from ...solvers.polish import min_norm_lstsq
 from ..verification import riccati_checks
-from .common import EPS, make_stats, min_norm_lstsq, project_psd, quiet, stable_poles, sym
+from .common import EPS, make_stats, project_psd, quiet, stable_poles, sym
 from .results import InfeasibilityCertificate, KalmanOptimalityResult
 from .sdp_stage import feasibility_margin, polished_point, sdp_fixed_gain, whitening
 
