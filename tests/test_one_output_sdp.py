@@ -79,7 +79,8 @@ def test_optimum_is_the_general_routes_exact_and_certified(n, dt, general_one_ou
     plant, fam = _family(100 + n, n, dt)
     form, sol = _solved(fam)
     assert sol.Q is not None, sol.reason
-    assert sol.native_status == "Solved" and 1 <= sol.newton_iterations <= oo.POLISH_MAX_ITER
+    assert sol.native_status == ("ipm: solved" if n >= oo.IPM_MIN_N else "Solved")
+    assert 1 <= sol.newton_iterations <= oo.POLISH_MAX_ITER
     assert sol.kkt["passed"] and sol.kkt["min_eig"] >= -oo.KKT_TOL
     # exactly PSD (V V') and an exact member of the family
     Q = sol.Q
@@ -97,6 +98,24 @@ def test_optimum_is_the_general_routes_exact_and_certified(n, dt, general_one_ou
     ref = engine.solve_inverse_kalman(setup, np.linalg.eigvals(plant.A - fam.L @ plant.C))
     assert ref.status == Status.OPTIMAL and ref.details["kkt"]["passed"]
     assert np.trace(Q) == pytest.approx(ref.objective_value, rel=AGREE)
+
+
+@pytest.mark.parametrize("n", [4, 12])
+def test_the_dense_ipm_and_clarabel_start_the_polish_at_the_same_optimum(n, monkeypatch):
+    _, fam = _family(300 + n, n, None)
+    form = oo.one_output_form(fam.T)
+    monkeypatch.setattr(oo, "IPM_MIN_N", 1)
+    ipm = oo.solve_one_output(form, fam)
+    monkeypatch.setattr(oo, "IPM_MIN_N", 10**6)
+    cla = oo.solve_one_output(form, fam)
+    assert ipm.native_status == "ipm: solved" and cla.native_status == "Solved"
+    assert ipm.kkt["passed"] and cla.kkt["passed"] and ipm.rank == cla.rank
+    np.testing.assert_allclose(ipm.Q, cla.Q, rtol=0, atol=AGREE * np.linalg.norm(cla.Q))
+    # an IPM that does not meet its test hands the SDP to Clarabel
+    monkeypatch.setattr(oo, "IPM_MIN_N", 1)
+    monkeypatch.setattr(oo, "standard_form_ipm", lambda *a, **k: (None, None))
+    again = oo.solve_one_output(form, fam)
+    assert again.native_status == "Solved" and again.kkt["passed"]
 
 
 def test_polish_returns_to_the_optimum_from_a_perturbed_point():
@@ -182,7 +201,8 @@ def test_the_form_certifies_targets_the_direct_form_does_not(general_one_output_
     fam = fixed_gain_family(setup.family, L, plant.R)
     assert np.trace(fam.Q0) > 1e3 * (1e-300 + np.linalg.norm(setup.one_output.W.T @ svec(fam.Q0)))
     sol = oo.solve_one_output(setup.one_output, fam)
-    assert sol.Q is not None and sol.native_status == "Solved" and sol.kkt["passed"]
+    assert sol.Q is not None and sol.native_status == "ipm: solved" and sol.kkt["passed"]
+    assert np.trace(sol.Q) == pytest.approx(np.trace(oo.solve_one_output(setup.one_output, fam).Q), rel=AGREE)
 
 
 # ------------------------------------------------------------------------------- the lean gain

@@ -40,7 +40,8 @@ from .._validate import as_int, as_positive_float
 from ..results import Status
 from .clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
 
-__all__ = ["IPM_TOL", "IPM_MAX_ITER", "IpmReport", "symmetric_basis", "solve_fixed_gain_ipm"]
+__all__ = ["IPM_TOL", "IPM_MAX_ITER", "IpmReport", "symmetric_basis", "solve_fixed_gain_ipm",
+           "standard_form_ipm"]
 
 #: stopping test: relative primal and dual infeasibility and relative duality gap (of the column-
 #: scaled data) at most this -- Clarabel's tight settings are 1e-10; the polish finishes on the face.
@@ -161,9 +162,24 @@ def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_i
         return None, IpmReport(False, 0, "a direction of x does not move Q", np.nan, np.nan, np.nan)
     Ts = T / colnorm                                      # x = xs / colnorm
     B = symmetric_basis(Ts, n)
-    Bf = B.reshape(m, -1)
-    C = family.Q0
     b = np.trace(B, axis1=1, axis2=2)                     # b = c: max b'y = -min c'xs (y = -xs)
+    out, rep = standard_form_ipm(B, b, family.Q0, tol=tol, max_iter=max_iter, deadline=deadline)
+    if out is None:
+        return None, rep
+    return _solution(family, -out[2] / colnorm, rep, out[3])
+
+
+def standard_form_ipm(B: NDArray, b: NDArray, C: NDArray, *, tol: float = IPM_TOL,
+                      max_iter: int = IPM_MAX_ITER, deadline: Deadline | None = None
+                      ) -> tuple[tuple[NDArray, NDArray, NDArray, float] | None, IpmReport]:
+    """The IPM of this module on a standard pair: ``min <C, X>`` s.t. ``<A_i, X> = b_i``, ``X >= 0`` and
+    ``max b'y`` s.t. ``sum_i y_i A_i + Z = C``, ``Z >= 0`` (the A_i the stack B, (m, n, n), symmetric).
+
+    Returns ``((X, Z, y, ||Rd||), report)`` when it met its stopping test (relative primal and dual
+    infeasibility and gap at most ``tol``), else ``(None, report)``.
+    """
+    m, n = B.shape[0], B.shape[1]
+    Bf = B.reshape(m, -1)
     normb, normC = 1.0 + float(np.linalg.norm(b)), 1.0 + float(np.linalg.norm(C))
     # the SDPT3 starting point: X, Z multiples of I large enough for the data
     nb = np.linalg.norm(Bf, axis=1)
@@ -181,8 +197,7 @@ def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_i
         if not (np.isfinite(pobj) and np.isfinite(dobj)):
             return None, IpmReport(False, k, "non-finite iterate", rp, rd, gap)
         if max(rp, rd, gap) <= tol:
-            rep = IpmReport(True, k, "converged", rp, rd, gap)
-            break
+            return (X, Z, y, float(np.linalg.norm(Rd))), IpmReport(True, k, "converged", rp, rd, gap)
         if k == max_iter:
             return None, rep
         if deadline is not None and deadline.expired:
@@ -191,7 +206,7 @@ def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_i
         if step is None:
             return None, IpmReport(False, k, "Cholesky failed (numerical)", rp, rd, gap)
         X, Z, y = step
-    return _solution(family, -y / colnorm, rep, float(np.linalg.norm(Rd)))
+    return None, rep
 
 
 def _iterate(B, b, X, Z, y, Rd):

@@ -739,9 +739,10 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
         return None
     status = Status.OPTIMAL if miss <= POLE_FLOOR_CAP else Status.OPTIMAL_INACCURATE
-    msg = (f"one output: the poles fix L; fixed-gain SDP in its n-constraint form (Clarabel "
-           f"{sol.native_status}, {sol.iterations} iterations), Newton-polished ({sol.newton_iterations} "
-           f"steps) to rank {sol.rank}; KKT certificate")
+    solver = "the dense IPM" if sol.native_status.startswith("ipm") else f"Clarabel {sol.native_status}"
+    msg = (f"one output: the poles fix L; fixed-gain SDP in its n-constraint form ({solver}, "
+           f"{sol.iterations} iterations), Newton-polished ({sol.newton_iterations} steps) to rank "
+           f"{sol.rank}; KKT certificate")
     if miss < first:
         msg += f"; the unique gain refined for its poles (pole error {first:.2g} -> {miss:.2g})"
     if status != Status.OPTIMAL:

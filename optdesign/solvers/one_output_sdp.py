@@ -19,7 +19,9 @@ to the wrong size (measured: traces 1e-5 apart between two solvers at n = 10, an
 n >= 15, where this form solves every target).
 
 :func:`solve_one_output` solves the dual on Clarabel (variables y, one PSD cone whose multiplier is
-Q) to :data:`POLISH_START_TOL`, then runs Newton's method on the optimality conditions
+Q; from n = :data:`IPM_MIN_N` the dense IPM of :mod:`optdesign.solvers.fixed_gain_ipm` on the pair,
+whose Schur matrix is n x n, and Clarabel when it fails) to :data:`POLISH_START_TOL`, then runs
+Newton's method on the optimality conditions
 
 .. math::  W' \operatorname{svec}(Q) = b, \qquad (Q Z + Z Q)/2 = 0, \qquad Z = I - \operatorname{smat}(W y),
 
@@ -53,9 +55,10 @@ from numpy.typing import NDArray
 from .._backends import import_clarabel
 from .._deadline import Deadline
 from .clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec, svec_index
+from .fixed_gain_ipm import standard_form_ipm, symmetric_basis
 
-__all__ = ["POLISH_START_TOL", "KKT_TOL", "OneOutputForm", "one_output_form", "OneOutputSolution",
-           "solve_one_output", "symmetric_product_matrix", "lyapunov_P"]
+__all__ = ["POLISH_START_TOL", "KKT_TOL", "IPM_MIN_N", "OneOutputForm", "one_output_form",
+           "OneOutputSolution", "solve_one_output", "symmetric_product_matrix", "lyapunov_P"]
 
 _EPS = float(np.finfo(float).eps)
 
@@ -63,6 +66,12 @@ _EPS = float(np.finfo(float).eps)
 #: data): the polish converges quadratically from there (measured: 2-3 Newton steps to rounding on
 #: 24 targets n = 2..20; Clarabel 9-14 iterations)
 POLISH_START_TOL = 1e-8
+#: the dense IPM (:func:`~optdesign.solvers.fixed_gain_ipm.standard_form_ipm`, n x n Schur matrix)
+#: instead of Clarabel from this n (Clarabel's KKT system has a dense block of n(n+1)/2 rows).
+#: Measured (CPU per SDP with the polish, 2 targets each): Clarabel 1.0-2.4 ms at n = 2-6 (the IPM
+#: 3.3-5.9: Python per iteration), 5.3 / 7.1 ms at n = 10, equal at n = 12 (8.5 ms), 19-27 / 10-17
+#: at n = 15 and 59-64 / 18-19 ms at n = 20; the same optimum to 2e-15 either way
+IPM_MIN_N = 12
 #: Newton steps at most (quadratic convergence: 2-3 are used)
 POLISH_MAX_ITER = 8
 #: KKT test of the polished point: smallest eigenvalue of Z over ``||Z||`` at least ``-KKT_TOL``,
@@ -84,11 +93,14 @@ class OneOutputForm:
     clarabel_data : tuple
         ``(P, A, h)`` of the dual on Clarabel (P = 0, A = W, h = svec(I); its one PSD cone is made
         per solve: Clarabel's cone objects do not pickle, and a held problem must), built once.
+    basis : (n, n, n) ndarray
+        The matrices ``W_k`` (for the dense IPM).
     """
 
     n: int
     W: NDArray[np.float64]
     clarabel_data: tuple = field(repr=False)
+    basis: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros((0, 0, 0)))
 
 
 def one_output_form(T: NDArray) -> OneOutputForm | None:
@@ -113,7 +125,7 @@ def one_output_form(T: NDArray) -> OneOutputForm | None:
                          shape=(n, n))
     Wsp = sp.csc_matrix((W.ravel(order="F"), np.tile(np.arange(t, dtype=np.int32), n),
                          np.arange(0, t * n + 1, t, dtype=np.int32)), shape=(t, n))
-    return OneOutputForm(n=n, W=W, clarabel_data=(zero, Wsp, svec(np.eye(n))))
+    return OneOutputForm(n=n, W=W, clarabel_data=(zero, Wsp, svec(np.eye(n))), basis=symmetric_basis(W, n))
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,9 +143,9 @@ class OneOutputSolution:
         ``min_eig`` (of Z over ||Z||), ``complementarity``, ``infeasibility``, ``gap`` (``(tr Q -
         b'y) / tr Q``), ``passed``.
     native_status : str
-        Clarabel's status.
+        Clarabel's status, or ``"ipm: solved"`` (the dense IPM, n >= :data:`IPM_MIN_N`).
     iterations : int
-        Clarabel's iterations.
+        The interior-point iterations.
     newton_iterations : int
     reason : str
         Why there is no solution ("" with one).
@@ -205,14 +217,18 @@ def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
     if not (np.isfinite(beta) and beta > 0.0):
         return _failed(f"the family's data b has norm {beta:.3g} (Q = 0 is in the family, or not finite)")
     bn = b / beta
-    Pm, Am, h = form.clarabel_data
-    cones = [clarabel.PSDTriangleConeT(n)]
-    sol = clarabel.DefaultSolver(Pm, -bn, Am, h, cones, _settings(clarabel, deadline)).solve()
-    native = str(sol.status)
-    iters = int(getattr(sol, "iterations", 0) or 0)
-    if native != "Solved":   # AlmostSolved and every other status: the general route decides
-        return _failed(f"Clarabel {native}", native, iters)
-    q, y = np.array(sol.z, dtype=float), np.array(sol.x, dtype=float)
+    start = _interior_point(form, bn, deadline) if n >= IPM_MIN_N else None
+    if start is None:
+        Pm, Am, h = form.clarabel_data
+        cones = [clarabel.PSDTriangleConeT(n)]
+        sol = clarabel.DefaultSolver(Pm, -bn, Am, h, cones, _settings(clarabel, deadline)).solve()
+        native = str(sol.status)
+        iters = int(getattr(sol, "iterations", 0) or 0)
+        if native != "Solved":   # AlmostSolved and every other status: the general route decides
+            return _failed(f"Clarabel {native}", native, iters)
+        q, y = np.array(sol.z, dtype=float), np.array(sol.x, dtype=float)
+    else:
+        q, y, native, iters = start
     q, y, newton, why = _polish(W, bn, q, y, n)
     if why:
         return _failed(why, native, iters, newton)
@@ -223,6 +239,17 @@ def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
             f"{k} {v:.2g}" for k, v in kkt.items() if k != "passed") + ")", native, iters, newton)
     Q = (family.scale * beta) * Qn
     return OneOutputSolution(0.5 * (Q + Q.T), rank, y, kkt, native, iters, newton)
+
+
+def _interior_point(form: OneOutputForm, b: NDArray, deadline: Deadline | None):
+    """``(q, y, "ipm: solved", iterations)`` from the dense IPM of
+    :func:`~optdesign.solvers.fixed_gain_ipm.standard_form_ipm` on the pair (C = I, A_k = W_k), to
+    :data:`POLISH_START_TOL`; None when it did not meet its test (Clarabel then solves the SDP)."""
+    out, rep = standard_form_ipm(form.basis, b, np.eye(form.n), tol=POLISH_START_TOL, deadline=deadline)
+    if out is None:
+        return None
+    X, _, y, _ = out
+    return svec(0.5 * (X + X.T)), y, "ipm: solved", rep.iterations
 
 
 def _polish(W: NDArray, b: NDArray, q: NDArray, y: NDArray, n: int) -> tuple[NDArray, NDArray, int, str]:
