@@ -410,7 +410,7 @@ def profile(sizes, rng_seed: int) -> str:
 #: (module, attribute, label) of the one-output stages timed by :func:`one_output_stages`
 ONE_OUTPUT_STAGES = [
     ("optdesign.design.inverse_kalman.verb:InverseKalmanProblem", "_early_answer", "early answers"),
-    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (parts kept)"),
+    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (family map, form)"),
     ("optdesign.design.inverse_kalman.engine_route", "solve_inverse_kalman", "engine"),
     ("optdesign.solvers.inverse_kalman_engine", "single_output_gain", "  gain (one batched solve)"),
     ("optdesign.solvers.inverse_kalman_engine", "fixed_gain_family", "  the gain's family"),

@@ -29,7 +29,10 @@ Tolerance table (value -> tolerance, and why):
 ``are_resolve_gain``
     ``||L_are - L|| / max(1, ||L||)``, ``L_are`` from an independent Riccati solve with Q ->
     ``4 (err_P + err_are + 10 n eps cond) ||P|| ||dL/dP|| / max(1, ||L||)``, capped at 1e-6: the two
-    gains differ by what the errors of the two P (and the gain formula's rounding) explain.
+    gains differ by what the errors of the two P (and the gain formula's rounding) explain.  For a
+    one-output design from no Riccati solver (:func:`newton_kalman_checks`) ``L_are`` is the gain of
+    one Newton step of the equation from P (the stabilizing solution to second order in P's error:
+    P's closed loop is stable), with ``err_are = err_P``; the full checks decide what it does not pass.
 ``are_resolve_poles``
     poles of that solve vs the targets -> as ``pole_error``; when that gain passed its check but its
     poles miss, raised to the design's pole error plus the first-order movement of its poles by the
@@ -485,8 +488,8 @@ def newton_kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, targe
     The checks and their tolerance rules are those of :func:`pole_check` and :func:`riccati_checks`,
     with two differences that make them cheap and keep them independent of the solver:
 
-    * ``pole_error`` is accepted within ``tol`` itself (the rounding floor of the poles -- an
-      eigenvector computation -- only ever raises the tolerance, and is left to the full checks);
+    * the rounding floor of the poles (an eigenvector computation, which only ever raises the
+      ``pole_error`` tolerance) is computed only when the error exceeds ``tol``;
     * the Riccati re-solve is one Newton (Kleinman; discrete: Hewer) step of the equation with Q
       from P, ``P1 = P + E`` with E the Newton correction that the forward error estimate computes
       anyway (the Lyapunov / Stein operator of the closed loop of P's own gain; in continuous time
