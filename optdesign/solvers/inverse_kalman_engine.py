@@ -711,11 +711,11 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
 def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: Deadline, t0: float,
                      cpu0: float, tol: float) -> EngineResult | None:
     """One output, ``"full"`` / ``"min_trace"``: the fixed-gain SDP at the unique gain L in its
-    n-constraint form (the plant's in continuous time, the gain's in discrete time), Newton-polished and
-    KKT-certified
-    (:func:`~optdesign.solvers.one_output_sdp.solve_one_output`); None when that does not certify a
-    solution (the general one-output route then runs: the dense IPM, Clarabel on the direct form, a
-    repair, and every verdict).  P is the Lyapunov solution of ``A - L C`` with ``L R L' + Q``.
+    n-constraint form (the plant's in continuous time, the gain's in discrete time), Newton-polished
+    and KKT-certified (:func:`~optdesign.solvers.one_output_sdp.solve_one_output`); None when that
+    does not certify a solution (the general one-output route then runs: the dense IPM, Clarabel on
+    the direct form, a repair, and every verdict).  P is the Lyapunov solution of ``A - L C`` with
+    ``L R L' + Q``.
     A unique gain that misses the targets beyond the verification's cap is first refined by Newton
     steps on its poles (:func:`~optdesign.solvers.polish.refine_gain`: the same gain in exact
     arithmetic, its poles placed better in floating point; measured: an n = 15 target's 1.4e-6 ->

@@ -66,7 +66,6 @@ class EngineSetup:
         return self.plant.p == 1 and self.structure == "full" and self.objective == "min_trace"
 
 
-
 def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
                            objective: str = "min_trace", verify: bool = True) -> EngineSetup:
     """Build the per-plant state of the engine.
