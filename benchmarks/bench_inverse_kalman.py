@@ -410,14 +410,14 @@ def profile(sizes, rng_seed: int) -> str:
 #: (module, attribute, label) of the one-output stages timed by :func:`one_output_stages`
 ONE_OUTPUT_STAGES = [
     ("optdesign.design.inverse_kalman.verb:InverseKalmanProblem", "_early_answer", "early answers"),
-    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (family map, form)"),
+    ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (map, form)"),
     ("optdesign.design.inverse_kalman.engine_route", "solve_inverse_kalman", "engine"),
     ("optdesign.solvers.inverse_kalman_engine", "single_output_gain", "  gain (one batched solve)"),
     ("optdesign.solvers.inverse_kalman_engine", "fixed_gain_family", "  the gain's family"),
     ("optdesign.solvers.inverse_kalman_engine", "solve_one_output", "  SDP, n-constraint form (all of it)"),
     ("optdesign.solvers.one_output_sdp", "_polish", "  Newton polish (part of the SDP row)"),
     ("optdesign.solvers.one_output_sdp", "_kkt", "  KKT test (part of the SDP row)"),
-    ("optdesign.solvers.inverse_kalman_engine", "lyapunov_P", "  design (Lyapunov P)"),
+    ("optdesign.solvers.inverse_kalman_engine", "riccati_of_gain", "  design (Lyapunov P)"),
     ("optdesign.solvers.inverse_kalman_engine", "spectral_terms", "  general route: spectral terms"),
     ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain", "  general route: Clarabel, direct form"),
     ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain_ipm", "  general route: dense IPM"),

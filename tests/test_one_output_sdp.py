@@ -21,10 +21,12 @@ from optdesign import InverseKalmanProblem, Plant, kalman_for_poles
 from optdesign._validate import as_poles
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
 from optdesign.classical.placement import pole_error
+from optdesign.errors import ValidationError
 from optdesign.formulate.inverse_kalman import spectral_terms
 from optdesign.formulate.inverse_kalman.common import single_output_gain
 from optdesign.results import Status
-from optdesign.solvers.clarabel_fixed_gain import fixed_gain_family, smat, svec
+from optdesign.solvers.clarabel_fixed_gain import fixed_gain_family, riccati_of_gain, smat, svec
+from optdesign.solvers.fixed_gain_ipm import standard_form_ipm
 from optdesign.solvers.spectral_factor import spectral_blocks
 
 EPS = float(np.finfo(float).eps)
@@ -85,14 +87,18 @@ def test_optimum_is_the_general_routes_exact_and_certified(n, dt, general_one_ou
     # exactly PSD (V V') and an exact member of the family
     Q = sol.Q
     nq = float(np.linalg.norm(Q, 2))
-    assert np.linalg.eigvalsh(Q)[0] >= -10 * n * EPS * nq
-    assert 1 <= sol.rank == np.sum(np.linalg.eigvalsh(Q) > 1e-9 * nq)
+    lam = np.linalg.eigvalsh(Q)
+    assert lam[0] >= -10 * n * EPS * nq
+    # rank r: n - r eigenvalues zero to rounding (V V' of r columns), the others positive
+    assert 1 <= sol.rank <= n
+    assert np.all(np.abs(lam[:n - sol.rank]) <= 10 * n * EPS * nq) and lam[n - sol.rank] > 0
     b = form.W.T @ svec(fam.Q0)
     assert np.linalg.norm(form.W.T @ svec(Q / fam.scale) - b) <= 1e-12 * np.linalg.norm(b) + 1e-14
-    P = oo.lyapunov_P(fam, Q)
-    K = fam.L @ fam.R if dt is None else (plant.A - fam.L @ plant.C) @ P @ plant.C.T
-    np.testing.assert_allclose(P @ plant.C.T if dt is None else fam.L @ fam.R, K,
-                               rtol=1e-8, atol=1e-10 * np.linalg.norm(P))
+    # its Riccati solution for the gain satisfies the gain relation: P C' = L R (continuous),
+    # (A - L C) P C' = L R (discrete)
+    P = riccati_of_gain(plant.A, plant.C, fam.L, fam.R, Q, dt)
+    PC = P @ plant.C.T if dt is None else (plant.A - fam.L @ plant.C) @ P @ plant.C.T
+    np.testing.assert_allclose(PC, fam.L @ fam.R, rtol=1e-8, atol=1e-10 * np.linalg.norm(P))
     # the general route (direct form, polished on its face) reaches the same optimum
     setup = engine.prepare_inverse_kalman(plant, verify=False)
     ref = engine.solve_inverse_kalman(setup, np.linalg.eigvals(plant.A - fam.L @ plant.C))
@@ -233,6 +239,18 @@ def test_single_output_gain_where_the_resolvent_is_singular():
     assert single_output_gain(A, C, np.array([-4.0, -4.0]), None) is None       # repeated: no unique w
     assert single_output_gain(A, C, np.array([0.0, 0.5]), 0.1) is None          # discrete target 0
     assert single_output_gain(A, C, np.array([-4.0, -5.0]), None) is not None
+    with pytest.raises(ValidationError, match=r"needs one output: C must be \(1, 2\); found \(2, 2\)"):
+        single_output_gain(A, np.eye(2), np.array([-4.0, -5.0]), None)
+
+
+def test_the_standard_form_ipm_rejects_bad_arguments():
+    _, fam = _family(104, 4, None)
+    form = oo.one_output_form(fam.T)
+    b = form.W.T @ svec(fam.Q0)
+    with pytest.raises(ValidationError, match="tol must be"):
+        standard_form_ipm(form.basis, b, np.eye(4), tol=-1.0)
+    with pytest.raises(ValidationError, match=r"max_iter must be an integer >= 1; found 0"):
+        standard_form_ipm(form.basis, b, np.eye(4), max_iter=0)
 
 
 # ------------------------------------------------------------------------- the per-plant state

@@ -196,16 +196,18 @@ def pole_tolerance(F: NDArray, tol: float) -> float:
 
 
 def pole_check(F: NDArray, target: NDArray, tol: float, *, name: str = "pole_error",
-               what: str = "eig(A - L C) (numpy)") -> tuple[Check, NDArray]:
+               what: str = "eig(A - L C) (numpy)", lazy: bool = False) -> tuple[Check, NDArray]:
     """The ``pole_error`` check of the error dynamics F against ``target``; returns the check and
-    the sorted poles."""
+    the sorted poles.  ``lazy``: the rounding floor of the poles (an eigenvector computation, which
+    only ever raises the tolerance) only when the error exceeds ``tol`` -- the same verdict."""
     poles = np.linalg.eigvals(F)
     poles = poles[np.lexsort((poles.imag, poles.real))]
-    ptol = pole_tolerance(F, tol)
+    err = pole_error(poles, target)
+    ptol = float(tol) if (lazy and err <= tol) else pole_tolerance(F, tol)
     detail = f"max relative distance of {what} to the targets"
     if ptol > tol:
         detail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
-    return Check.at_most(name, pole_error(poles, target), ptol, detail), poles
+    return Check.at_most(name, err, ptol, detail), poles
 
 
 def resolve_pole_tolerance(F: NDArray, dLC: NDArray, own_error: float, tol: float) -> float:
@@ -521,23 +523,16 @@ def newton_kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, targe
         return None
     A, C, disc = plant.A, plant.C, plant.is_discrete
     R = np.asarray(plant.R, dtype=float)
-    F = A - L @ C
-    poles = np.linalg.eigvals(F)
-    poles = poles[np.lexsort((poles.imag, poles.real))]
-    err = pole_error(poles, target)
-    ptol, detail = float(tol), "max relative distance of eig(A - L C) (numpy) to the targets"
-    if not err <= ptol:   # the rounding floor of the poles (an eigenvector computation) only when needed
-        ptol = pole_tolerance(F, tol)
-        detail += f"; tolerance raised from {tol:.1e} to the eigenvalue rounding floor of A - L C"
-        if not err <= ptol:
-            return None
+    pcheck, poles = pole_check(A - L @ C, target, tol, lazy=True)
+    if not pcheck.passed:
+        return None
     Qs = 0.5 * (Q + Q.T)
     res, terms = filter_are_terms(A, C, R, Qs, P, disc)
     est, E = are_correction_of_terms(A, C, R, P, res, terms, disc)
     if E is None or not np.isfinite(est.relative):
         return None
     eig_p = np.linalg.eigvalsh(0.5 * (P + P.T))
-    checks = [Check.at_most("pole_error", err, ptol, detail),
+    checks = [pcheck,
               *_kalman_checks(relative_residual(res, terms), est, Qs, P, what,
                               q_eigenvalues=np.linalg.eigvalsh(Qs), p_eigenvalues=eig_p)]
     with np.errstate(all="ignore"):
@@ -553,7 +548,7 @@ def newton_kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, targe
         f"error estimate of P"))
     checks.append(resolve_poles_check(A, C, L, L1, np.linalg.eigvals(A - L1 @ C), target, checks[0],
                                       checks[-1].passed, tol, "poles of that Newton step's gain vs the "
-                                      "targets", floor_known=ptol > tol))
+                                      "targets", floor_known=pcheck.tolerance > tol))
     if not all(c.passed for c in checks):
         return None
     return checks, poles

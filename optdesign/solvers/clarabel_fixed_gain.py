@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.linalg as sl
 from numpy.typing import NDArray
 
 from .._backends import import_clarabel
@@ -60,6 +61,7 @@ __all__ = [
     "smat",
     "svec_index",
     "clarabel_settings",
+    "riccati_of_gain",
 ]
 
 #: Clarabel's native statuses (``str(solution.status)``) in the one status set
@@ -163,6 +165,17 @@ def family_map(A: NDArray, C: NDArray, dt: float | None) -> FamilyMap:
         AN = A @ N
         T = _triangle_map(-(np.kron(N, AN) + np.kron(AN, N)), n, n - p)
     return FamilyMap(A=A, C=C, dt=dt, N=N, Cp=Cp, T=T)
+
+
+def riccati_of_gain(A: NDArray, C: NDArray, L: NDArray, R: NDArray, Q: NDArray,
+                    dt: float | None) -> NDArray[np.float64]:
+    """The Riccati solution of Q for the gain L: the Lyapunov solution of ``F = A - L C`` with
+    ``L R L' + Q`` (continuous ``F P + P F' = -(L R L' + Q)``, discrete ``P = F P F' + L R L' + Q``);
+    symmetric."""
+    F = A - L @ C
+    rhs = L @ R @ L.T + Q
+    P = sl.solve_discrete_lyapunov(F, rhs) if dt is not None else sl.solve_continuous_lyapunov(F, -rhs)
+    return 0.5 * (P + P.T)
 
 
 @dataclass(frozen=True, eq=False)

@@ -177,7 +177,14 @@ def standard_form_ipm(B: NDArray, b: NDArray, C: NDArray, *, tol: float = IPM_TO
 
     Returns ``((X, Z, y, ||Rd||), report)`` when it met its stopping test (relative primal and dual
     infeasibility and gap at most ``tol``), else ``(None, report)``.
+
+    Raises
+    ------
+    ValidationError
+        ``tol`` not a positive number, ``max_iter`` not an integer >= 1.
     """
+    tol = as_positive_float("tol", tol)
+    max_iter = as_int("max_iter", max_iter, lo=1)
     m, n = B.shape[0], B.shape[1]
     Bf = B.reshape(m, -1)
     normb, normC = 1.0 + float(np.linalg.norm(b)), 1.0 + float(np.linalg.norm(C))

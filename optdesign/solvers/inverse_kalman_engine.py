@@ -65,7 +65,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sl
 from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
@@ -77,11 +76,17 @@ from ..errors import ValidationError
 from ..formulate.inverse_kalman import spectral_terms
 from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Check, DesignResult, SolverStats, Status, Verification
-from .clarabel_fixed_gain import GAIN_RELATION_RTOL, FixedGainSolution, fixed_gain_family, solve_fixed_gain
+from .clarabel_fixed_gain import (
+    GAIN_RELATION_RTOL,
+    FixedGainSolution,
+    fixed_gain_family,
+    riccati_of_gain,
+    solve_fixed_gain,
+)
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_setup import EngineSetup, engine_applies, prepare_inverse_kalman
 from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
-from .one_output_sdp import lyapunov_P, one_output_form, solve_one_output
+from .one_output_sdp import one_output_form, solve_one_output
 from .polish import refine_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
@@ -427,11 +432,7 @@ def _design(setup: EngineSetup, cand: _Candidate):
     Q = 0.5 * (Q + Q.T)
     R = np.asarray(plant.R, dtype=float)
     A, C = plant.A, plant.C
-    F = A - L @ C
-    rhs = L @ R @ L.T + Q
-    P = (sl.solve_discrete_lyapunov(F, rhs) if plant.is_discrete
-         else sl.solve_continuous_lyapunov(F, -rhs))
-    P = 0.5 * (P + P.T)
+    P = riccati_of_gain(A, C, L, R, Q, plant.dt)
     if plant.p > 1:
         L = (np.linalg.solve(C @ P @ C.T + R, C @ P @ A.T).T if plant.is_discrete
              else np.linalg.solve(R, C @ P).T)
@@ -735,7 +736,7 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     if sol.Q is None:
         return None
     Q = sol.Q
-    P = lyapunov_P(fam, Q)
+    P = riccati_of_gain(plant.A, plant.C, L, np.asarray(plant.R, dtype=float), Q, plant.dt)
     if not (np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
         return None
     status = Status.OPTIMAL if miss <= POLE_FLOOR_CAP else Status.OPTIMAL_INACCURATE

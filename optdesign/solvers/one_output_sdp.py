@@ -49,7 +49,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.linalg as sl
 from numpy.typing import NDArray
 
 from .._backends import import_clarabel
@@ -58,7 +57,7 @@ from .clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec,
 from .fixed_gain_ipm import standard_form_ipm, symmetric_basis
 
 __all__ = ["POLISH_START_TOL", "KKT_TOL", "IPM_MIN_N", "OneOutputForm", "one_output_form",
-           "OneOutputSolution", "solve_one_output", "symmetric_product_matrix", "lyapunov_P"]
+           "OneOutputSolution", "solve_one_output", "symmetric_product_matrix"]
 
 _EPS = float(np.finfo(float).eps)
 
@@ -100,7 +99,7 @@ class OneOutputForm:
     n: int
     W: NDArray[np.float64]
     clarabel_data: tuple = field(repr=False)
-    basis: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros((0, 0, 0)))
+    basis: NDArray[np.float64] = field(repr=False)
 
 
 def one_output_form(T: NDArray) -> OneOutputForm | None:
@@ -232,7 +231,8 @@ def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
     q, y, newton, why = _polish(W, bn, q, y, n)
     if why:
         return _failed(why, native, iters, newton)
-    Qn, Z, rank = _truncated(smat(q, n), smat(svec(np.eye(n)) - W @ y, n))
+    Z = smat(svec(np.eye(n)) - W @ y, n)
+    Qn, rank = _truncated(smat(q, n), Z)
     kkt = _kkt(W, bn, y, Qn, Z)
     if not kkt["passed"]:
         return _failed("the polished point fails its KKT test (" + ", ".join(
@@ -288,8 +288,8 @@ def _polish(W: NDArray, b: NDArray, q: NDArray, y: NDArray, n: int) -> tuple[NDA
     return best[1], best[2], POLISH_MAX_ITER, ""
 
 
-def _truncated(Q: NDArray, Z: NDArray) -> tuple[NDArray, NDArray, int]:
-    """``(V V', Z, rank)``: Q truncated to the eigenvectors where it is, relatively, larger than Z
+def _truncated(Q: NDArray, Z: NDArray) -> tuple[NDArray, int]:
+    """``(V V', rank)``: Q truncated to the eigenvectors where it is, relatively, larger than Z
     (strict complementarity: one of them vanishes in each direction), exactly PSD."""
     lam, U = np.linalg.eigh(0.5 * (Q + Q.T))
     zq = np.einsum("ij,ik,kj->j", U, Z, U)   # u_i' Z u_i
@@ -297,7 +297,7 @@ def _truncated(Q: NDArray, Z: NDArray) -> tuple[NDArray, NDArray, int]:
     nz = max(float(np.max(np.abs(zq))), 1e-300)
     keep = lam / nq > zq / nz
     V = U[:, keep] * np.sqrt(np.maximum(lam[keep], 0.0))
-    return V @ V.T, Z, int(np.sum(keep))
+    return V @ V.T, int(np.sum(keep))
 
 
 def _kkt(W: NDArray, b: NDArray, y: NDArray, Q: NDArray, Z: NDArray) -> dict[str, Any]:
@@ -313,14 +313,3 @@ def _kkt(W: NDArray, b: NDArray, y: NDArray, Q: NDArray, Z: NDArray) -> dict[str
     out["passed"] = bool(out["min_eig"] >= -KKT_TOL and out["complementarity"] <= KKT_TOL
                          and out["infeasibility"] <= KKT_TOL)
     return out
-
-
-def lyapunov_P(family: FixedGainFamily, Q: NDArray) -> NDArray[np.float64]:
-    """The Riccati solution of the family's gain for Q: the Lyapunov solution of ``F = A - L C`` with
-    ``L R L' + Q`` (continuous ``F P + P F' = -(L R L' + Q)``, discrete ``P = F P F' + L R L' + Q``)."""
-    A, C, L = family.map.A, family.map.C, family.L
-    F = A - L @ C
-    rhs = family.scale * family.LRL + Q
-    P = (sl.solve_discrete_lyapunov(F, rhs) if family.map.dt is not None
-         else sl.solve_continuous_lyapunov(F, -rhs))
-    return 0.5 * (P + P.T)

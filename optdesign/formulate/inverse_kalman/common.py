@@ -149,6 +149,20 @@ def block_matrix(blocks: list[tuple[int, complex]]) -> NDArray[np.float64]:
 
 
 # --------------------------------------------------------------------- spectral NLP
+def singular_resolvent(eig_A: NDArray, s: NDArray, dt: float | None, rtol: float = 1e-8) -> bool:
+    """Whether a target ``s`` (complex array) is (relative ``rtol``) an eigenvalue of A or the mirror
+    image of one (``-s`` continuous, ``1/s`` discrete), or a discrete target is 0: where the
+    resolvents of the spectral conditions are singular."""
+    if dt is not None and np.any(np.abs(s) <= rtol):
+        return True
+    mirror = 1.0 / s if dt is not None else -s
+    for z in (s, mirror):
+        dist = np.min(np.abs(eig_A[None, :] - z[:, None]), axis=1)
+        if np.any(dist <= rtol * np.maximum(1.0, np.abs(z))):
+            return True
+    return False
+
+
 def spectral_terms(A: NDArray, C: NDArray, poles: NDArray, dt: float | None,
                    rtol: float = 1e-8) -> list[tuple[int, complex, NDArray, NDArray, float]] | None:
     r"""The resolvent factors of the Kalman spectral identity at each target block.
@@ -160,15 +174,12 @@ def spectral_terms(A: NDArray, C: NDArray, poles: NDArray, dt: float | None,
     ``s~`` of one (the resolvent is singular there), or a discrete target is 0.
     """
     n = A.shape[0]
-    eig = np.linalg.eigvals(A)
+    blocks = modal_blocks(poles)
+    if singular_resolvent(np.linalg.eigvals(A), np.array([z for _, z in blocks], dtype=complex), dt, rtol):
+        return None
     out = []
-    for size, s in modal_blocks(poles):
-        if dt is not None and abs(s) <= rtol:
-            return None
+    for size, s in blocks:
         s2 = (1.0 / s) if dt is not None else -s
-        for z in (s, s2):
-            if np.min(np.abs(eig - z)) <= rtol * max(1.0, abs(z)):
-                return None
         G1 = np.linalg.solve((s * np.eye(n) - A).T, C.T.astype(complex)).T
         G2 = np.linalg.solve((s2 * np.eye(n) - A).T, C.T.astype(complex)).T
         w = 1.0 / max(1.0, float(np.linalg.norm(G1) * np.linalg.norm(G2)))
@@ -201,17 +212,19 @@ def single_output_gain(A: NDArray, C: NDArray, poles: NDArray, dt: float | None,
     Returns
     -------
     (n, 1) ndarray or None
+
+    Raises
+    ------
+    ValidationError
+        C is not one row of n columns.
     """
     n = A.shape[0]
-    eig = np.linalg.eigvals(A) if eig_A is None else eig_A
+    if C.shape != (1, n):
+        raise ValidationError(f"single_output_gain needs one output: C must be (1, {n}); found {C.shape}")
     blocks = modal_blocks(poles)
     s = np.array([z for _, z in blocks], dtype=complex)
-    if dt is not None and np.any(np.abs(s) <= rtol):
+    if singular_resolvent(np.linalg.eigvals(A) if eig_A is None else eig_A, s, dt, rtol):
         return None
-    mirror = 1.0 / s if dt is not None else -s
-    for z in (s, mirror):
-        if np.any(np.min(np.abs(eig[None, :] - z[:, None]), axis=1) <= rtol * np.maximum(1.0, np.abs(z))):
-            return None
     M = s[:, None, None] * np.eye(n) - A
     G1 = np.linalg.solve(M.transpose(0, 2, 1), np.broadcast_to(C.T.astype(complex), (s.size, n, 1)))[..., 0]
     cols, rhs = [], []
