@@ -56,6 +56,7 @@ __all__ = [
     "filter_are_error",
     "filter_are_residual",
     "filter_are_terms",
+    "filter_gain",
     "relative_residual",
     "are_error_of_terms",
     "are_correction_of_terms",
@@ -543,6 +544,14 @@ def relative_residual(res: NDArray, terms: list[NDArray]) -> float:
     return num / den if den > 0 else float("inf")
 
 
+def filter_gain(A: NDArray, C: NDArray, R: NDArray, P: NDArray, discrete: bool) -> NDArray:
+    """The Kalman gain of a filter-ARE solution P: ``P C' R^-1`` (continuous) or the predictor gain
+    ``A P C' (C P C' + R)^-1`` (discrete); arrays taken as validated."""
+    if discrete:
+        return np.linalg.solve(C @ P @ C.T + R, C @ P @ A.T).T
+    return np.linalg.solve(R, C @ P).T
+
+
 def filter_are_terms(A: NDArray, C: NDArray, R: NDArray, W: NDArray, P: NDArray,
                      discrete: bool) -> tuple[NDArray, list[NDArray]]:
     """The residual matrix of the filter Riccati equation at P and its terms (float arrays taken
@@ -638,8 +647,7 @@ def are_correction_of_terms(A: NDArray, C: NDArray, R: NDArray, P: NDArray, res:
     inf = AREErrorEstimate(float("inf"), float("inf"), float("inf"))
     with np.errstate(all="ignore"):
         try:
-            L = (A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R) if discrete
-                 else np.linalg.solve(R, C @ P).T)
+            L = filter_gain(A, C, R, P, discrete)
         except np.linalg.LinAlgError:
             return inf, None
     F = A - L @ C

@@ -99,6 +99,7 @@ from ..classical.riccati import (
     filter_are_error,
     filter_are_residual,
     filter_are_terms,
+    filter_gain,
     hamiltonian_are,
     relative_residual,
     sort_poles,
@@ -537,7 +538,7 @@ def newton_kalman_checks(plant: Plant, L: NDArray, P: NDArray, Q: NDArray, targe
                               q_eigenvalues=np.linalg.eigvalsh(Qs), p_eigenvalues=eig_p)]
     with np.errstate(all="ignore"):
         P1 = P + 0.5 * (E + E.T)
-        L1 = (np.linalg.solve(C @ P1 @ C.T + R, C @ P1 @ A.T).T if disc else np.linalg.solve(R, C @ P1).T)
+        L1 = filter_gain(A, C, R, P1, disc)
     if not np.all(np.isfinite(L1)):
         return None
     gtol = _gain_tolerance(plant, L, P, est.relative, est.relative, norm_P=float(np.max(np.abs(eig_p))))

@@ -71,7 +71,7 @@ from .._deadline import Deadline
 from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
-from ..classical.riccati import filter_are_error, filter_are_residual
+from ..classical.riccati import filter_are_error, filter_are_residual, filter_gain
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import spectral_terms
 from ..formulate.inverse_kalman.common import single_output_gain
@@ -434,8 +434,7 @@ def _design(setup: EngineSetup, cand: _Candidate):
     A, C = plant.A, plant.C
     P = riccati_of_gain(A, C, L, R, Q, plant.dt)
     if plant.p > 1:
-        L = (np.linalg.solve(C @ P @ C.T + R, C @ P @ A.T).T if plant.is_discrete
-             else np.linalg.solve(R, C @ P).T)
+        L = filter_gain(A, C, R, P, plant.is_discrete)
     if setup.structure == "full":
         return L, P, Q, None, Qdec
     Qw = np.diag(np.diag(Qdec)) if setup.structure == "diagonal" else Qdec
