@@ -122,6 +122,11 @@ def _schur(B: NDArray, Lx: NDArray, Lzi: NDArray) -> NDArray:
     return G @ G.T
 
 
+def _stopping_rule(tol: float, max_iter: int) -> tuple[float, int]:
+    """``tol`` (a positive number) and ``max_iter`` (an integer >= 1), validated."""
+    return as_positive_float("tol", tol), as_int("max_iter", max_iter, lo=1)
+
+
 def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_iter: int = IPM_MAX_ITER,
                          deadline: Deadline | None = None
                          ) -> tuple[FixedGainSolution | None, IpmReport]:
@@ -150,8 +155,7 @@ def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_i
     ValidationError
         ``tol`` not a positive number, ``max_iter`` not an integer >= 1.
     """
-    tol = as_positive_float("tol", tol)
-    max_iter = as_int("max_iter", max_iter, lo=1)
+    tol, max_iter = _stopping_rule(tol, max_iter)
     n = family.Q0.shape[0]
     T = np.asarray(family.T, dtype=float)
     m = T.shape[1]
@@ -183,8 +187,7 @@ def standard_form_ipm(B: NDArray, b: NDArray, C: NDArray, *, tol: float = IPM_TO
     ValidationError
         ``tol`` not a positive number, ``max_iter`` not an integer >= 1.
     """
-    tol = as_positive_float("tol", tol)
-    max_iter = as_int("max_iter", max_iter, lo=1)
+    tol, max_iter = _stopping_rule(tol, max_iter)
     m, n = B.shape[0], B.shape[1]
     Bf = B.reshape(m, -1)
     normb, normC = 1.0 + float(np.linalg.norm(b)), 1.0 + float(np.linalg.norm(C))
