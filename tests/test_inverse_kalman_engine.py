@@ -19,6 +19,7 @@ import scipy.linalg as sl
 from conftest import FULL, random_observable_plant
 
 import optdesign.solvers.inverse_kalman_engine as engine_module
+import optdesign.solvers.one_output_sdp as oo
 from optdesign import Plant, Status, kalman_for_poles, problems
 from optdesign._deadline import Deadline
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
@@ -48,6 +49,7 @@ from optdesign.solvers.inverse_kalman_engine import (
     solve_inverse_kalman,
 )
 from optdesign.solvers.spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
+from optdesign.solvers import spectral_newton
 from optdesign.solvers.spectral_newton import find_feasible, newton
 
 EPS = float(np.finfo(float).eps)
@@ -327,6 +329,36 @@ def test_several_outputs_random_targets_are_verified_and_certified(rng, dt):
         assert res.status == Status.OPTIMAL, res.message
         assert res.objective_value <= np.trace(Q0) * (1 + OBJ_RTOL)
         assert res.details["kkt"]["passed"]
+
+
+@pytest.mark.parametrize("dt", [None, 0.1])
+def test_several_outputs_are_certified_in_the_complement_form(rng, dt):
+    """The certificate SDP of a full Q and the minimal trace runs in its complement form (n p -
+    p(p-1)/2 constraints): its optimum is Clarabel's on the direct form at the returned gain (to
+    Clarabel's accuracy), and the engine's Newton point agrees with it."""
+    for n, p in ((6, 2), (8, 3)):
+        plant, are, _ = _kalman_target(rng, n, p, dt=dt)
+        res = solve_inverse_kalman(prepare_inverse_kalman(plant), are.poles)
+        _assert_kalman(res, plant, are.poles)
+        assert res.status == Status.OPTIMAL and res.details["sdp"]["native"].startswith("complement form")
+        ref = solve_fixed_gain(fixed_gain_family(family_map(plant.A, plant.C, dt), res.L, plant.R), "full")
+        assert ref.status == Status.OPTIMAL
+        assert res.objective_value == pytest.approx(np.trace(ref.Q), rel=1e-6)
+
+
+def test_several_outputs_fall_back_to_clarabel_when_the_form_certifies_nothing(rng, monkeypatch):
+    plant, are, _ = _kalman_target(rng, 6, 2)
+    calls = []
+
+    def refuse(*args, **kwargs):
+        calls.append(1)
+        return oo.OneOutputSolution(None, 0, None, {}, "", 0, 0, "refused by the test")
+
+    monkeypatch.setattr(engine_module, "solve_one_output", refuse)
+    res = solve_inverse_kalman(prepare_inverse_kalman(plant), are.poles)
+    _assert_kalman(res, plant, are.poles)
+    assert calls and res.status == Status.OPTIMAL
+    assert not res.details["sdp"]["native"].startswith("complement form")
 
 
 def test_every_start_reaches_a_verified_kkt_point(rng):
@@ -631,3 +663,69 @@ def test_single_output_design_keeps_the_unique_gain():
     assert verb.success and verb.status == Status.OPTIMAL and verb.message.startswith("inverse Kalman engine")
     np.testing.assert_array_equal(verb.L, res.L)
     assert verb.objective_value == pytest.approx(res.objective_value, rel=1e-9)
+
+
+# ---------------------------------------------------------------- the Newton solver's linear algebra
+def test_factored_jacobian_without_forming_q(rng):
+    """The null space, multipliers and minimum-norm solutions from Householder reflectors (Q never
+    formed) are those of a complete QR: wide, tall and rank-deficient constraint matrices."""
+    for m, N, dependent in ((30, 70, False), (30, 70, True), (15, 13, False), (20, 5, True)):
+        M = rng.standard_normal((m, N))
+        if dependent:
+            M[-1] = M[0] + M[1]
+        fac = spectral_newton._Factored(M)
+        rank = np.linalg.matrix_rank(M)
+        tol = 100 * N * EPS * np.linalg.norm(M)
+        assert fac.rank == rank and fac.Z.shape == (N, N - rank)
+        assert np.abs(M @ fac.Z).max(initial=0.0) <= tol
+        assert np.abs(fac.Z.T @ fac.Z - np.eye(N - rank)).max(initial=0.0) <= 100 * N * EPS
+        g = rng.standard_normal(N)
+        g0 = g.copy()
+        lam = fac.multipliers(g)
+        np.testing.assert_array_equal(g, g0)   # the input is not overwritten
+        ref = np.linalg.lstsq(M.T, -g, rcond=None)[0]
+        assert np.abs(M.T @ (lam - ref)).max() <= tol * np.linalg.norm(g)
+        if rank == m:
+            b = rng.standard_normal(m)
+            x = fac.min_norm(b)
+            assert np.abs(x - np.linalg.pinv(M) @ b).max() <= tol * np.linalg.norm(b)
+            if m <= N:
+                np.testing.assert_allclose(spectral_newton._lstsq(M, b), x, atol=tol * np.linalg.norm(b))
+
+
+def test_tridiagonal_trust_region_step_is_the_eigenvector_step(rng):
+    """The trust-region step from the tridiagonal form minimizes the same model as the step from the
+    eigendecomposition: indefinite, positive definite, hard-case gradients (orthogonal to the lowest
+    eigenvector) and radii from 1e-2 to 1e2."""
+    for trial in range(60):
+        n = int(rng.integers(spectral_newton.TRIDIAGONAL_MIN_DIM, 120))
+        A = rng.standard_normal((n, n))
+        H = A @ A.T + 0.1 * np.eye(n) if trial % 3 == 0 else A + A.T
+        w, E = np.linalg.eigh(H)
+        g = rng.standard_normal(n)
+        if trial % 3 == 1:
+            g -= (E[:, 0] @ g) * E[:, 0]
+        radius = float(10 ** rng.uniform(-2, 2))
+        d_eig = spectral_newton._tr_step(w, E, g, radius)
+        d_tri = spectral_newton._tr_step_tridiagonal(H, g, radius)
+        model = [float(g @ d + 0.5 * d @ H @ d) for d in (d_eig, d_tri)]
+        assert np.linalg.norm(d_tri) <= radius * (1 + 1e-9)
+        assert model[1] == pytest.approx(model[0], rel=1e-8)
+
+
+@pytest.mark.parametrize("objective,kind", [("min_trace", "dense"), ("feasibility", "dense"),
+                                            ("nearest", "dense"), ("min_trace", "diagonal"),
+                                            ("min_trace", "lower")])
+def test_reduced_hessian_from_blocks_is_the_dense_product(rng, objective, kind):
+    n, p = 7, 3
+    plant = random_observable_plant(rng, n, p, noise=False)
+    poles = np.array([-1.0, -1.5, -2.0, -2.5, -3.0, -1 + 1j, -1 - 1j])
+    blocks = spectral_blocks(spectral_terms(plant.A, plant.C, poles, None), np.eye(p), np.eye(n))
+    prob = FactorProblem(blocks, 4, objective, np.eye(n) if objective == "nearest" else None,
+                         kind == "diagonal", lower=kind == "lower")
+    V = rng.standard_normal((n, prob.rank))
+    x = prob.pack(V, 0.3, initial_null_vectors(blocks, V @ V.T))
+    mu = rng.standard_normal(blocks.ng)
+    Z = rng.standard_normal((prob.nx, 9))
+    dense = Z.T @ prob.hess(x, mu) @ Z
+    np.testing.assert_allclose(prob.reduced_hessian(x, mu, Z), dense, atol=1e-12 * np.abs(dense).max())

@@ -205,10 +205,10 @@ def test_the_form_certifies_targets_the_direct_form_does_not(general_one_output_
     setup = engine.prepare_inverse_kalman(plant, verify=False)
     L = single_output_gain(plant.A, plant.C, as_poles("p", are.poles), None)
     fam = fixed_gain_family(setup.family, L, plant.R)
-    assert np.trace(fam.Q0) > 1e3 * (1e-300 + np.linalg.norm(setup.one_output.W.T @ svec(fam.Q0)))
-    sol = oo.solve_one_output(setup.one_output, fam)
+    assert np.trace(fam.Q0) > 1e3 * (1e-300 + np.linalg.norm(setup.complement_form.W.T @ svec(fam.Q0)))
+    sol = oo.solve_one_output(setup.complement_form, fam)
     assert sol.Q is not None and sol.native_status == "ipm: solved" and sol.kkt["passed"]
-    assert np.trace(sol.Q) == pytest.approx(np.trace(oo.solve_one_output(setup.one_output, fam).Q), rel=AGREE)
+    assert np.trace(sol.Q) == pytest.approx(np.trace(oo.solve_one_output(setup.complement_form, fam).Q), rel=AGREE)
 
 
 # ------------------------------------------------------------------------------- the lean gain
@@ -276,12 +276,13 @@ def test_the_form_is_tried_for_one_output_full_min_trace_continuous_or_discrete(
     cplant = Plant([[0.0, 1.0], [-6.0, -5.0]], [[1.0, 0.0]], R=[[1.0]])
     dplant = Plant([[0.5, 0.2], [0.0, 0.3]], [[1.0, 0.0]], R=[[1.0]], dt=0.1)
     cont, disc = engine.prepare_inverse_kalman(cplant), engine.prepare_inverse_kalman(dplant)
-    assert cont.one_output is not None and disc.one_output is None   # discrete: the gain's form, per target
+    assert cont.complement_form is not None and disc.complement_form is None   # discrete: the gain's form, per target
     assert cont.one_output_route and disc.one_output_route
     for other in (engine.prepare_inverse_kalman(cplant, objective="nearest"),
                   engine.prepare_inverse_kalman(cplant, q_structure="diagonal")):
-        assert not other.one_output_route and other.one_output is None
-    assert not engine.prepare_inverse_kalman(Plant(cplant.A, np.eye(2), R=np.eye(2))).one_output_route
+        assert not other.one_output_route and other.complement_form is None
+    several = engine.prepare_inverse_kalman(Plant(cplant.A, np.eye(2), R=np.eye(2)))
+    assert not several.one_output_route and several.complement_form is not None   # the certificate form
     res = kalman_for_poles(cplant, [-5, -8], objective="nearest", Q_nominal=np.eye(2))
     assert res.success and "form" not in res.extra["engine"]["sdp"]
     res = kalman_for_poles(dplant, [0.2, 0.1])

@@ -29,7 +29,9 @@ warm start; :mod:`optdesign.solvers.inverse_kalman_starts`):
 
 and keeps the best local optimum, then
 
-3. *Certificate* -- the fixed-gain SDP at that L (Clarabel, the smallest conic form): the
+3. *Certificate* -- the fixed-gain SDP at that L: for a full Q and the minimal trace first in its
+   complement form (``n p - p(p - 1)/2`` constraints, :mod:`optdesign.solvers.one_output_sdp`: the
+   dense IPM or Clarabel, a Newton polish, a KKT test), else on Clarabel in the direct form: the
    objective's global optimum over the Q of that gain; a better SDP point restarts step 2 from it,
    else the Newton point (exact to rounding) is the answer.  The status is ``optimal`` only when
    that SDP was solved and agrees; the KKT data (dual slack eigenvalue, complementarity) are in
@@ -48,7 +50,7 @@ status is ``not_found`` (a local method: feasibility unknown), never ``infeasibl
 
 The state that depends only on the plant and the fixed choices (structure, objective) is built
 once by :func:`prepare_inverse_kalman` (:mod:`optdesign.solvers.inverse_kalman_setup`) -- in
-continuous time the SDP's constraint matrix and, with one output, its n-constraint form -- and
+continuous time the SDP's constraint matrix and (full Q, minimal trace) its complement form -- and
 re-used for every target, as a caller-held problem object would.
 
 References
@@ -278,12 +280,40 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
 
 def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,
             deadline: Deadline) -> FixedGainSolution:
-    """The fixed-gain SDP at the gain of the candidate's null vectors."""
+    """The fixed-gain SDP at the gain of the candidate's null vectors: for ``"full"`` /
+    ``"min_trace"`` first in its complement form (:func:`_complement_form_at`), else (or when that
+    certifies nothing) on Clarabel in the direct form."""
     _, _, g = cand.parts()
     L, _ = cand.problem.blocks.gain(g)
     plant = setup.plant
     fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float), Qn)
+    if setup.structure == "full" and setup.objective == "min_trace":
+        sol = _complement_form_at(setup, fam, deadline)
+        if sol is not None:
+            return sol
     return solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, deadline=deadline)
+
+
+def _complement_form_at(setup: EngineSetup, fam, deadline: Deadline) -> FixedGainSolution | None:
+    """The min-trace fixed-gain SDP of ``fam`` in its complement form (``n p - p(p - 1)/2``
+    constraints: :func:`~optdesign.solvers.one_output_sdp.solve_one_output`), KKT-certified, as a
+    :class:`FixedGainSolution` with status ``optimal``; None when the form certifies nothing.
+    Measured at n = 40, p = 8: 0.6 s where Clarabel on the direct form takes 8-9 s (the same
+    optimum to 1e-9 relative, Clarabel's accuracy)."""
+    if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
+        return None
+    form = setup.complement_form if setup.complement_form is not None else one_output_form(fam.T)
+    if form is None:
+        return None
+    tic = time.process_time()
+    sol = solve_one_output(form, fam, deadline=deadline)
+    if sol.Q is None:
+        return None
+    plant = setup.plant
+    P = riccati_of_gain(plant.A, plant.C, fam.L, fam.R, sol.Q, plant.dt)
+    return FixedGainSolution(status=Status.OPTIMAL, native_status=f"complement form: {sol.native_status}",
+                             P=P, Q=sol.Q, Wdec=sol.Q, t=None, iterations=sol.iterations,
+                             solve_time=time.process_time() - tic)
 
 
 def _from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
@@ -728,7 +758,7 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float))
     if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
         return None
-    form = setup.one_output if setup.one_output is not None else one_output_form(fam.T)
+    form = setup.complement_form if setup.complement_form is not None else one_output_form(fam.T)
     if form is None:
         return None
     sol = solve_one_output(form, fam, deadline=deadline)

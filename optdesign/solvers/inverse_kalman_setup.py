@@ -1,8 +1,8 @@
 """The per-plant state of the inverse Kalman engine (:mod:`optdesign.solvers.inverse_kalman_engine`):
 what does not depend on the target poles, built by :func:`prepare_inverse_kalman` and held by the caller
 (a held :class:`~optdesign.InverseKalmanProblem` builds it once) -- the family map of the fixed-gain
-SDP, the eigenvalues of A and, with one output in continuous time, the n-constraint form of that SDP
-(:mod:`optdesign.solvers.one_output_sdp`)."""
+SDP, the eigenvalues of A and, in continuous time for a full Q and the minimal trace, the complement
+form of that SDP (:mod:`optdesign.solvers.one_output_sdp`)."""
 
 from __future__ import annotations
 
@@ -34,10 +34,12 @@ class EngineSetup:
         Noise input of the decision covariance (identity for ``"full"``, G otherwise).
     family : FamilyMap
         The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
-    one_output : OneOutputForm or None
-        One output, ``"full"`` / ``"min_trace"``, continuous time: the n-constraint form of the
-        fixed-gain SDP (:mod:`optdesign.solvers.one_output_sdp`), built once (in discrete time it
-        depends on the gain: built per target); None otherwise.
+    complement_form : OneOutputForm or None
+        ``"full"`` / ``"min_trace"``, continuous time: the complement form of the fixed-gain SDP
+        (:mod:`optdesign.solvers.one_output_sdp`; ``n p - p(p - 1)/2`` constraints: n for one
+        output, where it is the whole answer; with several outputs the certificate SDP at the
+        engine's gain), built once (in discrete time it depends on the gain: built per target);
+        None otherwise.
     eig_A : (n,) ndarray
         The eigenvalues of A (the applicability test of the one-output gain).
     verify : bool
@@ -51,7 +53,7 @@ class EngineSetup:
     objective: str
     Gd: NDArray[np.float64]
     family: FamilyMap
-    one_output: OneOutputForm | None = None
+    complement_form: OneOutputForm | None = None
     eig_A: NDArray[np.complex128] | None = None
     verify: bool = True
 
@@ -102,10 +104,10 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
     plant.require_observable(what="placing every filter pole")
     Gd = np.eye(plant.n) if q_structure == "full" else np.asarray(plant.G, dtype=float)
     fmap = family_map(plant.A, plant.C, plant.dt)
-    one = plant.p == 1 and q_structure == "full" and objective == "min_trace"
-    form = one_output_form(fmap.T) if (one and fmap.T is not None) else None
+    full_trace = q_structure == "full" and objective == "min_trace"
+    form = one_output_form(fmap.T) if (full_trace and fmap.T is not None) else None
     return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=fmap,
-                       one_output=form, eig_A=np.linalg.eigvals(plant.A).astype(complex), verify=bool(verify))
+                       complement_form=form, eig_A=np.linalg.eigvals(plant.A).astype(complex), verify=bool(verify))
 
 
 def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:

@@ -424,6 +424,28 @@ class FactorProblem:
             H[o:, :o] = H[:o, o:].T
         return H
 
+    def reduced_hessian(self, x: NDArray, mu: NDArray, Z: NDArray, H: NDArray | None = None) -> NDArray:
+        """``Z' H Z`` ((d, d)) for the Hessian H of :meth:`hess` (passed when already built) and Z
+        ((nx, d)), from its blocks: the g-g block is zero, and the V-V block ``I_r (x) 2 S`` is
+        applied as ``2 S`` times each column block of Z where V is dense (objectives other than
+        ``"nearest"``).  At n = 40, p = 8 (nx = 1040, d = 540) a third of the flops of the dense
+        product."""
+        if H is None:
+            H = self.hess(x, mu)
+        o, nv = self.nv + self.nt, self.nv
+        Zo, Zg = Z[:o], Z[o:]
+        if self.objective != "nearest" and nv == self.blocks.k * self.rank:
+            k, r = self.blocks.k, self.rank
+            S = self.dual_slack(x, mu)   # H[:nv, :nv] = I_r (x) 2 S; its t row and column are zero
+            Y = np.zeros_like(Zo)
+            Y[:nv] = np.matmul(S, Zo[:nv].reshape(r, k, -1)).reshape(nv, -1)
+        else:
+            Y = 0.5 * (H[:o, :o] @ Zo)
+        if Zg.size:
+            Y += H[:o, o:] @ Zg
+        M = Zo.T @ Y
+        return M + M.T
+
     # ---------------------------------------------------------------- tangent constraints
     def tangent_rows(self, x: NDArray, gauge: bool = True) -> NDArray[np.float64]:
         """Linear constraints on a step: the normalizations of g (unit norm, phase), the
