@@ -35,6 +35,7 @@ from optdesign.errors import (
     ValidationError,
 )
 from optdesign.formulate.inverse_kalman import spectral_terms
+from optdesign.solvers import spectral_newton
 from optdesign.solvers.clarabel_fixed_gain import (
     CLARABEL_OPTIONS,
     family_map,
@@ -49,7 +50,6 @@ from optdesign.solvers.inverse_kalman_engine import (
     solve_inverse_kalman,
 )
 from optdesign.solvers.spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
-from optdesign.solvers import spectral_newton
 from optdesign.solvers.spectral_newton import find_feasible, newton
 
 EPS = float(np.finfo(float).eps)

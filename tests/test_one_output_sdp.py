@@ -208,7 +208,8 @@ def test_the_form_certifies_targets_the_direct_form_does_not(general_one_output_
     assert np.trace(fam.Q0) > 1e3 * (1e-300 + np.linalg.norm(setup.complement_form.W.T @ svec(fam.Q0)))
     sol = oo.solve_one_output(setup.complement_form, fam)
     assert sol.Q is not None and sol.native_status == "ipm: solved" and sol.kkt["passed"]
-    assert np.trace(sol.Q) == pytest.approx(np.trace(oo.solve_one_output(setup.complement_form, fam).Q), rel=AGREE)
+    again = oo.solve_one_output(setup.complement_form, fam)
+    assert np.trace(sol.Q) == pytest.approx(np.trace(again.Q), rel=AGREE)
 
 
 # ------------------------------------------------------------------------------- the lean gain
@@ -276,7 +277,8 @@ def test_the_form_is_tried_for_one_output_full_min_trace_continuous_or_discrete(
     cplant = Plant([[0.0, 1.0], [-6.0, -5.0]], [[1.0, 0.0]], R=[[1.0]])
     dplant = Plant([[0.5, 0.2], [0.0, 0.3]], [[1.0, 0.0]], R=[[1.0]], dt=0.1)
     cont, disc = engine.prepare_inverse_kalman(cplant), engine.prepare_inverse_kalman(dplant)
-    assert cont.complement_form is not None and disc.complement_form is None   # discrete: the gain's form, per target
+    # discrete: the gain's form, per target
+    assert cont.complement_form is not None and disc.complement_form is None
     assert cont.one_output_route and disc.one_output_route
     for other in (engine.prepare_inverse_kalman(cplant, objective="nearest"),
                   engine.prepare_inverse_kalman(cplant, q_structure="diagonal")):

@@ -80,6 +80,7 @@ from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Check, DesignResult, SolverStats, Status, Verification
 from .clarabel_fixed_gain import (
     GAIN_RELATION_RTOL,
+    FixedGainFamily,
     FixedGainSolution,
     fixed_gain_family,
     riccati_of_gain,
@@ -88,7 +89,7 @@ from .clarabel_fixed_gain import (
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_setup import EngineSetup, engine_applies, prepare_inverse_kalman
 from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
-from .one_output_sdp import one_output_form, solve_one_output
+from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
 from .polish import refine_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
@@ -281,39 +282,40 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
 def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,
             deadline: Deadline) -> FixedGainSolution:
     """The fixed-gain SDP at the gain of the candidate's null vectors: for ``"full"`` /
-    ``"min_trace"`` first in its complement form (:func:`_complement_form_at`), else (or when that
-    certifies nothing) on Clarabel in the direct form."""
+    ``"min_trace"`` first in its complement form (``n p - p(p - 1)/2`` constraints,
+    :func:`_complement_form_at`; measured at n = 40, p = 8: 0.6 s where Clarabel on the direct form
+    takes 8-9 s, the same optimum to Clarabel's 1e-9), else (or when that certifies nothing) on
+    Clarabel in the direct form."""
     _, _, g = cand.parts()
     L, _ = cand.problem.blocks.gain(g)
     plant = setup.plant
     fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float), Qn)
     if setup.structure == "full" and setup.objective == "min_trace":
-        sol = _complement_form_at(setup, fam, deadline)
-        if sol is not None:
-            return sol
+        tic = time.process_time()
+        out = _complement_form_at(setup, fam, deadline)
+        if out is not None:
+            sol, Q, P = out
+            return FixedGainSolution(Status.OPTIMAL, f"complement form: {sol.native_status}", P, Q, Q, None,
+                                     sol.iterations, time.process_time() - tic)
     return solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, deadline=deadline)
 
 
-def _complement_form_at(setup: EngineSetup, fam, deadline: Deadline) -> FixedGainSolution | None:
-    """The min-trace fixed-gain SDP of ``fam`` in its complement form (``n p - p(p - 1)/2``
-    constraints: :func:`~optdesign.solvers.one_output_sdp.solve_one_output`), KKT-certified, as a
-    :class:`FixedGainSolution` with status ``optimal``; None when the form certifies nothing.
-    Measured at n = 40, p = 8: 0.6 s where Clarabel on the direct form takes 8-9 s (the same
-    optimum to 1e-9 relative, Clarabel's accuracy)."""
+def _complement_form_at(setup: EngineSetup, fam: FixedGainFamily,
+                        deadline: Deadline) -> tuple[OneOutputSolution, NDArray, NDArray] | None:
+    """``(solution, Q, P)``: the min-trace Q of ``fam`` in the complement form of the fixed-gain SDP (the
+    setup's, else the gain's: :func:`~optdesign.solvers.one_output_sdp.solve_one_output`), Newton-
+    polished and KKT-certified, and its Riccati solution; None when the form certifies nothing."""
     if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
         return None
     form = setup.complement_form if setup.complement_form is not None else one_output_form(fam.T)
     if form is None:
         return None
-    tic = time.process_time()
     sol = solve_one_output(form, fam, deadline=deadline)
     if sol.Q is None:
         return None
     plant = setup.plant
     P = riccati_of_gain(plant.A, plant.C, fam.L, fam.R, sol.Q, plant.dt)
-    return FixedGainSolution(status=Status.OPTIMAL, native_status=f"complement form: {sol.native_status}",
-                             P=P, Q=sol.Q, Wdec=sol.Q, t=None, iterations=sol.iterations,
-                             solve_time=time.process_time() - tic)
+    return (sol, sol.Q, P) if np.all(np.isfinite(P)) and np.all(np.isfinite(fam.L)) else None
 
 
 def _from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
@@ -741,33 +743,22 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
 def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: Deadline, t0: float,
                      cpu0: float, tol: float) -> EngineResult | None:
     """One output, ``"full"`` / ``"min_trace"``: the fixed-gain SDP at the unique gain L in its
-    n-constraint form (the plant's in continuous time, the gain's in discrete time), Newton-polished
-    and KKT-certified (:func:`~optdesign.solvers.one_output_sdp.solve_one_output`); None when that
-    does not certify a solution (the general one-output route then runs: the dense IPM, Clarabel on
-    the direct form, a repair, and every verdict).  P is the Lyapunov solution of ``A - L C`` with
-    ``L R L' + Q``.
-    A unique gain that misses the targets beyond the verification's cap is first refined by Newton
-    steps on its poles (:func:`~optdesign.solvers.polish.refine_gain`: the same gain in exact
-    arithmetic, its poles placed better in floating point; measured: an n = 15 target's 1.4e-6 ->
-    7.5e-7); ``optimal_inaccurate`` when it still does (not computable in double precision)."""
+    n-constraint form (:func:`_complement_form_at`); None when that does not certify a solution (the
+    general one-output route then runs: the dense IPM, Clarabel on the direct form, a repair, and
+    every verdict).  A unique gain that misses the targets beyond the verification's cap is first
+    refined by Newton steps on its poles (:func:`~optdesign.solvers.polish.refine_gain`: the same
+    gain in exact arithmetic, its poles placed better in floating point; measured: an n = 15
+    target's 1.4e-6 -> 7.5e-7); ``optimal_inaccurate`` when it still does (not computable)."""
     plant = setup.plant
     miss = first = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
     if miss > POLE_FLOOR_CAP:
         L = refine_gain(plant.A, plant.C, L, target)
         miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target)
-    fam = fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float))
-    if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
+    out = _complement_form_at(setup, fixed_gain_family(setup.family, L, np.asarray(plant.R, dtype=float)),
+                              deadline)
+    if out is None:
         return None
-    form = setup.complement_form if setup.complement_form is not None else one_output_form(fam.T)
-    if form is None:
-        return None
-    sol = solve_one_output(form, fam, deadline=deadline)
-    if sol.Q is None:
-        return None
-    Q = sol.Q
-    P = riccati_of_gain(plant.A, plant.C, L, np.asarray(plant.R, dtype=float), Q, plant.dt)
-    if not (np.all(np.isfinite(P)) and np.all(np.isfinite(L))):
-        return None
+    sol, Q, P = out
     status = Status.OPTIMAL if miss <= POLE_FLOOR_CAP else Status.OPTIMAL_INACCURATE
     solver = "the dense IPM" if sol.native_status.startswith("ipm") else f"Clarabel {sol.native_status}"
     msg = (f"one output: the poles fix L; fixed-gain SDP in its n-constraint form ({solver}, "

@@ -107,7 +107,8 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
     full_trace = q_structure == "full" and objective == "min_trace"
     form = one_output_form(fmap.T) if (full_trace and fmap.T is not None) else None
     return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=fmap,
-                       complement_form=form, eig_A=np.linalg.eigvals(plant.A).astype(complex), verify=bool(verify))
+                       complement_form=form, eig_A=np.linalg.eigvals(plant.A).astype(complex),
+                       verify=bool(verify))
 
 
 def engine_applies(setup: EngineSetup, poles: ArrayLike) -> bool:
