@@ -309,9 +309,18 @@ def _tr_step_tridiagonal(H: NDArray, g: NDArray, radius: float) -> NDArray:
         x = x - float(u @ x) * u
         tau_ = np.sqrt(max(radius ** 2 - float(x @ x), 0.0))
         return q_apply(-x + (-tau_ if float(u @ b) >= 0 else tau_) * u, False)
-    hi = lo + float(np.linalg.norm(b)) / radius + shift
-    lo = lo + shift
-    for _ in range(100):                 # size(lam) decreases from > radius (lo) to <= radius (hi)
+    hi = _multiplier(size, lo + shift, lo + float(np.linalg.norm(b)) / radius + shift, radius)
+    x = solve(hi, b)
+    if x is None:  # pragma: no cover - not positive definite in rounding: the eigenvectors
+        return _tr_step(*np.linalg.eigh(H), g, radius)
+    return q_apply(-x, False)
+
+
+def _multiplier(size: Callable[[float], float], lo: float, hi: float, radius: float) -> float:
+    """The trust-region multiplier: the smallest lam in ``[lo, hi]`` with ``size(lam) <= radius``
+    to 1e-12 relative, by bisection (``size`` decreases from above the radius at lo to at most the
+    radius at hi)."""
+    for _ in range(100):
         mid = np.sqrt(lo * hi) if lo > 0 else 0.5 * hi
         if size(mid) > radius:
             lo = mid
@@ -319,10 +328,7 @@ def _tr_step_tridiagonal(H: NDArray, g: NDArray, radius: float) -> NDArray:
             hi = mid
         if hi - lo <= 1e-12 * hi:
             break
-    x = solve(hi, b)
-    if x is None:  # pragma: no cover - not positive definite in rounding: the eigenvectors
-        return _tr_step(*np.linalg.eigh(H), g, radius)
-    return q_apply(-x, False)
+    return hi
 
 
 def _tr_step(w: NDArray, E: NDArray, g: NDArray, radius: float) -> NDArray:
@@ -348,16 +354,7 @@ def _tr_step(w: NDArray, E: NDArray, g: NDArray, radius: float) -> NDArray:
         tau = np.sqrt(max(radius ** 2 - float(d @ d), 0.0))
         d[0] = -tau if b[0] >= 0 else tau
         return E @ d
-    hi = lo + float(np.linalg.norm(b)) / radius + shift
-    lo = lo + shift
-    for _ in range(100):                 # size(lam) decreases from > radius (lo) to <= radius (hi)
-        mid = np.sqrt(lo * hi) if lo > 0 else 0.5 * hi
-        if size(mid) > radius:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo <= 1e-12 * hi:
-            break
+    hi = _multiplier(size, lo + shift, lo + float(np.linalg.norm(b)) / radius + shift, radius)
     return E @ (-b / (w + hi))
 
 
