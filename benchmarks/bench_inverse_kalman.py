@@ -366,9 +366,10 @@ def table(summaries: list[dict]) -> str:
     return head + "\n" + "\n".join(lines)
 
 
-STAGES = [("starts (scale scan, placement)", "_starts"), ("SQP", "sqp"),
+STAGES = [("starts (scale scan, placement)", "decision_starts"), ("SQP", "sqp"),
           ("Gauss-Newton restoration", "find_feasible"), ("Newton on the manifold", "newton"),
-          ("certificate SDP (Clarabel)", "_certify"), ("verification (independent re-solve)", "_verify")]
+          ("certificate SDP (complement form, else Clarabel)", "_certify"),
+          ("verification (independent re-solve)", "_verify")]
 
 
 def profile(sizes, rng_seed: int) -> str:
@@ -387,7 +388,8 @@ def profile(sizes, rng_seed: int) -> str:
         cum = {}
         for (file, _line, name), v in st.stats.items():
             for label, fn in STAGES:
-                if name == fn and ("inverse_kalman_engine" in file or "spectral_newton" in file):
+                if name == fn and any(m in file for m in ("inverse_kalman_engine", "inverse_kalman_starts",
+                                                          "spectral_newton")):
                     cum[label] = cum.get(label, 0.0) + v[3]
         own = sorted(((v[2], f"{Path(k[0]).name}:{k[2]}") for k, v in st.stats.items()), reverse=True)[:10]
         out.append(f"## n = {n}, p = {p}: {res.status.value}, verified {res.success}, {total:.1f} s CPU "
