@@ -347,6 +347,8 @@ def test_several_outputs_are_certified_in_the_complement_form(rng, dt):
 
 
 def test_several_outputs_fall_back_to_clarabel_when_the_form_certifies_nothing(rng, monkeypatch):
+    """A complement form that certifies nothing is not a verdict: Clarabel on the direct form
+    certifies the same design."""
     plant, are, _ = _kalman_target(rng, 6, 2)
     calls = []
 
@@ -717,6 +719,7 @@ def test_tridiagonal_trust_region_step_is_the_eigenvector_step(rng):
                                             ("nearest", "dense"), ("min_trace", "diagonal"),
                                             ("min_trace", "lower")])
 def test_reduced_hessian_from_blocks_is_the_dense_product(rng, objective, kind):
+    """``Z' H Z`` from the Hessian's blocks (the zero g-g block, ``I (x) 2S``) is the dense product."""
     n, p = 7, 3
     plant = random_observable_plant(rng, n, p, noise=False)
     poles = np.array([-1.0, -1.5, -2.0, -2.5, -3.0, -1 + 1j, -1 - 1j])
