@@ -710,6 +710,7 @@ def test_tridiagonal_trust_region_step_is_the_eigenvector_step(rng):
         radius = float(10 ** rng.uniform(-2, 2))
         d_eig = spectral_newton._tr_step(w, E, g, radius)
         d_tri = spectral_newton._tr_step_tridiagonal(H, g, radius)
+        assert d_tri is not None
         model = [float(g @ d + 0.5 * d @ H @ d) for d in (d_eig, d_tri)]
         assert np.linalg.norm(d_tri) <= radius * (1 + 1e-9)
         assert model[1] == pytest.approx(model[0], rel=1e-8)

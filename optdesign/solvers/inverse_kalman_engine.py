@@ -281,11 +281,9 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
 
 def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,
             deadline: Deadline) -> FixedGainSolution:
-    """The fixed-gain SDP at the gain of the candidate's null vectors: for ``"full"`` /
-    ``"min_trace"`` first in its complement form (``n p - p(p - 1)/2`` constraints,
-    :func:`_complement_form_at`; measured at n = 40, p = 8: 0.6 s where Clarabel on the direct form
-    takes 8-9 s, the same optimum to Clarabel's 1e-9), else (or when that certifies nothing) on
-    Clarabel in the direct form."""
+    """The fixed-gain SDP at the gain of the candidate's null vectors: for ``"full"`` / ``"min_trace"``
+    first in its complement form (:func:`_complement_form_at`; at n = 40, p = 8 0.6 s where Clarabel
+    takes 8-9 s), else (or when that certifies nothing) on Clarabel in the direct form."""
     _, _, g = cand.parts()
     L, _ = cand.problem.blocks.gain(g)
     plant = setup.plant
@@ -295,16 +293,18 @@ def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,
         out = _complement_form_at(setup, fam, deadline)
         if out is not None:
             sol, Q, P = out
-            return FixedGainSolution(Status.OPTIMAL, f"complement form: {sol.native_status}", P, Q, Q, None,
-                                     sol.iterations, time.process_time() - tic)
+            native = f"complement form: {sol.native_status}"
+            return FixedGainSolution(status=Status.OPTIMAL, native_status=native, P=P, Q=Q, Wdec=Q, t=None,
+                                     iterations=sol.iterations, solve_time=time.process_time() - tic)
     return solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, deadline=deadline)
 
 
 def _complement_form_at(setup: EngineSetup, fam: FixedGainFamily,
                         deadline: Deadline) -> tuple[OneOutputSolution, NDArray, NDArray] | None:
     """``(solution, Q, P)``: the min-trace Q of ``fam`` in the complement form of the fixed-gain SDP (the
-    setup's, else the gain's: :func:`~optdesign.solvers.one_output_sdp.solve_one_output`), Newton-
-    polished and KKT-certified, and its Riccati solution; None when the form certifies nothing."""
+    setup's, else the gain's; ``n p - p(p - 1)/2`` constraints:
+    :func:`~optdesign.solvers.one_output_sdp.solve_one_output`), Newton-polished and KKT-certified,
+    and its Riccati solution; None when the form certifies nothing."""
     if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
         return None
     form = setup.complement_form if setup.complement_form is not None else one_output_form(fam.T)

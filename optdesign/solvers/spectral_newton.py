@@ -250,10 +250,10 @@ def _reduced_step(Hz: NDArray, gz: NDArray, radius: float) -> NDArray:
             return d
     except np.linalg.LinAlgError:
         pass
-    if Hs.shape[0] >= TRIDIAGONAL_MIN_DIM:
-        return _tr_step_tridiagonal(Hs, gz, radius)
-    w, E = np.linalg.eigh(Hs)
-    return _tr_step(w, E, gz, radius)
+    d = _tr_step_tridiagonal(Hs, gz, radius) if Hs.shape[0] >= TRIDIAGONAL_MIN_DIM else None
+    if d is None:   # small, or a tridiagonal shift not positive definite in rounding
+        d = _tr_step(*np.linalg.eigh(Hs), gz, radius)
+    return d
 
 
 #: the trust-region subproblem on the tridiagonal form from this reduced dimension (below, the
@@ -263,17 +263,19 @@ def _reduced_step(Hz: NDArray, gz: NDArray, radius: float) -> NDArray:
 TRIDIAGONAL_MIN_DIM = 64
 
 
-def _tr_step_tridiagonal(H: NDArray, g: NDArray, radius: float) -> NDArray:
+def _tr_step_tridiagonal(H: NDArray, g: NDArray, radius: float) -> NDArray | None:
     """:func:`_tr_step` for a symmetric H ((d, d)) without its eigenvectors: ``H = Q T Q'`` with T
     tridiagonal (LAPACK ``sytrd``; Q kept as reflectors), the smallest eigenvalue of T by
     bisection (``stebz``), ``||(T + lam I)^-1 b||`` by tridiagonal LDL' solves (``ptsv``) in the
     same bisection on lam, and the hard case's eigenvector by inverse iteration (``stein``); the
-    step ``Q d``.  The same minimizer (More & Sorensen 1983) as :func:`_tr_step`."""
+    step ``Q d``.  The same minimizer (More & Sorensen 1983) as :func:`_tr_step`; None where a
+    shifted T that must be positive definite is not in rounding (the caller then uses
+    :func:`_tr_step`)."""
     n = H.shape[0]
     lwork = int(lapack.dsytrd_lwork(n, lower=1)[0])
     c, dd, e, tau, info = lapack.dsytrd(H, lower=1, lwork=max(lwork, 1))
     if info != 0:  # pragma: no cover - LAPACK argument errors only
-        return _tr_step(*np.linalg.eigh(H), g, radius)
+        return None
     ht = (np.asfortranarray(c[1:, :-1]), tau)
 
     def q_apply(v: NDArray, trans: bool) -> NDArray:   # Q = diag(1, Q~), Q~ the reflectors of ht
@@ -304,16 +306,14 @@ def _tr_step_tridiagonal(H: NDArray, g: NDArray, radius: float) -> NDArray:
     if size(lo + shift) <= radius:      # hard case: the gradient misses the lowest eigenvector
         u = sl.eigh_tridiagonal(dd, e, select="i", select_range=(0, 0), check_finite=False)[1][:, 0]
         x = solve(lo + shift, b)
-        if x is None:  # pragma: no cover - not positive definite in rounding: the eigenvectors
-            return _tr_step(*np.linalg.eigh(H), g, radius)
+        if x is None:  # pragma: no cover - not positive definite in rounding
+            return None
         x = x - float(u @ x) * u
         tau_ = np.sqrt(max(radius ** 2 - float(x @ x), 0.0))
         return q_apply(-x + (-tau_ if float(u @ b) >= 0 else tau_) * u, False)
     hi = _multiplier(size, lo + shift, lo + float(np.linalg.norm(b)) / radius + shift, radius)
     x = solve(hi, b)
-    if x is None:  # pragma: no cover - not positive definite in rounding: the eigenvectors
-        return _tr_step(*np.linalg.eigh(H), g, radius)
-    return q_apply(-x, False)
+    return None if x is None else q_apply(-x, False)
 
 
 def _multiplier(size: Callable[[float], float], lo: float, hi: float, radius: float) -> float:

@@ -18,6 +18,7 @@ from ...formulate.inverse_kalman import (
 from ...model.plant import Plant
 from ...results import Status
 from ...solvers import cvxpy_backend
+from ...solvers.clarabel_fixed_gain import riccati_of_gain
 from ...solvers.cvxpy_backend import default_sdp_solver, solve_cvxpy
 from ...solvers.polish import face_polish
 from .common import sym
@@ -52,8 +53,6 @@ def whitening(plant: Plant, L: NDArray, R: NDArray) -> NDArray | None:
     (the regression case ``tests/data/is_kalman_optimal_false_no_discrete_n8_p2.npz``: P from 0.87
     to 1.1e7, the SDP inaccurate; whitened, it solves to optimal).  None (identity) when F is not
     stable, ``L R L' = 0`` or P_v is well scaled already."""
-    import scipy.linalg
-
     F = plant.A - L @ plant.C
     lam_F = np.linalg.eigvals(F)
     if (np.max(np.abs(lam_F)) >= 1.0) if plant.is_discrete else (np.max(lam_F.real) >= 0.0):
@@ -64,8 +63,7 @@ def whitening(plant: Plant, L: NDArray, R: NDArray) -> NDArray | None:
         return None
     with np.errstate(all="ignore"):
         try:
-            Pv = (scipy.linalg.solve_discrete_lyapunov(F, LRL) if plant.is_discrete
-                  else scipy.linalg.solve_continuous_lyapunov(F, -LRL))
+            Pv = riccati_of_gain(plant.A, plant.C, L, R, np.zeros_like(LRL), plant.dt)
         except (np.linalg.LinAlgError, ValueError):
             return None
     lam, U = np.linalg.eigh(0.5 * (Pv + Pv.T))
