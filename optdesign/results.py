@@ -18,7 +18,8 @@ import numpy as np
 
 from .errors import InfeasibleError, SolverError
 
-__all__ = ["Status", "Check", "Verification", "SolverStats", "Certificate", "DesignResult", "ResultMixin"]
+__all__ = ["Status", "Check", "Verification", "SolverStats", "Certificate", "Stage", "Route", "DesignResult",
+           "ResultMixin"]
 
 
 class Status(str, enum.Enum):
@@ -173,6 +174,102 @@ class SolverStats:
     extra: dict[str, Any] = field(default_factory=dict)
 
 
+#: the kinds of a route's stage
+STAGE_KINDS = ("engine", "backend", "fallback", "polish", "certificate", "check", "direct")
+
+
+@dataclass(frozen=True)
+class Stage:
+    """One stage of a result's route: what ran, of which kind, and how it ended.
+
+    Attributes
+    ----------
+    name : str
+        What ran, e.g. ``"one_output_form/dense_ipm"``, ``"ipopt"``, ``"eigenstructure_engine"``.
+    kind : str
+        One of ``engine`` (our own algorithm), ``backend`` (CasADi/IPOPT, cvxpy, Clarabel, scipy),
+        ``fallback`` (a retry after a failure), ``polish``, ``certificate``, ``check``, ``direct``
+        (a closed form or a linear-algebra solve).
+    outcome : str
+        ``"answered"`` for the stage that produced the returned answer; otherwise a status value
+        (``"not_found"``, ``"infeasible"``, ...), ``"failed"``, ``"rejected"`` (its candidate did not
+        pass the independent checks), ``"improved"``, ``"unchanged"`` or ``"skipped"``.
+    detail : str
+        One short phrase (the backend's own status, why a stage was skipped, ...).
+    time : float or None
+        CPU seconds of the stage, where measured.
+    """
+
+    name: str
+    kind: str = "engine"
+    outcome: str = "answered"
+    detail: str = ""
+    time: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in STAGE_KINDS:
+            raise ValueError(f"Stage kind must be one of {STAGE_KINDS}, found {self.kind!r}")
+
+    def __str__(self) -> str:
+        text = f"{self.name} [{self.kind}]: {self.outcome}"
+        if self.detail:
+            text += f" ({self.detail})"
+        return text
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"name": self.name, "kind": self.kind, "outcome": self.outcome, "detail": self.detail,
+                "time": self.time}
+
+
+class Route(tuple):
+    """The stages a result went through, in order (cvxpy's solving chain, for design verbs).
+
+    A tuple of :class:`Stage`; ``method`` on a result is what was asked, ``route`` what ran.  The
+    stage that produced the answer has ``outcome == "answered"`` (:attr:`answered`); a result
+    without an answer (``not_found``, ``infeasible``, ...) has none.
+
+    Examples
+    --------
+    >>> r = Route([Stage("ipopt", "backend", "not_found"), Stage("engine", "fallback")])
+    >>> str(r)
+    'ipopt [backend]: not_found -> engine [fallback]: answered'
+    >>> r.answered.name
+    'engine'
+    """
+
+    def __new__(cls, stages: Iterable[Stage] = ()) -> Route:
+        items = tuple(stages)
+        for s in items:
+            if not isinstance(s, Stage):
+                raise TypeError(f"Route holds Stage objects, found {type(s).__name__}")
+        return super().__new__(cls, items)
+
+    @property
+    def answered(self) -> Stage | None:
+        """The stage that produced the answer (the last with outcome ``answered``), or None."""
+        for s in reversed(self):
+            if s.outcome == "answered":
+                return s
+        return None
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(s.name for s in self)
+
+    def then(self, *stages: Stage) -> Route:
+        """A new route with ``stages`` appended."""
+        return Route((*self, *stages))
+
+    def as_list(self) -> list[dict[str, Any]]:
+        return [s.as_dict() for s in self]
+
+    def __str__(self) -> str:
+        return " -> ".join(str(s) for s in self) if self else "(none)"
+
+    def __repr__(self) -> str:
+        return f"Route({list(self)!r})"
+
+
 def _plain(value: Any) -> Any:
     """A JSON-friendly form of a certificate or record value (arrays as lists; complex as
     ``{"re", "im"}``; objects with ``as_dict`` by that)."""
@@ -314,6 +411,8 @@ class DesignResult(ResultMixin):
         The requested poles (fixed-pole questions).
     extra : dict
         Diagnostics of the run (per-stage reports, starts, ...).
+    route : Route
+        The stages that ran, in order, and which produced the answer (:class:`Route`).
     """
 
     status: Status
@@ -323,6 +422,7 @@ class DesignResult(ResultMixin):
     certificate: Certificate | None = None
     target_poles: Any = None
     extra: dict[str, Any] = field(default_factory=dict, repr=False)
+    route: Route = field(default_factory=Route, repr=False)
 
     #: fields shown by :meth:`summary` and :meth:`record` beyond the common ones (subclasses)
     _summary_fields: tuple[str, ...] = field(default=(), init=False, repr=False)
@@ -344,6 +444,8 @@ class DesignResult(ResultMixin):
                 lines.append(f"  {name} = {value}")
         if self.certificate is not None:
             lines.append(f"  certificate: {self.certificate}")
+        if self.route:
+            lines.append(f"  route: {self.route}")
         if len(self.verification):
             lines.append("  verification:")
             lines.extend("    " + str(c) for c in self.verification)
@@ -354,7 +456,7 @@ class DesignResult(ResultMixin):
         and every check's value (``check:<name>``)."""
         out: dict[str, Any] = {"status": Status(self.status).value, "success": self.success}
         for f in fields(self):
-            if f.name in ("status", "verification", "solver_stats", "extra", "certificate", "message") \
+            if f.name in ("status", "verification", "solver_stats", "extra", "certificate", "message", "route") \
                     or f.name.startswith("_"):
                 continue
             v = getattr(self, f.name)
@@ -363,6 +465,8 @@ class DesignResult(ResultMixin):
         out["time"] = self.solver_stats.time
         out["iterations"] = self.solver_stats.iterations
         out["certificate"] = None if self.certificate is None else self.certificate.kind
+        answered = self.route.answered
+        out["route"] = None if answered is None else answered.name
         for c in self.verification:
             out[f"check:{c.name}"] = c.value
         return out
