@@ -43,7 +43,7 @@ def main(use_dask: bool = False) -> None:
     for r in table:
         print(f"{r['alpha']:6.2f} {r['zeta']:5.2f} {r['status']:>16} {r['kappa2']:9.4g} {r['eta']:9.4g} "
               f"{r['gain_norm']:8.4g} {r['time']:6.2f}" + ("" if r["success"] else "   (not verified)"))
-    table.to_csv(OUT / "api_alpha_sector.csv")
+    table.to_csv(OUT / "api_alpha_sector.csv", overwrite=True)  # regenerates its own file
     # what the sweep says: a faster decay (larger alpha) or a narrower sector (larger zeta) costs
     # conditioning; the table shows by how much for this plant
     ok = np.array([r["success"] for r in table])
@@ -65,7 +65,7 @@ def main(use_dask: bool = False) -> None:
         print(f"Dask LocalCluster: {on_dask.summary()}; differences from the local pool: {len(diff)}")
 
     # ------------------------------------------------------------------ 4. the spec file
-    res = run_spec(spec, output=OUT / "from_spec")
+    res = run_spec(spec, output=OUT / "from_spec", overwrite=True)
     print(f"spec: {res.table.summary()}; differences from the API sweep: {len(res.table.diff(table))}")
 
 

@@ -6,6 +6,7 @@ in the style of ``scipy.linalg._solvers``.  Never use ``assert`` for validation.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -42,7 +43,23 @@ __all__ = [
     "as_str",
     "as_gain_mask",
     "sym_tol",
+    "shown",
 ]
+
+
+def shown(value: object, limit: int = 60) -> str:
+    """``repr(value)`` for an error message, at most ``limit`` characters: an integer too long to
+    print (Python refuses to convert one of more than 4300 digits) is given by its number of
+    digits, a long repr is cut with ``...``."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        digits = math.ceil(abs(value).bit_length() * math.log10(2)) if value else 1
+        if digits > limit:
+            return f"{'a negative' if value < 0 else 'an'} integer of about {digits} digits"
+    try:
+        text = repr(value)
+    except ValueError:  # pragma: no cover - a container holding such an integer
+        return f"a {type(value).__name__}"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _shape_str(shape: Sequence[int | None]) -> str:
@@ -307,7 +324,7 @@ def as_positive_float(name: str, value: object, *, allow_zero: bool = False) -> 
 def as_int(name: str, value, lo: int = 0) -> int:
     """An integer ``>= lo`` (Python or numpy integer; bool, float and str are refused)."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < lo:
-        raise ValidationError(f"{name} must be an integer >= {lo}; found {value!r}")
+        raise ValidationError(f"{name} must be an integer >= {lo}; found {shown(value)}")
     return int(value)
 
 

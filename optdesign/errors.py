@@ -33,6 +33,8 @@ __all__ = [
     "RiccatiError",
     "ProblemNotFoundError",
     "ProblemFileError",
+    "OutputPathError",
+    "OutputExistsError",
 ]
 
 
@@ -172,3 +174,28 @@ class ProblemNotFoundError(OptDesignError, KeyError):
 class ProblemFileError(ValidationError):
     """A user's problem file that is missing, unreadable or has a bad field (the message names the
     file and the field)."""
+
+
+class OutputPathError(ValidationError):
+    """An output path that may not be written: outside the working folder without being asked for
+    (``allow_outside=True``, ``optdesign study --allow-outside``), a name with a NUL byte or a path
+    separator, or a folder standing where a file is to be written (the message names the path and
+    the field or flag it came from)."""
+
+
+class OutputExistsError(OptDesignError, FileExistsError):
+    """An output file (or a symbolic link) exists where a result is to be written, and overwriting
+    was not asked for (``overwrite=True``, ``optdesign study --overwrite``).
+
+    Attributes
+    ----------
+    path : str
+        The existing file.
+    """
+
+    def __init__(self, message: str, path: str = "") -> None:
+        super().__init__(message)
+        self.path = str(path)
+
+    def __str__(self) -> str:  # OSError's str of one argument is the message; keep it so
+        return str(self.args[0]) if self.args else ""

@@ -40,7 +40,12 @@ mine.npz``, a study spec's ``problem = "mine.toml"``).  Formats, chosen by the s
 
 Files are read safely: no pickle, no ``eval``; the file size (at most :data:`MAX_FILE_BYTES`) and
 every matrix's shape (no dimension above :data:`MAX_DIMENSION`) are checked before any matrix is
-built, then every matrix's type, shape, finiteness, symmetry and definiteness.  Every mistake
+built, then every matrix's type, shape, finiteness, symmetry and definiteness.  Nothing is
+expanded before its size is known: the nesting of JSON/TOML (at most :data:`MAX_NESTING`
+levels), the declared shape and type of every ``.npz`` member (its ``.npy`` header) and of every
+``.mat`` variable (:func:`scipy.io.whosmat`), and the expanded size of every compressed member
+(counted by streaming, nothing kept) must stay within :data:`MAX_ARRAY_BYTES` per array and
+:data:`MAX_EXPANDED_BYTES` in all; an unknown member is refused before anything is read.  Every mistake
 raises :class:`ProblemFileError` naming the file and the field, e.g. ``mine.json: plant.R: R must
 be positive definite ...``; an unknown field is refused (a typo would otherwise be ignored).
 """
@@ -48,9 +53,12 @@ be positive definite ...``; an unknown field is refused (a typo would otherwise 
 from __future__ import annotations
 
 import json
+import math
 import os
+import struct
 import sys
 import zipfile
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
@@ -70,7 +78,8 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 __all__ = ["Problem", "ProblemFileError", "names", "load", "load_file", "load_all", "describe",
-           "is_problem_file", "FILE_SUFFIXES", "MAX_DIMENSION", "MAX_FILE_BYTES"]
+           "is_problem_file", "FILE_SUFFIXES", "MAX_DIMENSION", "MAX_FILE_BYTES", "MAX_ARRAY_BYTES",
+           "MAX_EXPANDED_BYTES", "MAX_NESTING"]
 
 #: suffixes of the problem files :func:`load` accepts instead of a library name
 FILE_SUFFIXES = (".json", ".toml", ".npz", ".mat")
@@ -78,6 +87,14 @@ FILE_SUFFIXES = (".json", ".toml", ".npz", ".mat")
 MAX_DIMENSION = 2000
 #: the largest problem file read (bytes)
 MAX_FILE_BYTES = 256 * 2**20
+#: the largest array a problem file may declare (bytes, once expanded): a complex
+#: ``MAX_DIMENSION x MAX_DIMENSION`` matrix (64 MiB)
+MAX_ARRAY_BYTES = 16 * MAX_DIMENSION**2
+#: the most a problem file may expand to, all its arrays (or compressed members) together (bytes)
+MAX_EXPANDED_BYTES = MAX_FILE_BYTES
+#: the deepest nesting of lists / tables a JSON or TOML problem file may have (a matrix of the
+#: library schema sits 4 deep: ``{"plant": {"A": [[...]]}}``)
+MAX_NESTING = 32
 
 _PLANT_KEYS = ("A", "C", "G", "Q", "R", "dt", "B", "name")
 
@@ -357,11 +374,28 @@ def _check_size(src: str, fieldname: str, shape: tuple[int, ...]) -> None:
                                           f"<= {MAX_DIMENSION} (optdesign.problems.MAX_DIMENSION)")
 
 
+def _nesting_depth(value: Any, limit: int) -> int:
+    """How deeply lists and tables nest in ``value`` (``[[1]]``: 2), counted without recursion; the
+    count stops at the first level beyond ``limit``."""
+    deepest = 0
+    stack = [(value, 1)] if isinstance(value, (list, Mapping)) else []
+    while stack:
+        v, d = stack.pop()
+        deepest = max(deepest, d)
+        if d > limit:
+            break
+        children = v.values() if isinstance(v, Mapping) else v
+        stack.extend((c, d + 1) for c in children if isinstance(c, (list, Mapping)))
+    return deepest
+
+
 def _read_text_mapping(path: Path, src: str) -> dict[str, Any]:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError as exc:
         raise _file_error(src, None, f"not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    too_deep = (f"nested more than {MAX_NESTING} levels deep (lists / tables; "
+                "optdesign.problems.MAX_NESTING)")
     try:
         data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
     except json.JSONDecodeError as exc:
@@ -369,9 +403,18 @@ def _read_text_mapping(path: Path, src: str) -> dict[str, Any]:
             from None
     except tomllib.TOMLDecodeError as exc:
         raise _file_error(src, None, f"invalid TOML: {exc}") from None
+    except RecursionError:
+        raise _file_error(src, None, too_deep) from None
+    except ValueError as exc:  # Python's limit on the digits of an integer (4300 by default)
+        limit = getattr(sys, "get_int_max_str_digits", lambda: 4300)()
+        reason = (f"an integer of more than {limit} digits (Python's limit for reading integers)"
+                  if "digits" in str(exc) else " ".join(str(exc).split()))
+        raise _file_error(src, None, f"a number that cannot be read: {reason}") from None
     if not isinstance(data, dict):
         raise _file_error(src, None, f"expected an object with the plant's matrices (A, C, ...); found "
                                      f"{type(data).__name__}")
+    if _nesting_depth(data, MAX_NESTING) > MAX_NESTING:
+        raise _file_error(src, None, too_deep)
     for key in ("plant", None):
         block = data.get(key) if key else data
         if isinstance(block, Mapping):
@@ -381,37 +424,152 @@ def _read_text_mapping(path: Path, src: str) -> dict[str, Any]:
     return data
 
 
+def _check_expanded(src: str, name: str, nbytes: int, what: str, total: int) -> int:
+    """``nbytes`` (an array's declared or expanded size) within :data:`MAX_ARRAY_BYTES`, and the
+    running ``total + nbytes`` within :data:`MAX_EXPANDED_BYTES`; the new total."""
+    if nbytes > MAX_ARRAY_BYTES:
+        raise _file_error(src, name, f"{what} {nbytes} bytes; at most {MAX_ARRAY_BYTES} per array "
+                                     "(optdesign.problems.MAX_ARRAY_BYTES): nothing was expanded")
+    total += nbytes
+    if total > MAX_EXPANDED_BYTES:
+        raise _file_error(src, name, f"the arrays expand to more than {MAX_EXPANDED_BYTES} bytes in all "
+                                     "(optdesign.problems.MAX_EXPANDED_BYTES): nothing was expanded")
+    return total
+
+
+def _unknown_member(src: str, name: str) -> ProblemFileError:
+    return _file_error(src, name, f"unknown field for a plant file ({', '.join(_MINIMAL_KEYS)})")
+
+
+#: the most members (arrays / variables) a binary problem file may have: one per known field
+_MAX_MEMBERS = len(_MINIMAL_KEYS)
+
+
+def _zip_entries(path: Path) -> int | None:
+    """The number of members a zip archive declares (its end-of-central-directory record), read
+    before :class:`zipfile.ZipFile` builds one object per member; None if there is no such record
+    (not a zip archive: :class:`zipfile.ZipFile` says so)."""
+    with path.open("rb") as fh:
+        fh.seek(0, os.SEEK_END)
+        size = fh.tell()
+        fh.seek(max(0, size - (22 + 65535)))
+        tail = fh.read()
+    at = tail.rfind(b"PK\x05\x06")
+    if at < 0 or len(tail) - at < 22:
+        return None
+    return struct.unpack("<H", tail[at + 10: at + 12])[0]
+
+
+#: the largest .npy header numpy reads (``numpy.lib.format``'s default ``max_header_size``)
+_NPY_HEADER_MAX = 10000
+
+
 def _npz_shapes(path: Path, src: str) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
-    """Shape and dtype of every array of an ``.npz`` from the ``.npy`` headers (nothing loaded)."""
+    """Shape and dtype of every array of an ``.npz`` from the ``.npy`` headers, each member's name
+    and its declared and expanded sizes checked (nothing is expanded beyond its header)."""
     out = {}
     try:
+        entries = _zip_entries(path)
+        if entries is not None and entries > _MAX_MEMBERS:
+            raise _file_error(src, None, f"an archive of {entries} members; a plant file has at most "
+                                         f"{_MAX_MEMBERS} ({', '.join(_MINIMAL_KEYS)})")
+        total = 0
         with zipfile.ZipFile(path) as zf:
             for info in zf.infolist():
                 if not info.filename.endswith(".npy"):
                     raise _file_error(src, info.filename, "not an array (.npz members are .npy files)")
+                name = info.filename[:-4]
+                if name not in _MINIMAL_KEYS:
+                    raise _unknown_member(src, name)
+                # the member's expanded size as the archive states it (the reader stops there)
+                if info.file_size > MAX_ARRAY_BYTES + _NPY_HEADER_MAX:
+                    _check_expanded(src, name, info.file_size, "the member expands to", 0)
                 with zf.open(info) as fh:
                     version = np.lib.format.read_magic(fh)
                     read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
                             else np.lib.format.read_array_header_2_0)
                     shape, _, dtype = read(fh)
-                out[info.filename[:-4]] = (tuple(shape), dtype)
+                    header = fh.tell()
+                shape = tuple(int(d) for d in shape)
+                if dtype.hasobject:
+                    raise _file_error(src, name, "an object array (it would need pickle, which is not used); "
+                                                 "save numbers or strings")
+                if name in _MATRIX_KEYS:
+                    _check_size(src, name, shape)
+                declared = math.prod(shape) * dtype.itemsize
+                total = _check_expanded(src, name, declared, f"shape {shape} of {dtype} declares", total)
+                if declared > info.file_size - header:
+                    raise _file_error(src, name, f"shape {shape} of {dtype} declares {declared} bytes but the "
+                                                 f"member holds {max(info.file_size - header, 0)}: a "
+                                                 "truncated or forged array")
+                out[name] = (shape, dtype)
     except (zipfile.BadZipFile, ValueError, OSError) as exc:
+        if isinstance(exc, ProblemFileError):
+            raise
         raise _file_error(src, None, f"not a readable .npz archive ({exc})") from None
     return out
 
 
 def _read_npz(path: Path, src: str) -> dict[str, Any]:
-    for name, (shape, dtype) in _npz_shapes(path, src).items():
-        if name in _MATRIX_KEYS:
-            _check_size(src, name, shape)
-        if dtype.hasobject:
-            raise _file_error(src, name, "an object array (it would need pickle, which is not used); save "
-                                         "numbers or strings")
+    _npz_shapes(path, src)
     try:
         with np.load(path, allow_pickle=False) as data:
             return {k: data[k] for k in data.files}
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, zipfile.BadZipFile) as exc:
         raise _file_error(src, None, f"cannot read the arrays: {exc}") from None
+
+
+#: bytes per element of a MATLAB class once read (double / single counted as complex: whosmat does
+#: not say; text as numpy's 4-byte characters)
+_MAT_ITEM_BYTES = {"double": 16, "single": 8, "logical": 1, "char": 4, "int8": 1, "uint8": 1, "int16": 2,
+                   "uint16": 2, "int32": 4, "uint32": 4, "int64": 8, "uint64": 8}
+_MI_COMPRESSED = 15
+
+
+def _mat_compressed_sizes(path: Path, src: str, names: list[str]) -> None:
+    """Stream every compressed variable of a MATLAB v5/v7 file through zlib, counting its expanded
+    bytes (kept: none), and refuse one beyond :data:`MAX_ARRAY_BYTES` or a total beyond
+    :data:`MAX_EXPANDED_BYTES` -- a variable's header may state a small shape over a large body."""
+    limit = MAX_ARRAY_BYTES + 2**16  # the array and its headers (name, dimensions, flags)
+    total = 0
+    with path.open("rb") as fh:
+        head = fh.read(128)
+        if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
+            return  # v4 (no compression) or not MATLAB: scipy.io says which
+        order = "<" if head[126:128] == b"IM" else ">"
+        index = 0
+        while True:
+            tag = fh.read(8)
+            if len(tag) < 8:
+                return
+            mdtype, nbytes = struct.unpack(order + "II", tag)
+            if mdtype >> 16:  # a small data element (4 bytes of data in the tag): not a variable
+                continue
+            if mdtype != _MI_COMPRESSED:
+                fh.seek(nbytes + (-nbytes % 8), os.SEEK_CUR)
+                index += 1
+                continue
+            z = zlib.decompressobj()
+            left, expanded = nbytes, 0
+            while left > 0 and not z.eof:
+                chunk = fh.read(min(left, 2**20))
+                if not chunk:
+                    break
+                left -= len(chunk)
+                while chunk and not z.eof:
+                    expanded += len(z.decompress(chunk, 2**20))
+                    chunk = z.unconsumed_tail
+                    if expanded > limit:
+                        where = names[index] if index < len(names) else f"variable {index + 1}"
+                        raise _file_error(src, where, "a compressed variable that expands "
+                                          f"to more than {MAX_ARRAY_BYTES} bytes "
+                                          "(optdesign.problems.MAX_ARRAY_BYTES): refused before reading")
+            total += expanded
+            if total > MAX_EXPANDED_BYTES:
+                raise _file_error(src, None, f"the variables expand to more than {MAX_EXPANDED_BYTES} "
+                                             "bytes in all (optdesign.problems.MAX_EXPANDED_BYTES)")
+            fh.seek(left, os.SEEK_CUR)
+            index += 1
 
 
 def _read_mat(path: Path, src: str) -> dict[str, Any]:
@@ -422,17 +580,27 @@ def _read_mat(path: Path, src: str) -> dict[str, Any]:
     except NotImplementedError:
         raise _file_error(src, None, "MATLAB v7.3 (HDF5) files are not supported; save with "
                                      "save(..., '-v7')") from None
-    except (ValueError, OSError, TypeError) as exc:
+    except (ValueError, OSError, TypeError, zlib.error) as exc:
         raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
+    total = 0
     for name, shape, cls in info:
-        if name in _MATRIX_KEYS:
-            _check_size(src, name, tuple(shape))
         if cls not in ("double", "single", "char", "logical") and not cls.startswith(("int", "uint")):
             raise _file_error(src, name, f"a MATLAB {cls} (expected a numeric matrix, or text for name "
                                          "and title)")
+        if name not in _MINIMAL_KEYS:
+            raise _unknown_member(src, name)
+        if name in _MATRIX_KEYS:
+            _check_size(src, name, tuple(shape))
+        declared = math.prod(int(d) for d in shape) * _MAT_ITEM_BYTES.get(cls, 8)
+        total = _check_expanded(src, name, declared, f"shape {tuple(shape)} of {cls} declares", total)
     try:
-        data = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True)
-    except (ValueError, OSError, TypeError, NotImplementedError) as exc:
+        _mat_compressed_sizes(path, src, [name for name, _, _ in info])
+    except (OSError, struct.error, zlib.error) as exc:
+        raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
+    try:
+        data = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True,
+                                variable_names=[name for name, _, _ in info])
+    except (ValueError, OSError, TypeError, NotImplementedError, zlib.error) as exc:
         raise _file_error(src, None, f"cannot read the variables: {exc}") from None
     return {k: v for k, v in data.items() if not k.startswith("__")}
 

@@ -570,9 +570,10 @@ def test_study_exit_code_1_when_a_point_fails_with_the_failed_points_listed(tmp_
     assert [ln.split(":")[0] for ln in listed] == ["  scale = 0.5, shift = 6", "  scale = 1, shift = 6"]
     assert all(": infeasible: infeasible: no design exists (a global certificate says so); " in ln
                for ln in listed), listed
-    code, out, _ = run(["study", "shifts.toml", "--no-progress", "--allow-failures"], capsys)
+    # the same study again writes the same result files: asked for with --overwrite
+    code, out, _ = run(["study", "shifts.toml", "--no-progress", "--allow-failures", "--overwrite"], capsys)
     assert code == 0 and "partial results accepted (--allow-failures)" in out
-    code, out, _ = run(["study", "shifts.toml", "--no-progress", "--json"], capsys)
+    code, out, _ = run(["study", "shifts.toml", "--no-progress", "--json", "--overwrite"], capsys)
     d = json.loads(out)
     assert code == 1 and d["failed"] == 2 and [f["shift"] for f in d["failed_points"]] == [6.0, 6.0]
     assert all(f["reason"].startswith("infeasible: ") for f in d["failed_points"])
@@ -582,7 +583,7 @@ def test_study_progress_goes_to_stderr_when_asked(tmp_path, capsys):
     (tmp_path / "shifts.toml").write_text(FAILING_SPEC)
     code, out, err = run(["study", "shifts.toml", "--allow-failures", "--no-progress"], capsys)
     assert err == ""
-    code, out, err = run(["study", "shifts.toml", "--allow-failures", "--progress"], capsys)
+    code, out, err = run(["study", "shifts.toml", "--allow-failures", "--progress", "--overwrite"], capsys)
     assert code == 0 and "sweep:" not in out  # stdout keeps the results only
     # the sweep is shorter than the 1 s delay of its report: silent, or ending with 4/4
     assert err == "" or err.splitlines()[-1].startswith("sweep: 4/4 points")

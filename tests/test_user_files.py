@@ -152,7 +152,7 @@ def test_a_spec_takes_a_problem_file_next_to_it(tmp_path, capsys):
     # the same through the command line, with the kalman design
     spec.write_text('[study]\nproblem = "mine.json"\ndesign = "kalman"\nexecutor = "serial"\n'
                     '[grid]\nq = [1.0]\n')
-    code, out, err = run(["study", str(spec), "--no-progress"], capsys)
+    code, out, err = run(["study", str(spec), "--no-progress", "--overwrite"], capsys)  # same s_results/
     assert code == 0, err
     assert "1 points, 1 successful" in out
 

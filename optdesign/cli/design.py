@@ -41,6 +41,7 @@ from ..model.regions import Disk, HalfPlane, Sector
 from ..results import Verification
 from ..studies.designers import gain_values, place_baseline
 from ..studies.reproduce import PAPERS, paper_id, reproduce_all
+from ..studies.output import output_folder
 from ..studies.spec import format_region, load_spec, parse_poles, parse_region, require_matplotlib, run_spec
 from .common import (
     PROBLEM_HELP,
@@ -425,6 +426,11 @@ def _cfg_study(sp: argparse.ArgumentParser) -> None:
                     help="override the spec's executor")
     sp.add_argument("--workers", type=int, help="override the spec's number of workers")
     sp.add_argument("--out", help="output folder (default: the spec's output, else ./<name>_results)")
+    sp.add_argument("--overwrite", action="store_true",
+                    help="replace existing result files (or symbolic links in their place: the link, never "
+                         "its target); without it an existing one is an error, before the sweep")
+    sp.add_argument("--allow-outside", action="store_true", dest="allow_outside",
+                    help="accept a spec whose output folder lies outside the current directory")
     sp.add_argument("--allow-failures", action="store_true", dest="allow_failures",
                     help="exit 0 when some points fail (partial results accepted; at least one must succeed)")
     sp.add_argument("--no-figures", action="store_true", dest="no_figures",
@@ -457,13 +463,15 @@ def cmd_study(args: argparse.Namespace) -> int:
     if spec.figures and not args.no_figures:
         require_matplotlib(f"the figures of {spec.source}")  # before the sweep, not after it
     out = Path(args.out) if args.out is not None else spec.output
-    _check_out_dir(str(out), "--out" if args.out is not None else f"{spec.source}: study.output")
+    where = "--out" if args.out is not None else f"{spec.source}: study.output"
+    output_folder(out, allow_outside=args.allow_outside or args.out is not None, field=where, create=False)
+    _check_out_dir(str(out), where)
     executor = args.executor or spec.executor
     if not args.json:
         print(_study_header(spec, executor, args.workers or spec.workers, out))
         flush()
     res = run_spec(spec, executor=args.executor, workers=args.workers, progress=args.progress,
-                   output=out, figures=not args.no_figures)
+                   output=out, figures=not args.no_figures, overwrite=args.overwrite)
     t = res.table
     failed = _failed_points(spec, t)
     if args.json:

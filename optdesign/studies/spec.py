@@ -11,8 +11,9 @@ Format
                                     # (mine.json / .toml / .npz / .mat, relative to the spec file;
                                     # see optdesign.problems.load_file)
     design = "well_conditioned"     # the study verb (see below)
-    output = "alpha_sector_results" # folder, relative to the current directory (default
-                                    # "<name>_results"; `optdesign study --out DIR` overrides it)
+    output = "alpha_sector_results" # folder, relative to the current directory and inside it
+                                    # (default "<name>_results"; `optdesign study --out DIR`
+                                    # overrides it; see "Where results go" below)
     executor = "processes"          # processes | threads | serial | dask (default processes)
     workers = 2                     # optional: pool size / Dask LocalCluster workers
     scheduler = "tcp://host:8786"   # optional, executor = "dask": an existing cluster
@@ -53,8 +54,13 @@ design                     designer (:mod:`optdesign.studies.designers`)  axes
 Results: ``<output>/<name>.csv`` (one row per point: inputs, status, success, metrics, time,
 error, and for a failed point its ``reason`` in one line), ``<output>/<name>.json`` and the
 figure(s).  Only successful (solved and verified) points are drawn; the title says how many
-failed.  The output folder is relative to the *current directory* (never to the spec file: running
-an example spec does not write into the source tree).
+failed.
+
+Where results go (the rules: :mod:`optdesign.studies.output`): the output folder is relative to the
+*current directory* (never to the spec file) and must lie inside it unless the caller asks
+(``--allow-outside``; ``--out DIR`` may be anywhere); an existing result file is never overwritten
+unless asked (``--overwrite``), checked before the sweep.  A grid has at most
+:data:`~optdesign.studies.sweep.MAX_GRID_POINTS` points, counted before any is built.
 
 Every mistake in a spec file raises :class:`SpecError` (a :class:`~optdesign.errors.ValidationError`)
 with a one-line message that names the file and the field, e.g.
@@ -80,10 +86,13 @@ from typing import Any
 import numpy as np
 
 from .. import problems
-from ..errors import BackendUnavailableError, OptDesignError, ValidationError
-from ..model.regions import Disk, Ellipse, HalfPlane, HorizontalStrip, Region, Sector, VerticalStrip
+from .._validate import shown
+from ..errors import BackendUnavailableError, OptDesignError, OutputPathError, ValidationError
+from ..model.regions import Region
 from .designers import DESIGNERS
-from .sweep import SweepTable, grid, sweep
+from .syntax import REGION_SHAPES, format_region, parse_poles, parse_region
+from .output import atomic_path, check_targets, file_name, output_folder
+from .sweep import MAX_GRID_POINTS, SweepTable, grid, sweep
 
 __all__ = [
     "SpecError",
@@ -109,137 +118,6 @@ else:  # pragma: no cover - Python 3.10
 
 class SpecError(ValidationError):
     """A mistake in a study spec (one line naming the file and the field)."""
-
-
-# --------------------------------------------------------------------------- region / pole syntax
-
-#: shape -> (number of parameters accepted, constructor, help)
-REGION_SHAPES: dict[str, tuple[tuple[int, ...], Any, str]] = {
-    "halfplane": ((1,), lambda a: HalfPlane(a[0]), "halfplane:ALPHA  (Re s <= -ALPHA)"),
-    "sector": ((1,), lambda a: Sector.from_damping(a[0]), "sector:ZETA  (damping ratio >= ZETA, 0 < ZETA < "
-                                                          "1)"),
-    "disk": ((1, 2), lambda a: Disk(0.0, a[0]) if len(a) == 1 else Disk(a[0], a[1]),
-             "disk:RADIUS or disk:CENTER,RADIUS"),
-    "strip": ((2,), lambda a: VerticalStrip(a[0], a[1]), "strip:LO,HI  (LO <= Re s <= HI)"),
-    "hstrip": ((1,), lambda a: HorizontalStrip(a[0]), "hstrip:OMEGA  (|Im s| <= OMEGA)"),
-    "ellipse": ((3,), lambda a: Ellipse(a[0], a[1], a[2]), "ellipse:CENTER,A,B"),
-    "stable": ((0,), lambda a: HalfPlane(0.0), "stable  (Re s <= 0)"),
-}
-
-
-def parse_region(text: str, *, field: str = "region") -> Region:
-    """Parse ``"halfplane:1.5 & sector:0.7 & disk:20"`` into a :class:`~optdesign.regions.Region`.
-
-    Raises
-    ------
-    ValidationError
-        One line starting with ``field``: unknown shape, wrong number of numbers, a value that is
-        not a number, an invalid parameter (e.g. ``sector:1.2``) or an empty intersection.
-    """
-    if not isinstance(text, str) or not text.strip():
-        raise ValidationError(f"{field}: expected a region such as 'halfplane:1 & sector:0.7'; found "
-                              f"{text!r}")
-    members: list[Region] = []
-    for term in text.split("&"):
-        term = term.strip()
-        if not term:
-            raise ValidationError(f"{field}: empty member in {text!r} (members are joined by '&')")
-        shape, _, args = term.partition(":")
-        shape = shape.strip().lower()
-        if shape not in REGION_SHAPES:
-            raise ValidationError(f"{field}: unknown shape {shape!r} in {term!r}; expected one of "
-                                  f"{', '.join(REGION_SHAPES)}")
-        counts, make, usage = REGION_SHAPES[shape]
-        parts = [a.strip() for a in args.split(",")] if args.strip() else []
-        if len(parts) not in counts:
-            raise ValidationError(f"{field}: {term!r} has {len(parts)} number(s); usage: {usage}")
-        nums = []
-        for a in parts:
-            try:
-                v = float(a)
-            except ValueError:
-                raise ValidationError(f"{field}: {a!r} in {term!r} is not a number; usage: {usage}") from None
-            if not math.isfinite(v):
-                raise ValidationError(f"{field}: {a!r} in {term!r} is not finite; usage: {usage}")
-            nums.append(v)
-        try:
-            members.append(make(nums))
-        except OptDesignError as exc:
-            raise ValidationError(f"{field}: {term!r}: {exc}") from None
-    region = members[0]
-    try:
-        for m in members[1:]:
-            region = region & m
-    except OptDesignError as exc:
-        raise ValidationError(f"{field}: {' '.join(str(exc).split())}") from None
-    return region
-
-
-def _member_text(m: Region) -> tuple[str, str]:
-    """(``--region`` syntax, meaning) of one region shape."""
-    if isinstance(m, HalfPlane):
-        if m.alpha == 0:
-            return "stable", "Re s <= 0"
-        return f"halfplane:{m.alpha:.6g}", f"Re s <= {-m.alpha:.6g}"
-    if isinstance(m, Sector):
-        deg = math.degrees(m.half_angle)
-        if m.apex == 0:
-            return (f"sector:{m.damping:.6g}",
-                    f"damping ratio >= {m.damping:.6g} (a sector of half-angle {deg:.4g} deg)")
-        return (f"Sector(half_angle={m.half_angle:.6g}, apex={m.apex:.6g})",
-                f"|Im s| <= tan({deg:.4g} deg) ({m.apex:.6g} - Re s)")
-    if isinstance(m, Disk):
-        if m.center == 0:
-            return f"disk:{m.radius:.6g}", f"|s| <= {m.radius:.6g}"
-        return f"disk:{m.center:.6g},{m.radius:.6g}", f"|s - ({m.center:.6g})| <= {m.radius:.6g}"
-    if isinstance(m, VerticalStrip):
-        return f"strip:{m.lo:.6g},{m.hi:.6g}", f"{m.lo:.6g} <= Re s <= {m.hi:.6g}"
-    if isinstance(m, HorizontalStrip):
-        return f"hstrip:{m.omega:.6g}", f"|Im s| <= {m.omega:.6g}"
-    if isinstance(m, Ellipse):
-        return (f"ellipse:{m.center:.6g},{m.a:.6g},{m.b:.6g}",
-                f"((Re s - ({m.center:.6g}))/{m.a:.6g})^2 + (Im s/{m.b:.6g})^2 <= 1")
-    return repr(m), ""
-
-
-def format_region(region: Region, *, meaning: bool = True) -> str:
-    """A region in the syntax of :func:`parse_region` (its inverse), with what each member means.
-
-    Examples
-    --------
-    >>> format_region(HalfPlane(1.0) & Disk(0.0, 20.0))
-    'halfplane:1 & disk:20  (Re s <= -1; |s| <= 20)'
-    >>> format_region(Sector.from_damping(0.7), meaning=False)
-    'sector:0.7'
-    """
-    members = region.members if hasattr(region, "members") else (region,)
-    parts = [_member_text(m) for m in members]
-    text = " & ".join(p[0] for p in parts)
-    glosses = [p[1] for p in parts if p[1]]
-    return f"{text}  ({'; '.join(glosses)})" if meaning and glosses else text
-
-
-def parse_poles(value: Any, *, field: str = "poles") -> np.ndarray:
-    """Poles from ``"-1, -2, -3+1j, -3-1j"`` or a list of numbers / strings (complex vector).
-
-    Raises
-    ------
-    ValidationError
-        ``field`` named: an entry that is not a number, no entries.
-    """
-    items = [p.strip() for p in value.replace(";", ",").split(",")] if isinstance(value, str) else value
-    if not isinstance(items, (list, tuple)) or not items:
-        raise ValidationError(f"{field}: expected poles such as '-1, -2, -3+1j, -3-1j'; found {value!r}")
-    out = []
-    for s in items:
-        try:
-            z = complex(s.replace(" ", "").replace("i", "j")) if isinstance(s, str) else complex(s)
-        except (ValueError, TypeError):
-            raise ValidationError(f"{field}: {s!r} is not a number (write complex poles as -3+1j)") from None
-        if not (math.isfinite(z.real) and math.isfinite(z.imag)):
-            raise ValidationError(f"{field}: {s!r} is not finite")
-        out.append(z)
-    return np.asarray(out, dtype=complex)
 
 
 # --------------------------------------------------------------------------- spec
@@ -339,12 +217,17 @@ def load_spec(path: str | Path) -> StudySpec:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise SpecError(f"{path}: no such spec file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # not UTF-8, or a NUL character in the path
         raise SpecError(f"{path}: cannot read the spec file: {exc}") from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{path.name}: invalid TOML: {' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise SpecError(f"{path.name}: invalid TOML: arrays or tables nested too deeply") from None
+    except ValueError as exc:  # an integer beyond Python's digit limit
+        raise SpecError(f"{path.name}: invalid TOML: a number that cannot be read "
+                        f"({' '.join(str(exc).split())[:120]})") from None
     return parse_spec(data, source=path.name, base=path.parent, default_name=path.stem)
 
 
@@ -352,8 +235,9 @@ def _err(source: str, fieldname: str, msg: str) -> SpecError:
     return SpecError(f"{source}: {fieldname}: {msg}")
 
 
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(float(v))
+def _is_number(v: Any) -> bool:  # a finite float, or an integer within the float range
+    return (isinstance(v, (int, float)) and not isinstance(v, bool)
+            and (abs(v) <= sys.float_info.max if isinstance(v, int) else math.isfinite(v)))
 
 
 def _axis_values(source: str, name: str, v: Any) -> list[Any]:
@@ -361,9 +245,12 @@ def _axis_values(source: str, name: str, v: Any) -> list[Any]:
     if isinstance(v, list):
         if not v:
             raise _err(source, f, "empty list of values")
+        if len(v) > MAX_GRID_POINTS:
+            raise _err(source, f, f"{len(v)} values; at most {MAX_GRID_POINTS} "
+                                  "(optdesign.studies.sweep.MAX_GRID_POINTS)")
         for x in v:
             if not (_is_number(x) or isinstance(x, str)):
-                raise _err(source, f, f"values must be numbers; found {x!r}")
+                raise _err(source, f, f"values must be numbers; found {shown(x)}")
         return list(v)
     if isinstance(v, Mapping):
         unknown = set(v) - {"start", "stop", "num", "log"}
@@ -374,10 +261,13 @@ def _axis_values(source: str, name: str, v: Any) -> list[Any]:
                 raise _err(source, f"{f}.{k}", "missing (a range needs start, stop and num)")
         for k in ("start", "stop"):
             if not _is_number(v[k]):
-                raise _err(source, f"{f}.{k}", f"must be a finite number; found {v[k]!r}")
+                raise _err(source, f"{f}.{k}", f"must be a finite number; found {shown(v[k])}")
         num = v["num"]
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise _err(source, f"{f}.num", f"must be an integer >= 1; found {num!r}")
+            raise _err(source, f"{f}.num", f"must be an integer >= 1; found {shown(num)}")
+        if num > MAX_GRID_POINTS:
+            raise _err(source, f"{f}.num", f"{shown(num)} values; at most {MAX_GRID_POINTS} "
+                                           "(optdesign.studies.sweep.MAX_GRID_POINTS)")
         log = v.get("log", False)
         if not isinstance(log, bool):
             raise _err(source, f"{f}.log", f"must be true or false; found {log!r}")
@@ -390,7 +280,7 @@ def _axis_values(source: str, name: str, v: Any) -> list[Any]:
         return [float(x) for x in vals]
     if _is_number(v):
         return [v]
-    raise _err(source, f, f"expected a list of values or {{start, stop, num}}; found {v!r}")
+    raise _err(source, f, f"expected a list of values or {{start, stop, num}}; found {shown(v)}")
 
 
 def _designer_fields(cls) -> list[str]:
@@ -492,12 +382,16 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         if k not in _STUDY_KEYS:
             raise _err(source, f"study.{k}", f"unknown field; [study] has {', '.join(_STUDY_KEYS)}")
     name = study.get("name", default_name)
-    if not isinstance(name, str) or not name.strip() or any(c in name for c in "/\\"):
-        raise _err(source, "study.name", f"must be a non-empty name without slashes; found {name!r}")
+    try:
+        name = file_name("name", name)
+    except OutputPathError:
+        raise _err(source, "study.name", f"must be a non-empty name without slashes or control "
+                                         f"characters (it names the result files); found {shown(name)}") \
+            from None
     problem = study.get("problem")
-    if not isinstance(problem, str):
+    if not isinstance(problem, str) or "\x00" in problem:
         raise _err(source, "study.problem", "missing or not a string (a problem name, see `optdesign list`, "
-                                            f"or a problem file); found {problem!r}")
+                                            f"or a problem file); found {shown(problem)}")
     ref: str | Path = problem
     if problems.is_problem_file(problem) and not Path(problem).is_absolute():
         ref = Path(base) / problem  # a problem file next to the spec
@@ -530,8 +424,9 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
     if not isinstance(title, str):
         raise _err(source, "study.title", f"must be a string; found {title!r}")
     output = study.get("output", f"{name}_results")
-    if not isinstance(output, str) or not output.strip():
-        raise _err(source, "study.output", f"must be a folder name; found {output!r}")
+    if not isinstance(output, str) or not output.strip() or "\x00" in output:
+        raise _err(source, "study.output", f"must be a folder name (no NUL character); found "
+                                           f"{shown(output)}")
     out_path = Path(output)  # relative to the current directory, like --out
 
     # fixed arguments
@@ -557,6 +452,11 @@ def parse_spec(data: Mapping[str, Any], *, source: str = "<spec>", base: str | P
         axes[k] = _axis_values(source, k, v)
     for k, v in constant_point.items():
         axes[k] = [v]
+    count = math.prod(len(v) for v in axes.values())  # counted before any point is built
+    if count > MAX_GRID_POINTS:
+        sizes = " x ".join(f"{k} {len(v)}" for k, v in axes.items() if len(v) > 1)
+        raise _err(source, "grid", f"{sizes} is {count} points; at most {MAX_GRID_POINTS} "
+                                   "(optdesign.studies.sweep.MAX_GRID_POINTS): split the study")
     pts = grid(**axes)
     # validate the values of every point through the designer (cheap, no solving)
     for p in pts:
@@ -643,8 +543,13 @@ def _parse_figure(source: str, fr: Any, index: int | None, axes: dict[str, list]
                        f"is a function of {x!r}")
         value = None
         file = fr.get("file", f"{name}_{'_'.join(ys)}.png")
-    if not isinstance(file, str) or not file.lower().endswith((".png", ".pdf", ".svg")) or "/" in file:
-        raise _err(source, f"{pre}.file", f"must be a file name ending in .png, .pdf or .svg; found {file!r}")
+    try:
+        file = file_name("file", file)
+    except OutputPathError:
+        file = None
+    if file is None or not file.lower().endswith((".png", ".pdf", ".svg")):
+        raise _err(source, f"{pre}.file", f"must be a file name ending in .png, .pdf or .svg (no slashes "
+                                          f"or control characters); found {shown(fr.get('file', file))}")
     return FigureSpec(kind=kind, x=x, y=ys, series=series, value=value, logx=fr.get("logx", False),
                       logy=fr.get("logy", False), file=file, title=title)
 
@@ -804,7 +709,7 @@ def require_matplotlib(what: str = "figures") -> None:
 
 def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, workers: int | None = None,
              progress: bool | None = None, output: str | Path | None = None,
-             figures: bool = True) -> StudyOutput:
+             figures: bool = True, overwrite: bool = False, allow_outside: bool = False) -> StudyOutput:
     """Run a study: sweep, CSV + JSON, figure(s).
 
     Parameters
@@ -818,11 +723,16 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
         Progress on stderr, one step per point (:func:`~optdesign.studies.sweep`): ``None``
         (default) only on a terminal, ``True`` always, ``False`` never.
     output : path, optional
-        Overrides the spec's output folder (relative to the current directory).
+        Overrides the spec's output folder (relative to the current directory; may lie outside it).
     figures : bool, default True
         Draw the spec's figures.  When there are figures to draw, matplotlib is required *before*
         the sweep runs (:func:`require_matplotlib`), so that a long sweep does not end in an
         import error.
+    overwrite : bool, default False
+        Replace existing result files, or symbolic links in their place (the link, never its
+        target); without it an existing one is an error, raised before the sweep starts.
+    allow_outside : bool, default False
+        Accept a spec whose output folder (``study.output``) lies outside the current directory.
 
     Returns
     -------
@@ -833,7 +743,12 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
     SpecError
         The spec file is bad (``spec`` given as a path).
     ValidationError
-        A bad ``executor``, ``workers``, ``progress`` or ``figures``.
+        A bad ``executor``, ``workers``, ``progress`` or flag.
+    OutputPathError
+        The spec's output folder outside the current directory (``allow_outside`` False), or not
+        writable.
+    OutputExistsError
+        A result file exists and ``overwrite`` is False (checked before the sweep).
     BackendUnavailableError
         Figures requested and matplotlib missing; executor ``"dask"`` without dask.distributed.
     """
@@ -842,13 +757,19 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
     exe = executor or spec.executor
     if exe not in _EXECUTORS:
         raise ValidationError(f"executor must be one of {', '.join(_EXECUTORS)}; found {exe!r}")
-    if not isinstance(figures, bool):
-        raise ValidationError(f"figures must be True or False; found {figures!r}")
+    for flag, value in (("figures", figures), ("overwrite", overwrite), ("allow_outside", allow_outside)):
+        if not isinstance(value, bool):
+            raise ValidationError(f"{flag} must be True or False; found {shown(value)}")
     if figures and spec.figures:
         require_matplotlib(f"the figures of {spec.source}")
     w = workers or spec.workers
-    out = Path(output) if output is not None else spec.output
-    out.mkdir(parents=True, exist_ok=True)
+    if output is not None:
+        out = output_folder(output, allow_outside=True, field="output")
+    else:
+        out = output_folder(spec.output, allow_outside=allow_outside, field=f"{spec.source}: study.output")
+    csv_path, json_path = out / f"{spec.name}.csv", out / f"{spec.name}.json"
+    drawn = spec.figures if figures else ()
+    check_targets([csv_path, json_path, *(out / fig.file for fig in drawn)], overwrite=overwrite)
     client = cluster = None
     try:
         if exe == "dask":
@@ -864,10 +785,12 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
         if cluster is not None:
             cluster.close()
     table.meta.update({"problem": spec.problem, "design": spec.design, "spec": spec.source})
-    csv_path = table.to_csv(out / f"{spec.name}.csv")
-    json_path = out / f"{spec.name}.json"
-    table.to_json(json_path)
+    table.to_csv(csv_path, overwrite=overwrite)
+    table.to_json(json_path, overwrite=overwrite)
     title = spec.title or f"{spec.problem}: {spec.design}"
-    figs = tuple(plot_table(table, fig, out / fig.file, title=title)
-                 for fig in (spec.figures if figures else ()))
-    return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=figs)
+    figs = []
+    for fig in drawn:
+        with atomic_path(out / fig.file, overwrite=overwrite) as tmp:
+            plot_table(table, fig, tmp, title=title)
+        figs.append(out / fig.file)
+    return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=tuple(figs))

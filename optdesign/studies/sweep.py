@@ -32,6 +32,7 @@ import concurrent.futures as cf
 import contextlib
 import csv
 import dataclasses
+import io
 import itertools
 import json
 import math
@@ -52,6 +53,7 @@ import numpy as np
 from .._progress import Progress, as_progress
 from .._validate import as_int
 from ..errors import ValidationError
+from .output import write_text
 
 __all__ = [
     "grid",
@@ -66,7 +68,13 @@ __all__ = [
     "one_line_error",
     "STATUS_MEANING",
     "IPOPT_MEANING",
+    "MAX_GRID_POINTS",
 ]
+
+#: the most points :func:`grid` builds (and a study spec's grid may have): counted from the axes'
+#: lengths before anything is built.  At ~0.1-10 s a point, 10^5 points are hours to days of
+#: work; a larger study is split into several grids (or this limit raised deliberately).
+MAX_GRID_POINTS = 100_000
 
 #: columns that depend on the machine and the scheduling, not on the design (ignored by
 #: :meth:`SweepTable.diff`)
@@ -89,11 +97,14 @@ def grid(**axes: Iterable[Any] | Any) -> list[dict[str, Any]]:
     Returns
     -------
     list of dict
+        At most :data:`MAX_GRID_POINTS` points: the number is counted from the axes' lengths
+        before any point is built.
 
     Raises
     ------
     ValidationError
-        No axis, or an empty axis.
+        No axis, an empty axis, or more than :data:`MAX_GRID_POINTS` points (the message gives
+        each axis's length).
 
     Examples
     --------
@@ -104,14 +115,31 @@ def grid(**axes: Iterable[Any] | Any) -> list[dict[str, Any]]:
         raise ValidationError("grid needs at least one axis, e.g. grid(alpha=[1, 2])")
     names = list(axes)
     values = []
+    lengths: dict[str, int] = {}
+
+    def check(k: str, length: int) -> None:
+        lengths[k] = length
+        count = math.prod(lengths.values())
+        if count > MAX_GRID_POINTS:
+            sizes = " x ".join(f"{a} {m}" for a, m in lengths.items())
+            raise ValidationError(f"grid: {sizes} is {'at least ' if len(lengths) < len(names) else ''}"
+                                  f"{count} points; at most {MAX_GRID_POINTS} "
+                                  "(optdesign.studies.sweep.MAX_GRID_POINTS): split the study")
+
     for k in names:
         v = axes[k]
         if isinstance(v, (str, bytes)) or not isinstance(v, Iterable):
             items = [v]
+        elif isinstance(v, np.ndarray):
+            check(k, v.size)
+            items = list(v.ravel())
         else:
-            items = list(np.asarray(v).ravel()) if isinstance(v, np.ndarray) else list(v)
+            if hasattr(v, "__len__"):
+                check(k, len(v))  # type: ignore[arg-type]
+            items = list(itertools.islice(v, MAX_GRID_POINTS + 1))
         if not items:
             raise ValidationError(f"grid axis {k!r} is empty")
+        check(k, len(items))
         values.append([x.item() if isinstance(x, np.generic) else x for x in items])
     return [dict(zip(names, combo, strict=True)) for combo in itertools.product(*values)]
 
@@ -439,17 +467,27 @@ class SweepTable:
                 out.append(f"record {i} column {k!r}: {va!r} vs {vb!r}")
         return out
 
-    def to_csv(self, path: str | os.PathLike) -> Path:
-        """Write every record (one row per point, :attr:`columns` as header)."""
-        path = Path(path)
+    def to_csv(self, path: str | os.PathLike, *, overwrite: bool = False) -> Path:
+        """Write every record (one row per point, :attr:`columns` as header).
+
+        The file is written whole under a temporary name and renamed (never through a symbolic
+        link; :mod:`optdesign.studies.output`).
+
+        Raises
+        ------
+        OutputExistsError
+            ``path`` exists (a file or a symbolic link) and ``overwrite`` is False.
+        OutputPathError
+            A folder at ``path``, or a path with a NUL byte.
+        """
         cols = self.columns
-        with path.open("w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=cols)
-            w.writeheader()
-            for r in self.records:
-                w.writerow({k: ("" if r.get(k) is None else repr(r[k]) if isinstance(r.get(k), float)
-                                else r.get(k)) for k in cols})
-        return path
+        buf = io.StringIO(newline="")
+        w = csv.DictWriter(buf, fieldnames=cols)
+        w.writeheader()
+        for r in self.records:
+            w.writerow({k: ("" if r.get(k) is None else repr(r[k]) if isinstance(r.get(k), float)
+                            else r.get(k)) for k in cols})
+        return write_text(path, buf.getvalue(), overwrite=overwrite, newline="")
 
     @classmethod
     def from_csv(cls, path: str | os.PathLike, inputs: Sequence[str] = ()) -> SweepTable:
@@ -471,8 +509,18 @@ class SweepTable:
             rows = [{k: decode(v) for k, v in r.items()} for r in csv.DictReader(fh)]
         return cls(records=rows, inputs=tuple(inputs))
 
-    def to_json(self, path: str | os.PathLike | None = None) -> str:
-        """JSON text of the table (non-finite floats as the strings ``"inf"``, ``"-inf"``, ``"nan"``)."""
+    def to_json(self, path: str | os.PathLike | None = None, *, overwrite: bool = False) -> str:
+        """JSON text of the table (non-finite floats as the strings ``"inf"``, ``"-inf"``, ``"nan"``),
+        also written to ``path`` when given (as :meth:`to_csv`: whole, renamed, never over an
+        existing file unless ``overwrite``).
+
+        Raises
+        ------
+        OutputExistsError
+            ``path`` exists (a file or a symbolic link) and ``overwrite`` is False.
+        OutputPathError
+            A folder at ``path``, or a path with a NUL byte.
+        """
 
         def clean(v):
             if isinstance(v, float) and not math.isfinite(v):
@@ -483,7 +531,7 @@ class SweepTable:
                            "records": [{k: clean(v) for k, v in r.items()} for r in self.records]},
                           indent=1, default=str)
         if path is not None:
-            Path(path).write_text(text, encoding="utf-8")
+            write_text(path, text, overwrite=overwrite)
         return text
 
     def summary(self) -> str:
