@@ -499,9 +499,9 @@ def _npz_shapes(path: Path, src: str) -> dict[str, tuple[tuple[int, ...], np.dty
                 declared = math.prod(shape) * dtype.itemsize
                 total = _check_expanded(src, name, declared, f"shape {shape} of {dtype} declares", total)
                 if declared > info.file_size - header:
-                    raise _file_error(src, name, f"shape {shape} of {dtype} declares {declared} bytes but the "
-                                                 f"member holds {max(info.file_size - header, 0)}: a "
-                                                 "truncated or forged array")
+                    held = max(info.file_size - header, 0)
+                    raise _file_error(src, name, f"shape {shape} of {dtype} declares {declared} bytes but "
+                                                 f"the member holds {held}: a truncated or forged array")
                 out[name] = (shape, dtype)
     except (zipfile.BadZipFile, ValueError, OSError) as exc:
         if isinstance(exc, ProblemFileError):

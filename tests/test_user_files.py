@@ -299,3 +299,146 @@ def test_npz_and_mat_mistakes():
     Path("v73.mat").write_bytes(header + b"IM" + b"\0" * 512)
     with pytest.raises(ProblemFileError, match=r"v73.mat: MATLAB v7.3 \(HDF5\) files are not supported"):
         problems.load("v73.mat")
+
+
+# ------------------------------------------------------------------ hostile files: typed errors, no blow-up
+# (issue 26: numpy MemoryError, RecursionError and Python's digit-limit ValueError escaped; a 7-9 MB
+# .npz / .mat was expanded to 2-3 GB before it was refused)
+
+
+def _npy(shape, data: bytes = b"", descr: str = "<f8") -> bytes:
+    """An .npy member whose header claims ``shape`` over ``data`` (forged when they disagree)."""
+    import io
+
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": descr, "fortran_order": False, "shape": shape})
+    return buf.getvalue() + data
+
+
+def _npz(path, **members: bytes) -> Path:
+    import zipfile
+
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name, blob in members.items():
+            zf.writestr(f"{name}.npy", blob)
+    return Path(path)
+
+
+def _never(*args, **kwargs):
+    raise AssertionError("an array was read before its size was checked")
+
+
+def test_npz_declaring_a_huge_shape_is_refused_before_reading(monkeypatch, capsys):
+    ok_c = _npy((1, 2), np.zeros(2).tobytes())
+    _npz("cube.npz", A=_npy((2000, 2000, 2000)), C=ok_c)  # each dimension within MAX_DIMENSION
+    _npz("unknown.npz", A=_npy((2, 2), np.zeros(4).tobytes()), X=_npy((10**6, 10**6)))
+    _npz("poles.npz", A=_npy((2, 2), np.zeros(4).tobytes()), C=ok_c, poles=_npy((10**9,)))
+    _npz("forged.npz", A=_npy((300, 300), np.zeros(4).tobytes()), C=ok_c)  # 720 kB declared, 32 B held
+    monkeypatch.setattr(np, "load", _never)
+    with pytest.raises(ProblemFileError, match=r"cube.npz: A: shape \(2000, 2000, 2000\) of float64 declares "
+                                               r"64000000000 bytes; at most 64000000 per array"):
+        problems.load("cube.npz")
+    with pytest.raises(ProblemFileError, match="unknown.npz: X: unknown field for a plant file"):
+        problems.load("unknown.npz")
+    with pytest.raises(ProblemFileError, match=r"poles.npz: poles: shape \(1000000000,\) of float64 decl"):
+        problems.load("poles.npz")
+    with pytest.raises(ProblemFileError, match=r"forged.npz: A: shape \(300, 300\) of float64 declares "
+                                               r"720000 bytes but the member holds 32: a truncated or"):
+        problems.load("forged.npz")
+    code, _, err = run(["kalman", "cube.npz"], capsys)  # a MemoryError traceback and exit 1 before
+    assert code == 2 and err.count("\n") == 1 and "cube.npz: A: shape (2000, 2000, 2000)" in err
+
+
+def test_npz_compression_bomb_is_refused_before_it_expands(monkeypatch):
+    """A member whose expanded size (the zip's own record) is beyond the limit: 4 MB of zeros in
+    a few kB, against a limit lowered to 1 MB (:data:`optdesign.problems.MAX_ARRAY_BYTES`)."""
+    import zipfile
+
+    monkeypatch.setattr(problems, "MAX_ARRAY_BYTES", 2**20)
+    with zipfile.ZipFile("bomb.npz", "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("C.npy", _npy((1, 2), np.zeros(2).tobytes()))
+        with zf.open("A.npy", "w") as fh:
+            fh.write(_npy((2, 2)))
+            for _ in range(4):
+                fh.write(bytes(2**20))
+    assert Path("bomb.npz").stat().st_size < 20_000
+    monkeypatch.setattr(np, "load", _never)
+    with pytest.raises(ProblemFileError, match=r"bomb.npz: A: the member expands to 4194\d+ bytes; at most "
+                                               r"1048576 per array \(optdesign.problems.MAX_ARRAY_BYTES\)"):
+        problems.load("bomb.npz")
+    # every member counts toward the total too
+    monkeypatch.setattr(problems, "MAX_ARRAY_BYTES", 2**30)
+    monkeypatch.setattr(problems, "MAX_EXPANDED_BYTES", 2**20)
+    _npz("total.npz", A=_npy((300, 300), bytes(720_000)), Q=_npy((300, 300), bytes(720_000)))
+    with pytest.raises(ProblemFileError, match="total.npz: Q: the arrays expand to more than 1048576 bytes"):
+        problems.load("total.npz")
+
+
+def test_npz_with_many_members_is_refused_from_its_end_record(monkeypatch):
+    import zipfile
+
+    with zipfile.ZipFile("many.npz", "w") as zf:
+        for i in range(40):
+            zf.writestr(f"A{i}.npy", b"")
+    real = zipfile.ZipFile
+    monkeypatch.setattr(zipfile, "ZipFile", _never)  # refused before the central directory is read
+    with pytest.raises(ProblemFileError, match="many.npz: an archive of 40 members; a plant file has"):
+        problems.load("many.npz")
+    monkeypatch.setattr(zipfile, "ZipFile", real)
+
+
+def _mat_v5(name: str, dims: tuple[int, int], body: bytes) -> bytes:
+    """A MATLAB v5 file with one compressed double variable whose header states ``dims`` over a
+    real part of ``body`` (forged when they disagree)."""
+    import zlib
+
+    def element(mdtype: int, data: bytes) -> bytes:
+        return struct.pack("<II", mdtype, len(data)) + data + b"\0" * (-len(data) % 8)
+
+    matrix = (element(6, struct.pack("<II", 6, 0))            # array flags: mxDOUBLE_CLASS
+              + element(5, struct.pack("<ii", *dims))          # dimensions
+              + element(1, name.encode())                      # name
+              + element(9, body))                              # real part (miDOUBLE)
+    inner = struct.pack("<II", 14, len(matrix)) + matrix       # miMATRIX
+    header = b"MATLAB 5.0 MAT-file, forged for a test".ljust(116, b" ") + b"\0" * 8
+    header += struct.pack("<H", 0x0100) + b"IM"
+    packed = zlib.compress(inner, 9)
+    return header + struct.pack("<II", 15, len(packed)) + packed  # miCOMPRESSED (not padded)
+
+
+def test_mat_declared_and_compressed_sizes_are_checked_before_loading(monkeypatch):
+    scipy.io.savemat("bigpoles.mat", {"A": np.zeros((2, 2)), "C": np.zeros((1, 2)),
+                                      "poles": np.zeros((1, 600))}, do_compression=True)
+    scipy.io.savemat("other.mat", {"A": np.zeros((2, 2)), "C": np.zeros((1, 2)), "X": np.zeros((1, 3))})
+    Path("forged.mat").write_bytes(_mat_v5("A", (1, 1), bytes(2**20)))  # 1 MiB behind a 1 x 1 header
+    assert Path("forged.mat").stat().st_size < 5_000
+    monkeypatch.setattr(problems, "MAX_ARRAY_BYTES", 9000)  # 1 x 600 doubles, counted as complex: 9600
+    monkeypatch.setattr(scipy.io, "loadmat", _never)
+    with pytest.raises(ProblemFileError, match=r"bigpoles.mat: poles: shape \(1, 600\) of double declares "
+                                               r"9600 bytes; at most 9000 per array"):
+        problems.load("bigpoles.mat")
+    with pytest.raises(ProblemFileError, match="other.mat: X: unknown field for a plant file"):
+        problems.load("other.mat")
+    monkeypatch.setattr(problems, "MAX_ARRAY_BYTES", 2**16)
+    with pytest.raises(ProblemFileError, match=r"forged.mat: A: a compressed variable that expands to more "
+                                               r"than 65536 bytes"):
+        problems.load("forged.mat")
+
+
+def test_deep_nesting_and_huge_integers_are_file_errors(capsys):
+    Path("deep.json").write_text("[" * 100_000 + "]" * 100_000)   # RecursionError in the parser before
+    Path("deep.toml").write_text("A = " + "[" * 100_000 + "]" * 100_000)
+    deep = json.loads('{"a": ' * 500 + "1" + "}" * 500)
+    write_json("nested.json", {"plant": {"A": A, "C": C}, "data": deep})
+    for name in ("deep.json", "deep.toml", "nested.json"):  # nested.json parses; _decode recursed before
+        with pytest.raises(ProblemFileError, match=rf"^{name}: nested more than 32 levels deep"):
+            problems.load(name)
+    Path("digits.json").write_text('{"A": [[' + "1" * 5000 + ']], "C": [[1]]}')
+    Path("digits.toml").write_text("A = [[" + "1" * 5000 + "]]\nC = [[1]]\n")
+    for name in ("digits.json", "digits.toml"):
+        with pytest.raises(ProblemFileError, match=rf"^{name}: a number that cannot be read: an integer of "
+                                                   r"more than 4300 digits"):
+            problems.load(name)
+    code, _, err = run(["kalman", "deep.json"], capsys)
+    assert code == 2 and err.count("\n") == 1 and "nested more than 32 levels deep" in err
+    assert problems.load_file(write_json("ok.json", {"A": A, "C": C})).plant.n == 2  # a plain one loads
