@@ -526,10 +526,28 @@ _MAT_ITEM_BYTES = {"double": 16, "single": 8, "logical": 1, "char": 4, "int8": 1
 _MI_COMPRESSED = 15
 
 
-def _mat_compressed_sizes(path: Path, src: str, names: list[str]) -> None:
+def _mat_name(start: bytes, order: str) -> str | None:
+    """The name of a MATLAB v5 variable from the first bytes of its (expanded) miMATRIX element:
+    its tag, the array flags, the dimensions, then the name (None if they are not there)."""
+    try:
+        at = 8 + 16  # the miMATRIX tag, the array flags element
+        _, nbytes = struct.unpack_from(order + "II", start, at)
+        at += 8 + nbytes + (-nbytes % 8)  # the dimensions element
+        tag = struct.unpack_from(order + "I", start, at)[0]
+        if tag >> 16:  # small data element: the name's length in the upper half, its bytes next
+            return start[at + 4: at + 4 + (tag >> 16)].decode("latin1")
+        nbytes = struct.unpack_from(order + "I", start, at + 4)[0]
+        return start[at + 8: at + 8 + min(nbytes, 64)].decode("latin1") or None
+    except (struct.error, UnicodeDecodeError):
+        return None
+
+
+def _mat_compressed_sizes(path: Path, src: str) -> None:
     """Stream every compressed variable of a MATLAB v5/v7 file through zlib, counting its expanded
-    bytes (kept: none), and refuse one beyond :data:`MAX_ARRAY_BYTES` or a total beyond
-    :data:`MAX_EXPANDED_BYTES` -- a variable's header may state a small shape over a large body."""
+    bytes (kept: at most 1 MiB at a time), and refuse one beyond :data:`MAX_ARRAY_BYTES` or a total
+    beyond :data:`MAX_EXPANDED_BYTES`.  Run before :func:`scipy.io.whosmat`, which expands a whole
+    compressed block (up to ~250 MB of zeros) to read one header, and before
+    :func:`scipy.io.loadmat`, which expands a variable's body whatever shape its header states."""
     limit = MAX_ARRAY_BYTES + 2**16  # the array and its headers (name, dimensions, flags)
     total = 0
     with path.open("rb") as fh:
@@ -543,38 +561,43 @@ def _mat_compressed_sizes(path: Path, src: str, names: list[str]) -> None:
             if len(tag) < 8:
                 return
             mdtype, nbytes = struct.unpack(order + "II", tag)
+            index += 1
             if mdtype >> 16:  # a small data element (4 bytes of data in the tag): not a variable
                 continue
             if mdtype != _MI_COMPRESSED:
                 fh.seek(nbytes + (-nbytes % 8), os.SEEK_CUR)
-                index += 1
                 continue
             z = zlib.decompressobj()
-            left, expanded = nbytes, 0
+            left, expanded, start = nbytes, 0, b""
             while left > 0 and not z.eof:
                 chunk = fh.read(min(left, 2**20))
                 if not chunk:
                     break
                 left -= len(chunk)
                 while chunk and not z.eof:
-                    expanded += len(z.decompress(chunk, 2**20))
+                    out = z.decompress(chunk, 2**20)
+                    start = start or out[:256]
+                    expanded += len(out)
                     chunk = z.unconsumed_tail
                     if expanded > limit:
-                        where = names[index] if index < len(names) else f"variable {index + 1}"
-                        raise _file_error(src, where, "a compressed variable that expands "
-                                          f"to more than {MAX_ARRAY_BYTES} bytes "
-                                          "(optdesign.problems.MAX_ARRAY_BYTES): refused before reading")
+                        where = _mat_name(start, order) or f"variable {index}"
+                        raise _file_error(src, where, "a compressed variable that expands to more than "
+                                          f"{MAX_ARRAY_BYTES} bytes (optdesign.problems.MAX_ARRAY_BYTES): "
+                                          "refused before reading")
             total += expanded
             if total > MAX_EXPANDED_BYTES:
                 raise _file_error(src, None, f"the variables expand to more than {MAX_EXPANDED_BYTES} "
                                              "bytes in all (optdesign.problems.MAX_EXPANDED_BYTES)")
             fh.seek(left, os.SEEK_CUR)
-            index += 1
 
 
 def _read_mat(path: Path, src: str) -> dict[str, Any]:
     import scipy.io
 
+    try:
+        _mat_compressed_sizes(path, src)
+    except (OSError, struct.error, zlib.error) as exc:
+        raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
     try:
         info = scipy.io.whosmat(path)
     except NotImplementedError:
@@ -593,10 +616,6 @@ def _read_mat(path: Path, src: str) -> dict[str, Any]:
             _check_size(src, name, tuple(shape))
         declared = math.prod(int(d) for d in shape) * _MAT_ITEM_BYTES.get(cls, 8)
         total = _check_expanded(src, name, declared, f"shape {tuple(shape)} of {cls} declares", total)
-    try:
-        _mat_compressed_sizes(path, src, [name for name, _, _ in info])
-    except (OSError, struct.error, zlib.error) as exc:
-        raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
     try:
         data = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True,
                                 variable_names=[name for name, _, _ in info])

@@ -287,3 +287,17 @@ def test_deep_nesting_and_huge_integers_in_a_spec_are_spec_errors(work, capsys):
         parse_spec({**base, "grid": {"q": {"start": 1, "stop": 2, "num": -(10**4999)}}})
     with pytest.raises(SpecError, match=r"grid.q.start: must be a finite number; found an integer of about"):
         parse_spec({**base, "grid": {"q": {"start": 10**400, "stop": 2, "num": 2}}})
+
+
+def test_pareto_front_csv_takes_overwrite(work):
+    import numpy as np
+
+    from optdesign.studies import ParetoFront
+
+    t = SweepTable(records=[{"max_gain": 1.0, "kappa2": 2.0}], inputs=("max_gain",))
+    front = ParetoFront(objectives=("kappa2", "gain_norm"), table=t, values=np.array([[2.0, 1.0]]),
+                        nondominated=np.array([True]))
+    front.to_csv("front.csv")
+    with pytest.raises(OutputExistsError, match="front.csv: exists"):
+        front.to_csv("front.csv")
+    assert "nondominated" in front.to_csv("front.csv", overwrite=True).read_text()

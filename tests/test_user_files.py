@@ -410,6 +410,8 @@ def test_mat_declared_and_compressed_sizes_are_checked_before_loading(monkeypatc
     scipy.io.savemat("bigpoles.mat", {"A": np.zeros((2, 2)), "C": np.zeros((1, 2)),
                                       "poles": np.zeros((1, 600))}, do_compression=True)
     scipy.io.savemat("other.mat", {"A": np.zeros((2, 2)), "C": np.zeros((1, 2)), "X": np.zeros((1, 3))})
+    scipy.io.savemat("z.mat", {"A": np.array(A), "C": np.array(C)}, do_compression=True)
+    assert problems.load("z.mat").plant.n == 2  # an honest compressed file loads
     Path("forged.mat").write_bytes(_mat_v5("A", (1, 1), bytes(2**20)))  # 1 MiB behind a 1 x 1 header
     assert Path("forged.mat").stat().st_size < 5_000
     monkeypatch.setattr(problems, "MAX_ARRAY_BYTES", 9000)  # 1 x 600 doubles, counted as complex: 9600

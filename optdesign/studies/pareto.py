@@ -129,12 +129,14 @@ class ParetoFront:
         """The designs of the non-dominated points (same order as :meth:`front`)."""
         return [self.designs[i] for i in self._front_order()]
 
-    def to_csv(self, path: str | Path) -> Path:
-        """Every point, with a ``nondominated`` column."""
+    def to_csv(self, path: str | Path, *, overwrite: bool = False) -> Path:
+        """Every point, with a ``nondominated`` column (written as :meth:`SweepTable.to_csv
+        <optdesign.studies.sweep.SweepTable.to_csv>`: never over an existing file unless
+        ``overwrite``, never through a symbolic link)."""
         recs = [{**r, "nondominated": bool(nd)}
                 for r, nd in zip(self.table.records, self.nondominated, strict=True)]
         t = SweepTable(records=recs, inputs=self.table.inputs)
-        return t.to_csv(path)
+        return t.to_csv(path, overwrite=overwrite)
 
     def plot(self, path: str | Path | None = None, **kw):
         """See :func:`plot_pareto`."""
