@@ -301,3 +301,20 @@ def test_pareto_front_csv_takes_overwrite(work):
     with pytest.raises(OutputExistsError, match="front.csv: exists"):
         front.to_csv("front.csv")
     assert "nondominated" in front.to_csv("front.csv", overwrite=True).read_text()
+
+
+def test_figures_are_checked_before_the_sweep_and_never_written_through_a_link(work):
+    pytest.importorskip("matplotlib")
+    victim = work.parent / "outside" / "package.json"
+    Path("f.toml").write_text(SPEC.format(name="f", extra="").replace("q = [1.0]", "q = [1.0, 2.0]")
+                              + '[figure]\nx = "q"\ny = "kappa2"\nfile = "k.png"\n')
+    spec = load_spec("f.toml")
+    Path("f_results").mkdir()
+    os.symlink(victim, "f_results/k.png")
+    with pytest.raises(OutputExistsError, match="k.png: a symbolic link"):
+        run_spec(spec, progress=False)
+    assert not Path("f_results/f.csv").exists()  # refused before the sweep: nothing written
+    res = run_spec(spec, progress=False, overwrite=True)
+    assert res.figures == (Path("f_results/k.png"),) and not res.figures[0].is_symlink()
+    assert res.figures[0].read_bytes().startswith(b"\x89PNG") and victim.read_text() == '{"keep": true}'
+    assert leftovers(work / "f_results") == []

@@ -593,8 +593,11 @@ def _title(text: str, note: str) -> str:
     return "\n".join(lines + ([note.strip()] if note else []))
 
 
-def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: str = "") -> Path:
-    """Draw one figure of a sweep table (successful points only) and save it.
+def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: str = "",
+               overwrite: bool = False) -> Path:
+    """Draw one figure of a sweep table (successful points only) and save it (under a temporary
+    name, then renamed: never over an existing file unless ``overwrite``, never through a symbolic
+    link; :mod:`optdesign.studies.output`).
 
     Line figures: one curve per value of ``fig.series`` (legend), one panel per ``y`` column,
     axes labelled.  Heatmaps: ``fig.value`` over the ``x`` by ``y`` grid with a colour bar and the
@@ -672,7 +675,9 @@ def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: s
                           bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
         axs[-1, 0].set_xlabel(_label(fig.x))
         axs[0, 0].set_title(_title(fig.title or title or ", ".join(fig.y), note), fontsize=10)
-    return save_figure(f, path, dpi=120)
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        save_figure(f, tmp, dpi=120)
+    return Path(path)
 
 
 def _dask_client(spec: StudySpec, workers: int | None):
@@ -788,9 +793,5 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
     table.to_csv(csv_path, overwrite=overwrite)
     table.to_json(json_path, overwrite=overwrite)
     title = spec.title or f"{spec.problem}: {spec.design}"
-    figs = []
-    for fig in drawn:
-        with atomic_path(out / fig.file, overwrite=overwrite) as tmp:
-            plot_table(table, fig, tmp, title=title)
-        figs.append(out / fig.file)
-    return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=tuple(figs))
+    figs = tuple(plot_table(table, fig, out / fig.file, title=title, overwrite=overwrite) for fig in drawn)
+    return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=figs)
