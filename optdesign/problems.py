@@ -779,6 +779,9 @@ def load_file(path: str | os.PathLike) -> Problem:
         raise ValidationError(f"path must be a string or a path; found {type(path).__name__} {path!r}")
     p = Path(path)
     src = str(path)
+    if "\x00" in src:
+        raise _file_error(repr(src[:60]), None, "the path contains a NUL character (\\x00), which no file "
+                                                "system accepts")
     suffix = p.suffix.lower()
     if suffix not in FILE_SUFFIXES:
         raise _file_error(src, None, f"unknown kind of problem file {suffix or '(no suffix)'!r}; expected "

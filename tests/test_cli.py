@@ -134,3 +134,32 @@ def test_filter_margins_repr_is_one_short_line():
     assert text.startswith("FilterMargins(continuous, stable; circle condition holds; guaranteed gain "
                            "(0.5, inf)")
     assert "summary" not in text and "channel" in m.summary()
+
+
+def test_hostile_files_end_in_one_line_exit_2_in_a_fresh_process(tmp_path):
+    """Issue 26: a file claiming a huge shape gave numpy's MemoryError traceback and exit 1, deep
+    nesting a RecursionError, a 5,000-digit integer Python's ValueError -- now one line, exit 2."""
+    import io
+    import zipfile
+
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False,
+                                                  "shape": (2000, 2000, 2000)})
+    with zipfile.ZipFile(tmp_path / "huge.npz", "w") as zf:
+        zf.writestr("A.npy", header.getvalue())
+    (tmp_path / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
+    (tmp_path / "digits.toml").write_text("A = [[" + "9" * 5000 + "]]\n")
+    for name, match in (("huge.npz", "A: shape (2000, 2000, 2000) of float64 declares"),
+                        ("deep.json", "nested more than 32 levels deep"),
+                        ("digits.toml", "an integer of more than 4300 digits")):
+        proc = subprocess.run([sys.executable, "-m", "optdesign", "kalman", str(tmp_path / name)],
+                              capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr and match in proc.stderr
+
+
+def test_study_help_names_overwrite_and_allow_outside(capsys):
+    with pytest.raises(SystemExit):
+        main(["study", "--help"])
+    out = capsys.readouterr().out
+    assert "--overwrite" in out and "--allow-outside" in out

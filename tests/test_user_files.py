@@ -444,3 +444,10 @@ def test_deep_nesting_and_huge_integers_are_file_errors(capsys):
     code, _, err = run(["kalman", "deep.json"], capsys)
     assert code == 2 and err.count("\n") == 1 and "nested more than 32 levels deep" in err
     assert problems.load_file(write_json("ok.json", {"A": A, "C": C})).plant.n == 2  # a plain one loads
+
+
+def test_a_nul_byte_in_a_problem_path_is_a_file_error(capsys):
+    with pytest.raises(ProblemFileError, match=r"'mine\\x00.json': the path contains a NUL character"):
+        problems.load("mine\x00.json")
+    with pytest.raises(ProblemFileError, match="NUL character"):
+        problems.load_file(Path("a\x00b.npz"))
