@@ -53,12 +53,8 @@ be positive definite ...``; an unknown field is refused (a typo would otherwise 
 from __future__ import annotations
 
 import json
-import math
 import os
-import struct
 import sys
-import zipfile
-import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cache, lru_cache
@@ -68,6 +64,7 @@ from typing import Any
 
 import numpy as np
 
+from ._array_files import Limits, check_size, file_error, read_mat, read_npz
 from ._validate import as_matrix, as_poles, as_positive_float, as_square, as_str
 from .errors import ProblemFileError, ProblemNotFoundError, ValidationError
 from .model.plant import Plant
@@ -351,9 +348,14 @@ _SCHEMA_KEYS = ("name", "title", "kind", "tags", "citation", "source", "notes", 
                 "references", "data")
 
 
-def _file_error(src: str, fieldname: str | None, msg: str) -> ProblemFileError:
-    msg = " ".join(str(msg).split())
-    return ProblemFileError(f"{src}: {fieldname}: {msg}" if fieldname else f"{src}: {msg}")
+_file_error = file_error
+
+
+def _limits() -> Limits:
+    """The limits of a binary problem file, read from this module when a file is read (so that a
+    caller may change them: ``optdesign.problems.MAX_ARRAY_BYTES = ...``)."""
+    return Limits(dimension=MAX_DIMENSION, array_bytes=MAX_ARRAY_BYTES, expanded_bytes=MAX_EXPANDED_BYTES,
+                  fields=_MINIMAL_KEYS, matrices=_MATRIX_KEYS)
 
 
 def _nested_shape(value: Any) -> tuple[int, ...]:
@@ -368,10 +370,7 @@ def _nested_shape(value: Any) -> tuple[int, ...]:
 
 
 def _check_size(src: str, fieldname: str, shape: tuple[int, ...]) -> None:
-    big = [d for d in shape if d > MAX_DIMENSION]
-    if big:
-        raise _file_error(src, fieldname, f"shape {shape} exceeds the size limit: every dimension must be "
-                                          f"<= {MAX_DIMENSION} (optdesign.problems.MAX_DIMENSION)")
+    check_size(src, fieldname, shape, MAX_DIMENSION)
 
 
 def _nesting_depth(value: Any, limit: int) -> int:
@@ -422,206 +421,6 @@ def _read_text_mapping(path: Path, src: str) -> dict[str, Any]:
                 if k in block:
                     _check_size(src, f"plant.{k}" if key else k, _nested_shape(block[k]))
     return data
-
-
-def _check_expanded(src: str, name: str, nbytes: int, what: str, total: int) -> int:
-    """``nbytes`` (an array's declared or expanded size) within :data:`MAX_ARRAY_BYTES`, and the
-    running ``total + nbytes`` within :data:`MAX_EXPANDED_BYTES`; the new total."""
-    if nbytes > MAX_ARRAY_BYTES:
-        raise _file_error(src, name, f"{what} {nbytes} bytes; at most {MAX_ARRAY_BYTES} per array "
-                                     "(optdesign.problems.MAX_ARRAY_BYTES): nothing was expanded")
-    total += nbytes
-    if total > MAX_EXPANDED_BYTES:
-        raise _file_error(src, name, f"the arrays expand to more than {MAX_EXPANDED_BYTES} bytes in all "
-                                     "(optdesign.problems.MAX_EXPANDED_BYTES): nothing was expanded")
-    return total
-
-
-def _unknown_member(src: str, name: str) -> ProblemFileError:
-    return _file_error(src, name, f"unknown field for a plant file ({', '.join(_MINIMAL_KEYS)})")
-
-
-#: the most members (arrays / variables) a binary problem file may have: one per known field
-_MAX_MEMBERS = len(_MINIMAL_KEYS)
-
-
-def _zip_entries(path: Path) -> int | None:
-    """The number of members a zip archive declares (its end-of-central-directory record), read
-    before :class:`zipfile.ZipFile` builds one object per member; None if there is no such record
-    (not a zip archive: :class:`zipfile.ZipFile` says so)."""
-    with path.open("rb") as fh:
-        fh.seek(0, os.SEEK_END)
-        size = fh.tell()
-        fh.seek(max(0, size - (22 + 65535)))
-        tail = fh.read()
-    at = tail.rfind(b"PK\x05\x06")
-    if at < 0 or len(tail) - at < 22:
-        return None
-    return struct.unpack("<H", tail[at + 10: at + 12])[0]
-
-
-#: the largest .npy header numpy reads (``numpy.lib.format``'s default ``max_header_size``)
-_NPY_HEADER_MAX = 10000
-
-
-def _npz_shapes(path: Path, src: str) -> dict[str, tuple[tuple[int, ...], np.dtype]]:
-    """Shape and dtype of every array of an ``.npz`` from the ``.npy`` headers, each member's name
-    and its declared and expanded sizes checked (nothing is expanded beyond its header)."""
-    out = {}
-    try:
-        entries = _zip_entries(path)
-        if entries is not None and entries > _MAX_MEMBERS:
-            raise _file_error(src, None, f"an archive of {entries} members; a plant file has at most "
-                                         f"{_MAX_MEMBERS} ({', '.join(_MINIMAL_KEYS)})")
-        total = 0
-        with zipfile.ZipFile(path) as zf:
-            for info in zf.infolist():
-                if not info.filename.endswith(".npy"):
-                    raise _file_error(src, info.filename, "not an array (.npz members are .npy files)")
-                name = info.filename[:-4]
-                if name not in _MINIMAL_KEYS:
-                    raise _unknown_member(src, name)
-                # the member's expanded size as the archive states it (the reader stops there)
-                if info.file_size > MAX_ARRAY_BYTES + _NPY_HEADER_MAX:
-                    _check_expanded(src, name, info.file_size, "the member expands to", 0)
-                with zf.open(info) as fh:
-                    version = np.lib.format.read_magic(fh)
-                    read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
-                            else np.lib.format.read_array_header_2_0)
-                    shape, _, dtype = read(fh)
-                    header = fh.tell()
-                shape = tuple(int(d) for d in shape)
-                if dtype.hasobject:
-                    raise _file_error(src, name, "an object array (it would need pickle, which is not used); "
-                                                 "save numbers or strings")
-                if name in _MATRIX_KEYS:
-                    _check_size(src, name, shape)
-                declared = math.prod(shape) * dtype.itemsize
-                total = _check_expanded(src, name, declared, f"shape {shape} of {dtype} declares", total)
-                if declared > info.file_size - header:
-                    held = max(info.file_size - header, 0)
-                    raise _file_error(src, name, f"shape {shape} of {dtype} declares {declared} bytes but "
-                                                 f"the member holds {held}: a truncated or forged array")
-                out[name] = (shape, dtype)
-    except (zipfile.BadZipFile, ValueError, OSError) as exc:
-        if isinstance(exc, ProblemFileError):
-            raise
-        raise _file_error(src, None, f"not a readable .npz archive ({exc})") from None
-    return out
-
-
-def _read_npz(path: Path, src: str) -> dict[str, Any]:
-    _npz_shapes(path, src)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
-    except (ValueError, OSError, zipfile.BadZipFile) as exc:
-        raise _file_error(src, None, f"cannot read the arrays: {exc}") from None
-
-
-#: bytes per element of a MATLAB class once read (double / single counted as complex: whosmat does
-#: not say; text as numpy's 4-byte characters)
-_MAT_ITEM_BYTES = {"double": 16, "single": 8, "logical": 1, "char": 4, "int8": 1, "uint8": 1, "int16": 2,
-                   "uint16": 2, "int32": 4, "uint32": 4, "int64": 8, "uint64": 8}
-_MI_COMPRESSED = 15
-
-
-def _mat_name(start: bytes, order: str) -> str | None:
-    """The name of a MATLAB v5 variable from the first bytes of its (expanded) miMATRIX element:
-    its tag, the array flags, the dimensions, then the name (None if they are not there)."""
-    try:
-        at = 8 + 16  # the miMATRIX tag, the array flags element
-        _, nbytes = struct.unpack_from(order + "II", start, at)
-        at += 8 + nbytes + (-nbytes % 8)  # the dimensions element
-        tag = struct.unpack_from(order + "I", start, at)[0]
-        if tag >> 16:  # small data element: the name's length in the upper half, its bytes next
-            return start[at + 4: at + 4 + (tag >> 16)].decode("latin1")
-        nbytes = struct.unpack_from(order + "I", start, at + 4)[0]
-        return start[at + 8: at + 8 + min(nbytes, 64)].decode("latin1") or None
-    except (struct.error, UnicodeDecodeError):
-        return None
-
-
-def _mat_compressed_sizes(path: Path, src: str) -> None:
-    """Stream every compressed variable of a MATLAB v5/v7 file through zlib, counting its expanded
-    bytes (kept: at most 1 MiB at a time), and refuse one beyond :data:`MAX_ARRAY_BYTES` or a total
-    beyond :data:`MAX_EXPANDED_BYTES`.  Run before :func:`scipy.io.whosmat`, which expands a whole
-    compressed block (up to ~250 MB of zeros) to read one header, and before
-    :func:`scipy.io.loadmat`, which expands a variable's body whatever shape its header states."""
-    limit = MAX_ARRAY_BYTES + 2**16  # the array and its headers (name, dimensions, flags)
-    total = 0
-    with path.open("rb") as fh:
-        head = fh.read(128)
-        if len(head) < 128 or head[126:128] not in (b"IM", b"MI"):
-            return  # v4 (no compression) or not MATLAB: scipy.io says which
-        order = "<" if head[126:128] == b"IM" else ">"
-        index = 0
-        while True:
-            tag = fh.read(8)
-            if len(tag) < 8:
-                return
-            mdtype, nbytes = struct.unpack(order + "II", tag)
-            index += 1
-            if mdtype >> 16:  # a small data element (4 bytes of data in the tag): not a variable
-                continue
-            if mdtype != _MI_COMPRESSED:
-                fh.seek(nbytes + (-nbytes % 8), os.SEEK_CUR)
-                continue
-            z = zlib.decompressobj()
-            left, expanded, start = nbytes, 0, b""
-            while left > 0 and not z.eof:
-                chunk = fh.read(min(left, 2**20))
-                if not chunk:
-                    break
-                left -= len(chunk)
-                while chunk and not z.eof:
-                    out = z.decompress(chunk, 2**20)
-                    start = start or out[:256]
-                    expanded += len(out)
-                    chunk = z.unconsumed_tail
-                    if expanded > limit:
-                        where = _mat_name(start, order) or f"variable {index}"
-                        raise _file_error(src, where, "a compressed variable that expands to more than "
-                                          f"{MAX_ARRAY_BYTES} bytes (optdesign.problems.MAX_ARRAY_BYTES): "
-                                          "refused before reading")
-            total += expanded
-            if total > MAX_EXPANDED_BYTES:
-                raise _file_error(src, None, f"the variables expand to more than {MAX_EXPANDED_BYTES} "
-                                             "bytes in all (optdesign.problems.MAX_EXPANDED_BYTES)")
-            fh.seek(left, os.SEEK_CUR)
-
-
-def _read_mat(path: Path, src: str) -> dict[str, Any]:
-    import scipy.io
-
-    try:
-        _mat_compressed_sizes(path, src)
-    except (OSError, struct.error, zlib.error) as exc:
-        raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
-    try:
-        info = scipy.io.whosmat(path)
-    except NotImplementedError:
-        raise _file_error(src, None, "MATLAB v7.3 (HDF5) files are not supported; save with "
-                                     "save(..., '-v7')") from None
-    except (ValueError, OSError, TypeError, zlib.error) as exc:
-        raise _file_error(src, None, f"not a readable MATLAB file ({exc})") from None
-    total = 0
-    for name, shape, cls in info:
-        if cls not in ("double", "single", "char", "logical") and not cls.startswith(("int", "uint")):
-            raise _file_error(src, name, f"a MATLAB {cls} (expected a numeric matrix, or text for name "
-                                         "and title)")
-        if name not in _MINIMAL_KEYS:
-            raise _unknown_member(src, name)
-        if name in _MATRIX_KEYS:
-            _check_size(src, name, tuple(shape))
-        declared = math.prod(int(d) for d in shape) * _MAT_ITEM_BYTES.get(cls, 8)
-        total = _check_expanded(src, name, declared, f"shape {tuple(shape)} of {cls} declares", total)
-    try:
-        data = scipy.io.loadmat(path, squeeze_me=False, chars_as_strings=True,
-                                variable_names=[name for name, _, _ in info])
-    except (ValueError, OSError, TypeError, NotImplementedError, zlib.error) as exc:
-        raise _file_error(src, None, f"cannot read the variables: {exc}") from None
-    return {k: v for k, v in data.items() if not k.startswith("__")}
 
 
 def _text(src: str, fieldname: str, value: Any) -> str:
@@ -799,9 +598,9 @@ def load_file(path: str | os.PathLike) -> Problem:
         if suffix in (".json", ".toml"):
             data = _read_text_mapping(p, src)
         elif suffix == ".npz":
-            data = _read_npz(p, src)
+            data = read_npz(p, src, _limits())
         else:
-            data = _read_mat(p, src)
+            data = read_mat(p, src, _limits())
     except PermissionError as exc:
         raise _file_error(src, None, f"cannot read the file ({exc.strerror or exc})") from None
     return _problem_from(src, data, p)
