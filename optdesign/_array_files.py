@@ -151,7 +151,7 @@ def _npz_shapes(path: Path, src: str, limits: Limits) -> dict[str, tuple[tuple[i
 
 def read_npz(path: Path, src: str, limits: Limits) -> dict[str, Any]:
     """The arrays of an ``.npz`` problem file, every member's name, declared shape x dtype and
-    expanded size checked first (:func:`_npz_shapes`); never unpickled."""
+    expanded size checked first (``_npz_shapes``); never unpickled."""
     _npz_shapes(path, src, limits)
     try:
         with np.load(path, allow_pickle=False) as data:
@@ -234,7 +234,7 @@ def _mat_compressed_sizes(path: Path, src: str, limits: Limits) -> None:
 
 def read_mat(path: Path, src: str, limits: Limits) -> dict[str, Any]:
     """The variables of a MATLAB v4-v7 problem file: compressed sizes counted first
-    (:func:`_mat_compressed_sizes`), then every variable's class, name and declared size
+    (``_mat_compressed_sizes``), then every variable's class, name and declared size
     (:func:`scipy.io.whosmat`), then only the known variables loaded."""
     import scipy.io
 
