@@ -36,7 +36,7 @@ from .errors import (
 from .model.plant import Plant
 from .results import Certificate, Check, DesignResult, SolverStats, Status, Verification
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 # public name -> module that defines it (imported on first access)
 _LAZY: dict[str, str] = {
