@@ -31,6 +31,7 @@ from .errors import (
     ProblemNotFoundError,
     RiccatiError,
     SolverError,
+    UnreachableModesError,
     ValidationError,
 )
 from .model.plant import Plant
@@ -114,6 +115,7 @@ __all__ = [
     "NotSymmetricError",
     "NotPositiveDefiniteError",
     "NotPositiveSemidefiniteError",
+    "UnreachableModesError",
     "NotObservableError",
     "NotControllableError",
     "NotConjugateClosedError",
