@@ -470,3 +470,24 @@ class DesignResult(ResultMixin):
         for c in self.verification:
             out[f"check:{c.name}"] = c.value
         return out
+
+    def plot(self, ax: Any = None, **kw: Any) -> Any:
+        """A pole map of the design: its poles over its region, with the plant's open-loop poles.
+
+        Robust designs draw every model's poles with the worst model marked.  See
+        :func:`optdesign.plot.pole_map` / :func:`optdesign.plot.robust_pole_map` for the keywords.
+
+        Returns
+        -------
+        matplotlib Axes
+
+        Raises
+        ------
+        ValidationError
+            The result has no poles (nothing was designed).
+        BackendUnavailableError
+            matplotlib is not installed.
+        """
+        from .plot.poles import plot_result
+
+        return plot_result(self, ax=ax, **kw)

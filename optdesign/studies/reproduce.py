@@ -20,7 +20,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._progress import Progress, as_progress
-from ..errors import BackendUnavailableError, ValidationError
+from ..errors import ValidationError
+from ..plot.figures import FIGURE_DPI
+from ..plot.figures import pyplot as _pyplot
+from ..plot.figures import save_figure as _save
 from .sweep import one_line_error
 
 __all__ = [
@@ -82,15 +85,9 @@ def format_table(rows) -> str:
 
 
 def pyplot():
-    """matplotlib.pyplot with the headless Agg backend, or a clear error naming the extra."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg", force=True)
-        import matplotlib.pyplot as plt
-    except ImportError as exc:  # pragma: no cover - exercised only without matplotlib
-        raise BackendUnavailableError("figures need matplotlib: pip install 'optdesign[plot]'") from exc
-    return plt
+    """matplotlib.pyplot (matplotlib's own backend choice: ``Agg`` without a display, ``inline`` in
+    Jupyter), or a clear error naming the extra.  No backend is forced."""
+    return _pyplot()
 
 
 def output_dir(outdir: str | Path) -> Path:
@@ -100,16 +97,13 @@ def output_dir(outdir: str | Path) -> Path:
     return out
 
 
-def save_figure(fig, path: str | Path, *, dpi: int = 110, layout: bool = True,
+def save_figure(fig, path: str | Path, *, dpi: int = FIGURE_DPI, layout: bool = True,
                 progress: Progress | None = None, **savefig_kw) -> Path:
     """Lay out (``tight_layout`` unless ``layout=False``), write and close a figure; its path.
 
-    ``progress`` (optional) gets one line naming the file."""
-    if layout:
-        fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=dpi, **savefig_kw)
-    pyplot().close(fig)
+    Written at ``dpi`` (default 300) in the format of the path's suffix (``.png``, ``.svg``,
+    ``.pdf``).  ``progress`` (optional) gets one line naming the file."""
+    path = _save(fig, path, dpi=dpi, layout=layout, **savefig_kw)
     if progress is not None:
         progress.line(f"wrote {path.name} (at {progress.elapsed:.1f} s)")
     return path
