@@ -89,7 +89,7 @@ def _tqdm_class(notebook: bool = False):
     plain ``tqdm`` on a terminal; None when not installed."""
     try:
         if notebook:
-            import ipywidgets  # type: ignore[import-untyped]  # noqa: F401
+            import ipywidgets  # type: ignore[import-not-found, import-untyped, unused-ignore]  # noqa: F401
             from tqdm.auto import tqdm  # type: ignore[import-untyped]
         else:
             from tqdm import tqdm  # type: ignore[import-untyped]  # optional: optdesign[progress]
