@@ -97,9 +97,11 @@ def _plain(name: str, v: float, t: float, detail: str) -> str | None:
 
 
 def plain_check(check: Any) -> str:
-    """One check in plain words with its numbers: ``[ok  ] forward_error: P is accurate to about
-    2e-15 (relative), ... (allowed 1e-06)``; checks without a phrase of their own read
-    ``<detail>: <value>, at most <bound>``."""
+    """One check in plain words with its numbers, after its mark and name.
+
+    For example ``[ok  ] forward_error: P is accurate to about 2e-15 (relative) ... (allowed 1e-06)``;
+    a check without a phrase of its own reads ``<detail>: <value>, must be at most <bound>``.
+    """
     mark = "ok  " if check.passed else "FAIL"
     v, t = float(check.value), float(check.tolerance)
     text = _plain(check.name, v, t, check.detail or "")

@@ -98,8 +98,8 @@ def _finish(ax: Any, box: Box, discrete: bool, title: str | None, legend: bool) 
     ax.set_ylabel("imaginary part")
     if title:
         ax.set_title(title, fontsize=10)
-    if legend:
-        ax.legend(fontsize=8, loc="best")
+    if legend:  # below the axes: the shaded region leaves no empty corner inside them
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, frameon=False)
     return ax
 
 
