@@ -530,7 +530,8 @@ class DesignResult(ResultMixin):
 
         rows = [("status", html.escape(f"{Status(self.status).value} (success: {self.success})")),
                 ("message", html.escape(self.message))]
-        names = list(self._summary_fields)
+        names = list(self._summary_fields) or [  # a verb without summary fields: its usual main numbers
+            n for n in ("L", "K", "P", "Q", "residual", "kappa2", "objective_value", "value") if hasattr(self, n)]
         if "poles" not in names and getattr(self, "poles", None) is not None:
             names.append("poles")
         for name in names:

@@ -75,6 +75,7 @@ def test_kalman_and_robust_results_html(plant):
     kf = optdesign.kalman(plant)
     text = _parse(kf._repr_html_())
     assert "KalmanFilter" in text and "riccati_residual" in text and "poles" in text
+    assert " L " in text and " P " in text and f"{kf.residual:.6g}" in text  # its main numbers
     ms = optdesign.ModelSet.vary(plant, [(1, 0)], 0.2)
     rob = optdesign.robust_observer(ms, region=HalfPlane(0.5))
     text = _parse(rob._repr_html_())

@@ -180,6 +180,8 @@ def draw_region(region: Any, ax: Any = None, *, box: Box | None = None, color: s
             box = (x0 - px, x1 + px, y0 - py, y1 + py)
             ax.set_xlim(box[0], box[1])
             ax.set_ylim(box[2], box[3])
+            ax.set_xlabel("real part")
+            ax.set_ylabel("imaginary part")
         else:
             (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
             ym = max(abs(y0), abs(y1))
