@@ -218,3 +218,14 @@ def test_no_backend_is_selected_by_the_library():
     for path in [*root.joinpath("plot").glob("*.py"), root / "studies" / "reproduce.py"]:
         text = path.read_text()
         assert "matplotlib.use(" not in text, path
+
+
+def test_well_conditioned_feedback_plot():
+    B = np.array([[0.0], [1.0]])
+    region = HalfPlane(1.0) & Disk(0.0, 8.0)
+    res = optdesign.well_conditioned_feedback(Plant(A2, np.eye(2), B=B), region=region, seed=0)
+    assert res.success
+    ax = res.plot()
+    _region_patch(ax)
+    labels = ax.get_legend_handles_labels()[1]
+    assert "closed loop  eig(A - BK)" in labels and _inside(res.poles, ax)
