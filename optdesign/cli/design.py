@@ -463,6 +463,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             for f in spec.figures))
     if spec.figures and not args.no_figures:
         require_matplotlib(f"the figures of {spec.source}")  # before the sweep, not after it
+        _headless()
     out = Path(args.out) if args.out is not None else spec.output
     _check_out_dir(str(out), "--out" if args.out is not None else f"{spec.source}: study.output")
     executor = args.executor or spec.executor
@@ -511,6 +512,17 @@ def _check_out_dir(out: str, flag: str = "--out") -> None:
         raise CLIError(f"{flag} {out}: not a writable folder")
 
 
+def _headless() -> None:
+    """The command writes figure files and shows none: matplotlib's file-only backend, chosen here by
+    the application (the library never chooses one), unless pyplot is already in use."""
+    import sys
+
+    if "matplotlib.pyplot" not in sys.modules:
+        import matplotlib
+
+        matplotlib.use("Agg")
+
+
 # --------------------------------------------------------------------------- reproduce
 
 
@@ -539,6 +551,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         raise CLIError("reproduce writes figures and needs matplotlib: "
                        "pip install 'optdesign[plot]'") from None
     _check_out_dir(args.out)
+    _headless()
     ids = papers or list(PAPERS)
     print(f"reproducing seed paper(s) {', '.join(ids)}{' (quick)' if args.quick else ''} -> "
           f"{Path(args.out)}{os.sep}")
