@@ -4,13 +4,15 @@ Build (from the repository root; the ``docs`` extra installs what it needs)::
 
     python -m sphinx -W --keep-going -b html docs docs/_build/html
 
-The API reference, the gallery, the problem table and the command-line help are generated from the
+The notebooks in ``docs/notebooks`` are executed by myst-nb.  The API reference, the gallery, the problem table and the command-line help are generated from the
 package at each build by ``docs/_ext/optdesign_docs.py``; the rest is written by hand.
 """
 
 from __future__ import annotations
 
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 import optdesign
@@ -29,13 +31,33 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
     "numpydoc",
+    "myst_nb",
     "optdesign_docs",
 ]
 
-exclude_patterns = ["_build", "README.md", "**/_generated"]
+exclude_patterns = ["_build", "README.md", "**/_generated", "**/.ipynb_checkpoints"]
 templates_path: list[str] = []
 root_doc = "index"
 optdesign_examples_dir = "../examples"
+
+# -- notebooks (myst-nb) -----------------------------------------------------------------------------------
+# docs/notebooks/*.ipynb are executed at every build (their outputs are never stored in git), so the site
+# shows what the code prints and draws today; a cell that raises fails the build.  myst-nb rather than
+# nbsphinx: it runs the notebooks through jupyter's own client with no pandoc binary to install, and it
+# renders each output's richest form (our results' _repr_html_ tables, the pole maps as images).
+nb_execution_mode = "force"
+# the notebooks' kernel: quiet (ipykernel warns on stderr that its local TCP transport is not encrypted,
+# which a -W build would count as a problem), in a throw-away IPython directory (no history in the tree)
+_IPYTHONDIR = Path(tempfile.mkdtemp(prefix="optdesign-docs-ipython-"))
+(_IPYTHONDIR / "profile_default").mkdir()
+(_IPYTHONDIR / "profile_default" / "ipython_kernel_config.py").write_text('c.IPKernelApp.log_level = "ERROR"\n')
+os.environ["IPYTHONDIR"] = str(_IPYTHONDIR)
+# the notebooks' kernel imports the optdesign this build documents (the checkout), not another install
+os.environ["PYTHONPATH"] = os.pathsep.join(
+    [str(Path(optdesign.__file__).resolve().parents[1]), *filter(None, [os.environ.get("PYTHONPATH")])])
+nb_execution_raise_on_error = True
+nb_execution_timeout = 600
+nb_merge_streams = True
 
 # -- cross-references -----------------------------------------------------------------------------------
 # Every reference into optdesign must resolve (a dangling one is a broken link): optdesign_docs resolves

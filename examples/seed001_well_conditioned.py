@@ -36,7 +36,7 @@ def main() -> None:
     region = HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 6.0)
     mask = np.ones((ac17.n, ac17.p), dtype=bool)
     mask[0, 1] = False  # the first state is not corrected by the second output
-    d2 = well_conditioned_observer(ac17, region=region, structure=mask, max_gain=20.0, starts=3)
+    d2 = well_conditioned_observer(ac17, region=region, gain_mask=mask, max_gain=20.0, starts=3)
     print("\nregion design (COMPleib AC17):", d2)
     print("  poles", d2.poles, " L[0, 1] =", d2.L[0, 1])
     for s in d2.starts:

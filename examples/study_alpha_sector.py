@@ -52,7 +52,7 @@ def main(use_dask: bool = False) -> None:
 
     spec = load_spec(HERE / "study_alpha_sector.toml")
     for fig in spec.figures:
-        print("figure:", plot_table(table, fig, OUT / f"api_{fig.file}", title=spec.title, overwrite=True))
+        print("figure:", plot_table(table, fig, OUT / f"api_{fig.file}", title=spec.title))
 
     # ------------------------------------------------------------------ 3. Dask (optional)
     if use_dask:

@@ -31,12 +31,13 @@ from .errors import (
     ProblemNotFoundError,
     RiccatiError,
     SolverError,
+    UnreachableModesError,
     ValidationError,
 )
 from .model.plant import Plant
 from .results import Certificate, Check, DesignResult, SolverStats, Status, Verification
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 # public name -> module that defines it (imported on first access)
 _LAZY: dict[str, str] = {
@@ -114,6 +115,7 @@ __all__ = [
     "NotSymmetricError",
     "NotPositiveDefiniteError",
     "NotPositiveSemidefiniteError",
+    "UnreachableModesError",
     "NotObservableError",
     "NotControllableError",
     "NotConjugateClosedError",

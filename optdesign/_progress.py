@@ -7,6 +7,10 @@ silences it.  On a terminal with tqdm installed a bar is drawn; otherwise (no tq
 forced into a log file) plain lines are written, at most one every ``interval`` seconds plus the
 first and the last, so that a log stays readable.
 
+In a Jupyter notebook (an IPython kernel; its stderr is not a terminal) the automatic setting
+reports too, so a long design in a notebook is not silent: a ``tqdm.auto`` widget bar where tqdm
+and ipywidgets are installed, plain lines in the cell's output otherwise.
+
 Use it as a context manager around a loop::
 
     with Progress(total=len(starts), desc="multi-start", unit="start", enabled=progress) as bar:
@@ -26,7 +30,7 @@ from typing import IO, Any
 
 from .errors import ValidationError
 
-__all__ = ["Progress", "as_progress", "progress_enabled"]
+__all__ = ["Progress", "as_progress", "progress_enabled", "in_notebook"]
 
 
 def as_progress(value: Any, name: str = "progress") -> bool | None:
@@ -57,18 +61,38 @@ def _isatty(stream: Any) -> bool:
         return False
 
 
+def in_notebook() -> bool:
+    """True inside a Jupyter kernel (IPython's ``ZMQInteractiveShell``), without importing IPython."""
+    ipython = sys.modules.get("IPython")
+    if ipython is None:
+        return False
+    try:
+        shell = ipython.get_ipython()
+    except Exception:  # noqa: BLE001 - a broken or partial IPython means: not a notebook
+        return False
+    return shell is not None and type(shell).__name__ == "ZMQInteractiveShell"
+
+
 def progress_enabled(progress: bool | None, stream: IO[str] | None = None) -> bool:
     """Whether to report: ``progress`` if it is a bool, else whether ``stream`` (default stderr) is
-    a terminal."""
+    a terminal -- or the process's stderr inside a Jupyter notebook (:func:`in_notebook`)."""
     progress = as_progress(progress)
     if progress is not None:
         return progress
+    if (stream is None or stream is sys.stderr) and in_notebook():
+        return True
     return _isatty(sys.stderr if stream is None else stream)
 
 
-def _tqdm_class():
+def _tqdm_class(notebook: bool = False):
+    """tqdm's bar class: ``tqdm.auto`` in a notebook (only with ipywidgets, which its widget needs),
+    plain ``tqdm`` on a terminal; None when not installed."""
     try:
-        from tqdm import tqdm  # type: ignore[import-untyped]  # optional: optdesign[progress]
+        if notebook:
+            import ipywidgets  # type: ignore[import-not-found, import-untyped, unused-ignore]  # noqa: F401
+            from tqdm.auto import tqdm  # type: ignore[import-untyped]
+        else:
+            from tqdm import tqdm  # type: ignore[import-untyped]  # optional: optdesign[progress]
     except ImportError:
         return None
     return tqdm
@@ -142,8 +166,9 @@ class Progress:
         self._closed = False
         self._bar: Any = None
         if self.enabled:
-            tqdm = _tqdm_class()
-            use_bar = tqdm is not None and (_isatty(self.stream) if bar is None else bar)
+            notebook = self.stream is sys.stderr and in_notebook()
+            tqdm = _tqdm_class(notebook)
+            use_bar = tqdm is not None and ((_isatty(self.stream) or notebook) if bar is None else bar)
             if use_bar:
                 self._bar = tqdm(total=total, desc=self.desc, unit=f" {self.unit}", file=self.stream,
                                  leave=True, dynamic_ncols=True, mininterval=0.2, delay=self.delay)

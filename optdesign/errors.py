@@ -22,6 +22,7 @@ __all__ = [
     "NotSymmetricError",
     "NotPositiveDefiniteError",
     "NotPositiveSemidefiniteError",
+    "UnreachableModesError",
     "NotObservableError",
     "NotControllableError",
     "NotConjugateClosedError",
@@ -66,13 +67,14 @@ class NotPositiveSemidefiniteError(ValidationError):
     """A matrix that must be positive semidefinite (Q) is not."""
 
 
-class NotObservableError(ValidationError):
-    """The pair (C, A) is not observable (or not detectable where that suffices).
+class UnreachableModesError(ValidationError):
+    """A pair is not observable or not controllable: the common base of :class:`NotObservableError`
+    and :class:`NotControllableError` (neither is a kind of the other).
 
     Attributes
     ----------
     modes : ndarray of complex
-        The unobservable eigenvalues of A found by the PBH test.
+        The offending eigenvalues of A found by the PBH test.
     """
 
     def __init__(self, message: str, modes=None):
@@ -80,10 +82,16 @@ class NotObservableError(ValidationError):
         self.modes = np.asarray([] if modes is None else modes, dtype=complex)
 
 
-class NotControllableError(NotObservableError):
+class NotObservableError(UnreachableModesError):
+    """The pair (C, A) is not observable (or not detectable where that suffices); ``modes`` are the
+    unobservable eigenvalues of A found by the PBH test."""
+
+
+class NotControllableError(UnreachableModesError):
     """The pair (A, B) is not controllable (or not stabilizable): the dual of
     :class:`NotObservableError` for state-feedback designs; ``modes`` are the uncontrollable
-    eigenvalues of A."""
+    eigenvalues of A.  Not a :class:`NotObservableError` (since 0.2.0): catch
+    :class:`UnreachableModesError` for either."""
 
 
 class NotConjugateClosedError(ValidationError):

@@ -356,6 +356,37 @@ class Certificate:
         return (Certificate, (self.kind, self.reason, self.data))
 
 
+def _html_value(value: Any) -> str:
+    """One cell of an HTML report: numbers to 4-6 digits, poles as ``a +- bj``, small matrices in a
+    ``<pre>`` block, large arrays by their shape (escaped)."""
+    import html
+
+    if isinstance(value, tuple) and value and all(isinstance(v, np.ndarray) for v in value):
+        return "<br>".join(f"[{k}] {_html_value(v)}" for k, v in enumerate(value))  # per model
+    if isinstance(value, np.ndarray) or (isinstance(value, (list, tuple)) and value
+                                         and all(isinstance(v, (int, float, complex, np.number)) for v in value)):
+        a = np.asarray(value)
+        if a.size > 64:
+            return html.escape(f"array of shape {a.shape}")
+        if a.ndim == 1 and np.iscomplexobj(a):
+            text = ", ".join(f"{z.real:.4g}" if z.imag == 0 else f"{z.real:.4g}{z.imag:+.4g}j" for z in a)
+            return html.escape(text)
+        with np.printoptions(precision=4, suppress=True, linewidth=80):
+            return f"<pre style='margin:0'>{html.escape(str(a))}</pre>"
+    if isinstance(value, (float, np.floating)):
+        return html.escape(f"{float(value):.6g}")
+    return html.escape(str(value))
+
+
+def _html_table(title: str, rows: Iterable[tuple[str, str]]) -> str:
+    """A two-column HTML table (``rows`` of already-escaped ``(name, value)`` cells) under a title."""
+    import html
+
+    body = "".join(f"<tr><th style='text-align:left'>{name}</th><td style='text-align:left'>{cell}</td></tr>"
+                   for name, cell in rows)
+    return f"<table><caption style='text-align:left'><b>{html.escape(title)}</b></caption>{body}</table>"
+
+
 class ResultMixin:
     """Behaviour common to design results (needs ``status``, ``message``, ``verification``)."""
 
@@ -470,3 +501,51 @@ class DesignResult(ResultMixin):
         for c in self.verification:
             out[f"check:{c.name}"] = c.value
         return out
+
+    def plot(self, ax: Any = None, **kw: Any) -> Any:
+        """A pole map of the design: its poles over its region, with the plant's open-loop poles.
+
+        Robust designs draw every model's poles with the worst model marked.  See
+        :func:`optdesign.plot.pole_map` / :func:`optdesign.plot.robust_pole_map` for the keywords.
+
+        Returns
+        -------
+        matplotlib Axes
+
+        Raises
+        ------
+        ValidationError
+            The result has no poles (nothing was designed).
+        BackendUnavailableError
+            matplotlib is not installed.
+        """
+        from .plot.poles import plot_result
+
+        return plot_result(self, ax=ax, **kw)
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: a compact table of status, message, the main numbers, the poles, the route
+        and every check (value, bound, passed)."""
+        import html
+
+        rows = [("status", html.escape(f"{Status(self.status).value} (success: {self.success})")),
+                ("message", html.escape(self.message))]
+        names = list(self._summary_fields) or [  # a verb without summary fields: its usual main numbers
+            n for n in ("L", "K", "P", "Q", "residual", "kappa2", "objective_value", "value") if hasattr(self, n)]
+        if "poles" not in names and getattr(self, "poles", None) is not None:
+            names.append("poles")
+        for name in names:
+            value = getattr(self, name, None)
+            if value is not None:
+                per_model = isinstance(value, tuple) and name == "poles"
+                rows.append((html.escape(name + (" (per model)" if per_model else "")), _html_value(value)))
+        if self.certificate is not None:
+            rows.append(("certificate", html.escape(str(self.certificate))))
+        if self.route:
+            rows.append(("route", html.escape(str(self.route))))
+        checks = "".join(
+            f"<tr><td>{'ok' if c.passed else '<b>FAIL</b>'}</td><td>{html.escape(c.name)}</td>"
+            f"<td>{c.value:.3e} {html.escape(c.sense)} {c.tolerance:.3e}</td></tr>" for c in self.verification)
+        if checks:
+            rows.append(("checks", f"<table>{checks}</table>"))
+        return _html_table(type(self).__name__, rows)

@@ -21,6 +21,9 @@ from urllib.parse import unquote, urlsplit
 
 import pytest
 
+#: one xdist group, so that the module fixture (the site build) runs once under --dist loadgroup
+pytestmark = pytest.mark.xdist_group("docs")
+
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 EXAMPLES = ROOT / "examples"

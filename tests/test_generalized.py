@@ -597,3 +597,17 @@ def test_default_poles_need_a_discrete_plant():
     """A continuous plant was a TypeError (None sampling period) deep inside; now a typed error."""
     with pytest.raises(ValidationError, match="default_poles needs a discrete-time plant"):
         default_poles(Plant(np.eye(2), [[1.0, 0.0]]), Step())
+
+
+def test_generalized_results_are_design_results_with_a_route(paper):
+    """Issue 29: both result types derive from the one result base (summary, record, route)."""
+    from optdesign.results import DesignResult
+
+    plant = paper["plant"]
+    poles = np.exp(0.01 * np.array([-4.0, -7.0 + 2j, -7.0 - 2j, -5.0]))
+    g = generalized_observer(plant, Step(), poles=poles)
+    d = noise_rejecting_observer(plant, Step(), poles=poles)
+    for res in (g, d):
+        assert isinstance(res, DesignResult) and res.success
+        assert res.route.answered is not None and res.route.answered.name.startswith("place")
+        assert res.record()["route"] == res.route.answered.name

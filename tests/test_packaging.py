@@ -85,3 +85,18 @@ def test_submodule_aliases():
     assert optdesign.metrics.eta is optdesign.analysis.metrics.eta
     assert optdesign.regions.Disk is optdesign.model.regions.Disk
     assert optdesign.riccati.filter_are is optdesign.classical.riccati.filter_are
+
+
+def test_distribution_name_is_our_own():
+    """The package index's ``optdesign`` is an unrelated project (a linear optimal design package,
+    1.0.0, same import name): we publish as ``optdesign-control``; the import name stays ``optdesign``
+    and the extras refer to our own distribution."""
+    project = _pyproject()["project"]
+    assert project["name"] == "optdesign-control"
+    extras = " ".join(" ".join(v) for v in project["optional-dependencies"].values())
+    assert "optdesign[" not in extras.replace("optdesign-control[", "")
+    import optdesign
+
+    assert optdesign.__version__ == project["version"]
+    readme = (ROOT / "README.md").read_text()
+    assert 'pip install optdesign-control' in readme

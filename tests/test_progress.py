@@ -183,3 +183,36 @@ def test_failure_reason_names_a_failed_check():
         "iteration_limit: the iteration limit ran out before a verified design was found; failed check "
         "pole_error = 3e-05 (must be <= 1e-08); IPOPT stopped after 3000 iterations")
     assert plain_reason("ipopt: Some_New_Status") == "IPOPT stopped with status Some_New_Status"
+
+
+# ------------------------------------------------------------------ notebooks (issue 30)
+
+
+class _FakeKernel:
+    """Stands for IPython's kernel shell, whose class name marks a Jupyter notebook."""
+
+
+_FakeKernel.__name__ = "ZMQInteractiveShell"
+
+
+def test_progress_shows_in_a_notebook_without_a_terminal(monkeypatch):
+    import types
+
+    import optdesign._progress as prog
+
+    assert prog.in_notebook() is False or "IPython" in sys.modules
+    fake = types.ModuleType("IPython")
+    fake.get_ipython = lambda: _FakeKernel()
+    monkeypatch.setitem(sys.modules, "IPython", fake)
+    assert prog.in_notebook() is True
+    err = io.StringIO()  # a notebook's stderr is not a terminal
+    monkeypatch.setattr(sys, "stderr", err)
+    assert progress_enabled(None) is True
+    assert progress_enabled(None, io.StringIO()) is False  # another stream: still only on a terminal
+    monkeypatch.setattr(prog, "_tqdm_class", lambda notebook=False: None)  # no tqdm.auto/ipywidgets
+    with Progress(2, "demo", unit="step") as p:
+        p.update()
+        p.update()
+    assert p.enabled and err.getvalue().splitlines()[-1].startswith("demo: 2/2 steps")
+    fake.get_ipython = lambda: None  # plain IPython loaded, no kernel
+    assert prog.in_notebook() is False

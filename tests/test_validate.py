@@ -258,3 +258,20 @@ def test_as_gain_mask_is_the_one_mask_validator():
         as_gain_mask("gain_mask", np.array([["a", "b"]] * 3), 3, 2)
     with pytest.raises(ValidationError, match="gain_mask has no free entry"):
         as_gain_mask("gain_mask", np.zeros((3, 2), bool), 3, 2)
+
+
+def test_controllability_is_not_observability():
+    """Issue 29: NotControllableError was a subclass of NotObservableError; both now derive from
+    UnreachableModesError (a ValueError), and neither is a kind of the other."""
+    import optdesign as od
+
+    assert not issubclass(od.NotControllableError, od.NotObservableError)
+    assert not issubclass(od.NotObservableError, od.NotControllableError)
+    for cls in (od.NotControllableError, od.NotObservableError):
+        assert issubclass(cls, od.UnreachableModesError) and issubclass(cls, ValueError)
+    A = np.diag([1.0, 2.0])
+    B = np.array([[1.0], [0.0]])                         # the mode at 2 is not controllable
+    with pytest.raises(od.NotControllableError, match=r"uncontrollable mode\(s\) 2") as info:
+        od.place(A, B, [-1.0, -2.0])
+    assert not isinstance(info.value, od.NotObservableError)
+    np.testing.assert_allclose(info.value.modes, [2.0])

@@ -29,7 +29,8 @@ try:
 except ModuleNotFoundError:  # Python 3.10
     import tomli as tomllib
 
-pytestmark = pytest.mark.slow
+#: slow; one xdist group, so that the module fixture (the build) runs once under --dist loadgroup
+pytestmark = [pytest.mark.slow, pytest.mark.xdist_group("wheel")]
 
 
 def _run(cmd: list[str], cwd: Path, what: str) -> subprocess.CompletedProcess:
@@ -52,7 +53,7 @@ def installed(tmp_path_factory):
     shutil.copytree(ROOT, src, ignore=IGNORE)
     wheel_cmd = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "--wheel-dir", str(tmp / "dist")]
     _run([*wheel_cmd, str(src)], tmp, "building the wheel")
-    wheels = sorted((tmp / "dist").glob("optdesign-*.whl"))
+    wheels = sorted((tmp / "dist").glob("optdesign_control-*.whl"))
     assert len(wheels) == 1, wheels
     _run([sys.executable, "-m", "venv", str(tmp / "venv")], tmp, "creating a venv")
     bindir = tmp / "venv" / ("Scripts" if sys.platform == "win32" else "bin")
@@ -88,7 +89,7 @@ def test_installed_distribution_metadata(installed):
     _, python, _, work = installed
     script = """if True:
         import importlib.metadata as md, json, optdesign
-        d = md.distribution("optdesign")
+        d = md.distribution("optdesign-control")
         files = [str(f) for f in d.files]
         licence = [f for f in d.files if str(f).endswith("licenses/LICENSE")]
         print(json.dumps({

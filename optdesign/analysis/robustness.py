@@ -701,10 +701,15 @@ class FilterMargins:
             f"phase +-{self.guaranteed_phase_margin:.4g} deg -- {self.guarantee_scope}",
             f"actual multiloop radius {self.radius:.4g}",
         ]
+        def margin(x: float, unit: str = "") -> str:  # an infinite margin: no crossing, not "inf ... at nan"
+            return "infinite (no crossing)" if math.isinf(x) else f"{x:.4g}{unit}"
+
         for i in range(self.gain_margin_lower.size):
+            pm = self.phase_margin[i]
+            phase = margin(pm) if math.isinf(pm) else f"{pm:.4g} deg at {self.phase_crossover[i]:.4g} rad/s"
             lines.append(
-                f"  channel {i}: gain ({self.gain_margin_lower[i]:.4g}, {self.gain_margin_upper[i]:.4g}), "
-                f"phase {self.phase_margin[i]:.4g} deg at {self.phase_crossover[i]:.4g} rad/s, "
+                f"  channel {i}: gain margin {margin(self.gain_margin_lower[i])} (lower), "
+                f"{margin(self.gain_margin_upper[i])} (upper); phase margin {phase}; "
                 f"disk {self.disk_margin[i]:.4g}, circle disk {self.circle_disk_margin[i]:.4g}"
             )
         lines.extend(self.notes)

@@ -5,15 +5,27 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+import numpy as np
+
 from .. import problems
 from ..design.kalman import kalman, kalmd
-from .common import DEFAULT_PROBLEM, PROBLEM_HELP, CLIError, header, plant_of, print_json
+from .common import (
+    DEFAULT_PROBLEM,
+    PROBLEM_HELP,
+    CLIError,
+    format_poles,
+    header,
+    plant_of,
+    print_checks,
+    print_json,
+)
+from .speech import plant_lines
 
 
 def cmd_list(args: argparse.Namespace) -> int:
     names = problems.names(tag=args.tag, kind=args.kind)
     if not names:
-        raise CLIError(f"no problem matches kind={args.kind!r} tag={args.tag!r}")
+        raise CLIError(_no_match(args.tag, args.kind))
     rows = []
     for n in names:
         p = problems.load(n)
@@ -27,6 +39,26 @@ def cmd_list(args: argparse.Namespace) -> int:
         print(f"{r[0]:<{w[0]}}  {r[1]:<{w[1]}}  {r[2]:<{w[2]}}  {r[3]}")
     print(f"\n{len(rows)} problems")
     return 0
+
+
+def _no_match(tag: str | None, kind: str | None) -> str:
+    """Why ``list`` found nothing, with the valid tags and kinds (and the near ones first)."""
+    tags: set[str] = set()
+    kinds: set[str] = set()
+    for n in problems.names():
+        p = problems.load(n)
+        tags.update(p.tags)
+        kinds.add(p.kind)
+    given = " ".join(f"{k}={v!r}" for k, v in (("kind", kind), ("tag", tag)) if v is not None)
+    parts = [f"no problem matches {given}"]
+    if tag is not None:
+        near = sorted(t for t in tags if t.startswith(tag) or tag in t)
+        if near and tag not in tags:
+            parts[0] += f" (did you mean {', '.join(near)}?)"
+        parts.append(f"tags: {', '.join(sorted(tags))} (a tag also matches a name prefix, e.g. carex)")
+    if kind is not None:
+        parts.append(f"kinds: {', '.join(sorted(kinds))}")
+    return "; ".join(parts)
 
 
 def cmd_show(args: argparse.Namespace) -> int:
@@ -58,7 +90,19 @@ def cmd_kalman(args: argparse.Namespace) -> int:
                      "verification": kf.verification.as_dict()})
     else:
         print(header(prob))
-        print(kf.summary())
+        print("\n".join(plant_lines(plant)))
+        if args.kalmd is not None:
+            print(f"sampled at Ts = {args.kalmd:g} (kalmd: the discrete filter of the continuous plant)")
+        domain = f"discrete, dt = {kf.plant.dt:g}" if kf.plant.is_discrete else "continuous"
+        print(f"Kalman filter ({domain}, Riccati solver {args.method}): status {kf.status}, "
+              f"success {kf.success}")
+        for name in ("L", "P"):
+            X = getattr(kf, name)
+            with np.printoptions(precision=6, suppress=True, linewidth=100):
+                print(f"  {name} = " + np.array2string(X, prefix=f"  {name} = "))
+        print(f"  poles of A - L C: {format_poles(kf.poles)}")
+        print(f"  {kf.message}")
+        print_checks(kf.verification, indent="  ")
     return 0 if kf.success else 1
 
 

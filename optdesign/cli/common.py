@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from .. import problems
-from ..classical.riccati import format_pole, sort_poles
+from . import speech
 
 __all__ = ["CLIError", "Parser", "DEFAULT_PROBLEM", "jsonable", "print_json", "plant_of",
            "join_negative_values", "header", "format_poles", "annotate_frequencies", "print_checks",
@@ -91,9 +91,7 @@ def header(prob) -> str:
 def format_poles(poles: Iterable[complex] | None) -> str:
     """Poles in the one order of every command (:func:`optdesign.classical.riccati.sort_poles`: by
     real part, then imaginary part), comma-separated; ``"none"`` for None."""
-    if poles is None:
-        return "none"
-    return ", ".join(format_pole(z) for z in sort_poles(np.asarray(poles, dtype=complex).ravel()))
+    return speech.format_poles(poles)  # repeated poles once, with their count: "-1 (x2)"
 
 
 #: "omega = 4.5e-08 rad/s", "at 3.02 rad/s", "frequency 0 rad/s"
@@ -129,7 +127,7 @@ def print_checks(verification, indent: str = "") -> None:
     if len(verification):
         print(f"{indent}verification:")
         for c in verification:
-            print(f"{indent}  {c}")
+            print(f"{indent}  {speech.plain_check(c)}")  # in plain words, with the numbers
     else:
         print(f"{indent}verification: none (no design to check)")
 

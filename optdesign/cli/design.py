@@ -38,6 +38,7 @@ from ..design.well_conditioned import well_conditioned_kalman, well_conditioned_
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Sector
+from ..plot.figures import FIGURE_FORMATS
 from ..results import Verification
 from ..studies.designers import gain_values, place_baseline
 from ..studies.reproduce import PAPERS, paper_id, reproduce_all
@@ -435,6 +436,8 @@ def _cfg_study(sp: argparse.ArgumentParser) -> None:
                     help="exit 0 when some points fail (partial results accepted; at least one must succeed)")
     sp.add_argument("--no-figures", action="store_true", dest="no_figures",
                     help="write the CSV and JSON only (no matplotlib needed)")
+    sp.add_argument("--format", choices=FIGURE_FORMATS, dest="figure_format",
+                    help="file format of every figure, overriding the spec's file suffixes (figures at 300 dpi)")
     add_progress_flag(sp, "the sweep (one step per point)")
     sp.add_argument("--json", action="store_true", help="print the result summary as JSON")
 
@@ -460,8 +463,13 @@ def cmd_study(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise CLIError(f"--workers must be >= 1; found {args.workers}")
     spec = load_spec(args.spec)
+    if args.figure_format is not None:
+        spec = dataclasses.replace(spec, figures=tuple(
+            dataclasses.replace(f, file=str(Path(f.file).with_suffix("." + args.figure_format)))
+            for f in spec.figures))
     if spec.figures and not args.no_figures:
         require_matplotlib(f"the figures of {spec.source}")  # before the sweep, not after it
+        _headless()
     out = Path(args.out) if args.out is not None else spec.output
     where = "--out" if args.out is not None else f"{spec.source}: study.output"
     output_folder(out, allow_outside=args.allow_outside or args.out is not None, field=where, create=False)
@@ -512,6 +520,17 @@ def _check_out_dir(out: str, flag: str = "--out") -> None:
         raise CLIError(f"{flag} {out}: not a writable folder")
 
 
+def _headless() -> None:
+    """The command writes figure files and shows none: matplotlib's file-only backend, chosen here by
+    the application (the library never chooses one), unless pyplot is already in use."""
+    import sys
+
+    if "matplotlib.pyplot" not in sys.modules:
+        import matplotlib
+
+        matplotlib.use("Agg")
+
+
 # --------------------------------------------------------------------------- reproduce
 
 
@@ -523,6 +542,8 @@ def _cfg_reproduce(sp: argparse.ArgumentParser) -> None:
                     help="folder for the figures and summary.md / summary.csv (default "
                          "./optdesign-reproduction, in the current directory)")
     sp.add_argument("--quick", action="store_true", help="smaller grids and fewer starts (CI)")
+    sp.add_argument("--format", choices=FIGURE_FORMATS, default="png", dest="figure_format",
+                    help="file format of the figures (default png, at 300 dpi)")
     add_progress_flag(sp, "each paper and figure")
 
 
@@ -538,11 +559,13 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         raise CLIError("reproduce writes figures and needs matplotlib: "
                        "pip install 'optdesign[plot]'") from None
     _check_out_dir(args.out)
+    _headless()
     ids = papers or list(PAPERS)
     print(f"reproducing seed paper(s) {', '.join(ids)}{' (quick)' if args.quick else ''} -> "
           f"{Path(args.out)}{os.sep}")
     flush()
-    summary = reproduce_all(args.out, papers=papers, quick=args.quick, progress=args.progress)
+    summary = reproduce_all(args.out, papers=papers, quick=args.quick, progress=args.progress,
+                            figure_format=args.figure_format)
     print(summary.overview())
     print(f"summary: {summary.markdown}")
     print(f"         {summary.csv}")

@@ -383,3 +383,18 @@ class Plant:
         time = f"dt={self.dt:g}" if self.is_discrete else "continuous"
         noise = "Q,R given" if self.has_noise_model else "no noise model"
         return f"Plant({label}n={self.n}, p={self.p}, m={self.m}, {time}, {noise})"
+
+    def _repr_html_(self) -> str:
+        """Jupyter's view: sizes, time domain and the matrices (A, B, C, G, Q, R) in a table."""
+        import html
+
+        from ..results import _html_table, _html_value
+
+        time = f"discrete, dt = {self.dt:g}" if self.is_discrete else "continuous"
+        rows = [("sizes", html.escape(f"n = {self.n} states, p = {self.p} outputs, m = {self.m} noise inputs")),
+                ("time", html.escape(time))]
+        for k in ("A", "B", "C", "G", "Q", "R"):
+            v = getattr(self, k)
+            if v is not None:
+                rows.append((k, _html_value(v)))
+        return _html_table(f"Plant {self.name}" if self.name else "Plant", rows)

@@ -34,6 +34,7 @@ from .._validate import as_int
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Region
+from ..plot.studies import plot_pareto  # the figure lives in optdesign.plot; kept importable here
 from .designers import RegionSweepDesigner
 from .sweep import SweepTable, grid, record_of, sweep
 
@@ -321,61 +322,3 @@ def pareto(
                   for r in records], dtype=np.float64)
     return ParetoFront(objectives=objs, table=full, values=V, nondominated=nondominated(V), designs=designs,
                        levels={o: lv[o] for o in objs[1:]})
-
-
-def plot_pareto(front: ParetoFront, path: str | Path | None = None, *, x: str | None = None,
-                y: str | None = None, color: str | None = None, title: str = ""):
-    """Scatter plot of a front: ``y`` (default the minimized objective) against ``x`` (default the
-    second objective), colour = the third objective (if any); non-dominated points joined, dominated
-    ones grey, anchors marked; axes labelled, legend.
-
-    Returns
-    -------
-    matplotlib Figure (saved to ``path`` when given).
-    """
-    from .reproduce import pyplot, save_figure
-    from .spec import LABELS
-
-    plt = pyplot()
-    objs = front.objectives
-    y = y or objs[0]
-    x = x or objs[1]
-    for name, v in (("x", x), ("y", y)):
-        if v not in objs:
-            raise ValidationError(f"{name} must be one of the front's objectives {objs}; found {v!r}")
-    if color is None and len(objs) == 3:
-        color = next(o for o in objs if o not in (x, y))
-    ix, iy = objs.index(x), objs.index(y)
-    V, nd = front.values, front.nondominated
-    ok = np.all(np.isfinite(V), axis=1)
-    anchors = np.array([r.get("anchor") is not None for r in front.table.records])
-    fig, ax = plt.subplots(figsize=(6.4, 4.8))
-    dom = ok & ~nd
-    if dom.any():
-        ax.scatter(V[dom, ix], V[dom, iy], c="0.7", s=18, label="dominated", zorder=1)
-    order = np.where(nd)[0][np.argsort(V[nd, ix], kind="stable")]
-    if order.size:
-        ax.plot(V[order, ix], V[order, iy], "-", color="0.3", lw=1, zorder=2)
-        if color is not None:
-            sc = ax.scatter(V[order, ix], V[order, iy], c=V[order, objs.index(color)], cmap="viridis", s=36,
-                            edgecolors="k", linewidths=0.5, label="non-dominated", zorder=3)
-            cb = fig.colorbar(sc, ax=ax)
-            cb.set_label(LABELS.get(color, color))
-        else:
-            ax.scatter(V[order, ix], V[order, iy], c="C0", s=36, edgecolors="k", linewidths=0.5,
-                       label="non-dominated", zorder=3)
-    am = anchors & ok
-    if am.any():
-        ax.scatter(V[am, ix], V[am, iy], marker="*", s=160, facecolors="none", edgecolors="C3",
-                   label="anchors (one objective alone)", zorder=4)
-    n_fail = int((~ok).sum())
-    ax.set_xlabel(LABELS.get(x, x))
-    ax.set_ylabel(LABELS.get(y, y))
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
-    ax.set_title((title or f"trade-off: minimize {objs[0]} s.t. bounds on {', '.join(objs[1:])}")
-                 + (f"\n({n_fail} bound levels infeasible or failed)" if n_fail else ""), fontsize=10)
-    fig.tight_layout()
-    if path is not None:
-        save_figure(fig, path, dpi=120, layout=False)
-    return fig

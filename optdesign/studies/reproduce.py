@@ -11,6 +11,7 @@ values (``summary.md`` and ``summary.csv``) next to the figures.
 
 from __future__ import annotations
 
+import contextvars
 import csv
 import importlib
 import inspect
@@ -20,7 +21,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .._progress import Progress, as_progress
-from ..errors import BackendUnavailableError, ValidationError
+from ..errors import ValidationError
+from ..plot.figures import FIGURE_DPI, FIGURE_FORMATS
+from ..plot.figures import pyplot as _pyplot
+from ..plot.figures import save_figure as _save
 from .sweep import one_line_error
 
 __all__ = [
@@ -82,15 +86,9 @@ def format_table(rows) -> str:
 
 
 def pyplot():
-    """matplotlib.pyplot with the headless Agg backend, or a clear error naming the extra."""
-    try:
-        import matplotlib
-
-        matplotlib.use("Agg", force=True)
-        import matplotlib.pyplot as plt
-    except ImportError as exc:  # pragma: no cover - exercised only without matplotlib
-        raise BackendUnavailableError("figures need matplotlib: pip install 'optdesign[plot]'") from exc
-    return plt
+    """matplotlib.pyplot (matplotlib's own backend choice: ``Agg`` without a display, ``inline`` in
+    Jupyter), or a clear error naming the extra.  No backend is forced."""
+    return _pyplot()
 
 
 def output_dir(outdir: str | Path) -> Path:
@@ -100,16 +98,20 @@ def output_dir(outdir: str | Path) -> Path:
     return out
 
 
-def save_figure(fig, path: str | Path, *, dpi: int = 110, layout: bool = True,
+#: the file format of the figures of a :func:`reproduce_all` call (set for the call's duration only)
+_FIGURE_FORMAT: contextvars.ContextVar[str | None] = contextvars.ContextVar("figure_format", default=None)
+
+
+def save_figure(fig, path: str | Path, *, dpi: int = FIGURE_DPI, layout: bool = True,
                 progress: Progress | None = None, **savefig_kw) -> Path:
     """Lay out (``tight_layout`` unless ``layout=False``), write and close a figure; its path.
 
-    ``progress`` (optional) gets one line naming the file."""
-    if layout:
-        fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=dpi, **savefig_kw)
-    pyplot().close(fig)
+    Written at ``dpi`` (default 300) in the format of the path's suffix (``.png``, ``.svg``,
+    ``.pdf``) -- or, inside :func:`reproduce_all` with ``figure_format``, in that format.  ``progress`` (optional) gets one line naming the file."""
+    fmt_ = _FIGURE_FORMAT.get()
+    if fmt_ is not None:
+        path = Path(path).with_suffix("." + fmt_)
+    path = _save(fig, path, dpi=dpi, layout=layout, **savefig_kw)
     if progress is not None:
         progress.line(f"wrote {path.name} (at {progress.elapsed:.1f} s)")
     return path
@@ -217,10 +219,25 @@ class ReproductionSummary:
             rows = o.reproduction.rows if o.reproduction is not None else ()
             agree = sum(1 for r in rows if r.agrees is True)
             differ = sum(1 for r in rows if r.agrees is False)
-            what = (f"{len(rows)} values ({agree} agree with the print, {differ} differ), "
+            what = (f"{len(rows)} values ({agree} agree with the print, {differ} differ){_errata(rows)}; "
                     f"{len(o.figures)} figures" if o.reproduction is not None else (o.error or ""))
             lines.append(f"seed {o.paper}  {o.status:<15} {o.time:7.1f} s  {what}")
         return "\n".join(lines)
+
+
+def _errata(rows) -> str:
+    """``; the 4 that differ are documented errata of the paper: eq (4.12), ...``: the differing rows
+    that carry a note (the paper's misprints, on the docs' errata page) named, the others counted."""
+    differ = [r for r in rows if r.agrees is False]
+    if not differ:
+        return ""
+    known = list(dict.fromkeys(r.example for r in differ if r.note))
+    n_known = sum(1 for r in differ if r.note)
+    if n_known == len(differ):
+        who = "it is a" if n_known == 1 else f"the {n_known} that differ are"
+        return f"; {who} documented {'erratum' if n_known == 1 else 'errata'} of the paper: {', '.join(known)}"
+    text = f"; {len(differ) - n_known} unexplained"
+    return text + (f", {n_known} documented errata of the paper: {', '.join(known)}" if known else "")
 
 
 def _md_cell(x) -> str:
@@ -273,7 +290,7 @@ def _close_figures() -> None:
 
 
 def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
-                  progress: bool | None = None) -> ReproductionSummary:
+                  progress: bool | None = None, figure_format: str = "png") -> ReproductionSummary:
     """Reproduce seed papers: every figure into ``outdir``, and a summary of printed vs reproduced values.
 
     Parameters
@@ -287,6 +304,8 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
     progress : bool or None
         Report each paper (started, finished, how long) and each figure written, on stderr:
         ``None`` (default) only when stderr is a terminal, ``True`` always, ``False`` never.
+    figure_format : {"png", "svg", "pdf"}
+        File format of every figure (raster figures at 300 dpi).
 
     Returns
     -------
@@ -299,19 +318,26 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
     Raises
     ------
     ValidationError
-        An unknown paper id; ``progress`` not a bool or None.
+        An unknown paper id; ``progress`` not a bool or None; ``figure_format`` not one of
+        png, svg, pdf.
     """
+    if figure_format not in FIGURE_FORMATS:
+        raise ValidationError(f"figure_format must be one of {', '.join(FIGURE_FORMATS)}; found {figure_format!r}")
     ids = list(PAPERS) if papers is None else list(dict.fromkeys(paper_id(p) for p in papers))
     progress = as_progress(progress)
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     results = []
-    with Progress(len(ids), "reproduce", enabled=progress, unit="paper") as bar:
-        for i, pid in enumerate(ids):
-            bar.line(f"seed {pid} ({i + 1}/{len(ids)}): {PAPERS[pid]}")
-            o = _run_paper(pid, out, quick, bar)
-            results.append(o)
-            bar.update(1, note=f"seed {pid} {o.status} in {o.time:.1f} s")
+    token = _FIGURE_FORMAT.set(figure_format)
+    try:
+        with Progress(len(ids), "reproduce", enabled=progress, unit="paper") as bar:
+            for i, pid in enumerate(ids):
+                bar.line(f"seed {pid} ({i + 1}/{len(ids)}): {PAPERS[pid]}")
+                o = _run_paper(pid, out, quick, bar)
+                results.append(o)
+                bar.update(1, note=f"seed {pid} {o.status} in {o.time:.1f} s")
+    finally:
+        _FIGURE_FORMAT.reset(token)
     outcomes = tuple(results)
     md_path = out / "summary.md"
     csv_path = out / "summary.csv"

@@ -89,6 +89,7 @@ from .. import problems
 from .._validate import shown
 from ..errors import BackendUnavailableError, OptDesignError, OutputPathError, ValidationError
 from ..model.regions import Region
+from ..plot.studies import LABELS, SYMBOLS, plot_table  # the figures live in optdesign.plot
 from .designers import DESIGNERS
 from .syntax import REGION_SHAPES, format_region, parse_poles, parse_region
 from .output import atomic_path, check_targets, file_name, output_folder
@@ -126,35 +127,6 @@ _STUDY_KEYS = ("name", "title", "problem", "design", "output", "executor", "work
                "chunksize", "timeout")
 _EXECUTORS = ("processes", "threads", "serial", "dask")
 _FIGURE_KEYS = ("kind", "x", "y", "series", "value", "logx", "logy", "file", "title")
-
-#: human-readable axis labels (matplotlib mathtext for the symbols)
-LABELS: dict[str, str] = {
-    "alpha": r"decay rate $\alpha$  (poles: $\mathrm{Re}\,s \leq -\alpha$)",
-    "zeta": r"damping ratio $\zeta$  (sector)",
-    "radius": r"radius bound $|s| \leq$ radius",
-    "max_gain": r"gain bound $\|L\|_2 \leq$ max_gain",
-    "kappa2_max": r"bound $\kappa_2 \leq$ kappa2_max",
-    "eta_max": r"bound $\eta \leq$ eta_max",
-    "q": "process-noise multiplier $q$",
-    "r": "measurement-noise multiplier $r$",
-    "scale": "scale of the target poles",
-    "shift": "shift of the target poles' real parts",
-    "kappa2": r"$\kappa_2$ of $A - LC$  (eigenvector condition number)",
-    "eta": r"$\eta$ of $A - LC$  (non-normality)",
-    "kappa_fro": "Frobenius condition number of the eigenvectors",
-    "gain_norm": r"gain norm $\|L\|_2$",
-    "max_real_pole": r"largest real part of $\mathrm{eig}(A - LC)$",
-    "pole_error": "relative pole error",
-    "trace_Q": r"$\mathrm{trace}\,Q$",
-    "time": "time per point (s)",
-    "solver_time": "solver time per point (s)",
-    "iterations": "IPOPT iterations",
-}
-
-#: the symbol of a grid axis in legends (``alpha = 0.5`` is drawn as a Greek alpha)
-SYMBOLS: dict[str, str] = {"alpha": r"$\alpha$", "zeta": r"$\zeta$", "q": "$q$", "r": "$r$",
-                           "kappa2_max": r"$\kappa_{2,\max}$", "eta_max": r"$\eta_{\max}$"}
-
 
 @dataclass(frozen=True)
 class FigureSpec:
@@ -557,129 +529,6 @@ def _parse_figure(source: str, fr: Any, index: int | None, axes: dict[str, list]
 # --------------------------------------------------------------------------- running
 
 
-def _label(col: str, width: int = 34) -> str:
-    """Axis label of a column; long labels break before their parenthesis."""
-    text = LABELS.get(col, col)
-    if len(text) > width and "  (" in text:
-        head, _, tail = text.partition("  (")
-        return f"{head}\n({tail}"
-    return text
-
-
-def _readable_log(axis, values: np.ndarray) -> None:
-    """Log-axis ticks as plain numbers (``5, 10, 20, 50``), not ``5 x 10^0``: 1-2-5 steps over a
-    few decades, decades only over a wide range."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
-
-    v = values[np.isfinite(values) & (values > 0)]
-    decades = float(np.log10(v.max() / v.min())) if v.size else 0.0
-    subs = (1.0, 2.0, 5.0) if decades <= 3 else (1.0,)
-    axis.set_major_locator(LogLocator(base=10.0, subs=subs))
-    axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
-    axis.set_minor_formatter(NullFormatter())
-
-
-def _title(text: str, note: str) -> str:
-    import textwrap
-
-    # never break inside a parenthesized group such as "(|s| <= 10)" or inside mathtext ("$\kappa_2$"):
-    # protect their spaces
-    depth, math, chars = 0, False, []
-    for c in text:
-        depth += (c == "(") - (c == ")")
-        math ^= c == "$"
-        chars.append("\u00a0" if c == " " and (depth > 0 or math) else c)
-    lines = [ln.replace("\u00a0", " ") for ln in textwrap.wrap("".join(chars), 70)]
-    return "\n".join(lines + ([note.strip()] if note else []))
-
-
-def plot_table(table: SweepTable, fig: FigureSpec, path: str | Path, *, title: str = "",
-               overwrite: bool = False) -> Path:
-    """Draw one figure of a sweep table (successful points only) and save it (under a temporary
-    name, then renamed: never over an existing file unless ``overwrite``, never through a symbolic
-    link; :mod:`optdesign.studies.output`).
-
-    Line figures: one curve per value of ``fig.series`` (legend), one panel per ``y`` column,
-    axes labelled.  Heatmaps: ``fig.value`` over the ``x`` by ``y`` grid with a colour bar and the
-    values written in the cells (failed cells blank, marked "failed").  Failed points are left
-    out and counted in the title.
-    """
-    from .reproduce import pyplot, save_figure
-
-    plt = pyplot()
-    ok = np.array([bool(r.get("success")) for r in table.records])
-    n_fail = int((~ok).sum())
-    note = f"({n_fail} of {len(table)} points failed: not drawn)" if n_fail else ""
-    if fig.kind == "heatmap":
-        value = fig.value or "kappa2"
-        recs = [r if r.get("success") else {**r, value: None} for r in table.records]
-        masked = SweepTable(records=recs, inputs=table.inputs)
-        xs, ys, Z = masked.pivot(fig.x, fig.y[0], value)
-        f, ax = plt.subplots(figsize=(7.2, 5.0))
-        mesh = ax.pcolormesh(xs, ys, Z, shading="nearest", cmap="viridis")
-        cb = f.colorbar(mesh, ax=ax)
-        cb.set_label(_label(value))
-        if xs.size * ys.size <= 150:
-            fin = np.isfinite(Z).any()
-            lo, hi = (np.nanmin(Z), np.nanmax(Z)) if fin else (0.0, 1.0)
-            for i, yv in enumerate(ys):
-                for j, xv in enumerate(xs):
-                    v = Z[i, j]
-                    txt = "failed" if not np.isfinite(v) else f"{v:.3g}"
-                    light = np.isfinite(v) and (v - lo) > 0.6 * (hi - lo)
-                    ax.text(xv, yv, txt, ha="center", va="center", fontsize=8,
-                            color="k" if (light or not np.isfinite(v)) else "w")
-        ax.set_xlabel(_label(fig.x))
-        ax.set_ylabel(_label(fig.y[0]))
-        if fig.logx:
-            ax.set_xscale("log")
-        if fig.logy:
-            ax.set_yscale("log")
-        if xs.size <= 12 and xs.dtype != object:
-            ax.set_xticks(xs, [f"{v:g}" for v in xs])
-        if ys.size <= 12 and ys.dtype != object:
-            ax.set_yticks(ys, [f"{v:g}" for v in ys])
-        ax.set_title(_title(fig.title or title or f"{fig.value}", note), fontsize=10)
-    else:
-        f, axs = plt.subplots(len(fig.y), 1, figsize=(7.6, 1.2 + 2.9 * len(fig.y)), sharex=True,
-                              squeeze=False)
-        xcol = table.column(fig.x)
-        groups: list[tuple[Any, np.ndarray]] = []
-        if fig.series is None:
-            groups.append((None, np.ones(len(table), dtype=bool)))
-        else:
-            scol = table.column(fig.series)
-            for v in dict.fromkeys(scol.tolist()):
-                groups.append((v, np.array([s == v for s in scol.tolist()])))
-        for k, (ax, ycol) in enumerate(zip(axs[:, 0], fig.y, strict=True)):
-            yv = table.column(ycol).astype(float)
-            for val, sel in groups:
-                idx = np.where(sel)[0]
-                order = idx[np.argsort(xcol[idx].astype(float), kind="stable")]
-                yy = np.where(ok[order], yv[order], np.nan)
-                sym = SYMBOLS.get(fig.series or "", fig.series)
-                label = f"{sym} = {val:g}" if isinstance(val, (int, float)) else (
-                    f"{sym} = {val}" if fig.series else _label(ycol))
-                ax.plot(xcol[order].astype(float), yy, marker="o", ms=3.5, lw=1.4, label=label)
-            ax.set_ylabel(_label(ycol))
-            if fig.logy:
-                ax.set_yscale("log")
-                _readable_log(ax.yaxis, yv[ok])
-            if fig.logx:
-                ax.set_xscale("log")
-                _readable_log(ax.xaxis, xcol.astype(float))
-            ax.grid(True, alpha=0.3)
-            if k == 0 and (fig.series is not None or len(fig.y) == 1):
-                ax.legend(fontsize=8, title=SYMBOLS.get(fig.series or "", fig.series), title_fontsize=8,
-                          loc="upper left",
-                          bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
-        axs[-1, 0].set_xlabel(_label(fig.x))
-        axs[0, 0].set_title(_title(fig.title or title or ", ".join(fig.y), note), fontsize=10)
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        save_figure(f, tmp, dpi=120)
-    return Path(path)
-
-
 def _dask_client(spec: StudySpec, workers: int | None):
     try:
         from distributed import Client, LocalCluster
@@ -793,5 +642,9 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
     table.to_csv(csv_path, overwrite=overwrite)
     table.to_json(json_path, overwrite=overwrite)
     title = spec.title or f"{spec.problem}: {spec.design}"
-    figs = tuple(plot_table(table, fig, out / fig.file, title=title, overwrite=overwrite) for fig in drawn)
-    return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=figs)
+    figs = []
+    for fig in drawn:  # drawn into a temporary file, renamed (optdesign.studies.output)
+        with atomic_path(out / fig.file, overwrite=overwrite) as tmp:
+            plot_table(table, fig, tmp, title=title)
+        figs.append(out / fig.file)
+    return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=tuple(figs))

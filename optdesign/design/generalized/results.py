@@ -17,7 +17,7 @@ from ...classical.placement import pole_error
 from ...errors import ValidationError
 from ...model.noise import NoiseModel
 from ...model.plant import Plant
-from ...results import Check, ResultMixin, SolverStats, Status, Verification
+from ...results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 from .common import (
     STABILITY_TOL,
     check_discrete_plant,
@@ -33,8 +33,8 @@ __all__ = ["GeneralizedObserver", "NoiseRejectingObserver", "ObserverSimulation"
 
 
 # --------------------------------------------------------------------------- results
-@dataclass(frozen=True, eq=False)
-class GeneralizedObserver(ResultMixin):
+@dataclass(frozen=True, kw_only=True, eq=False)
+class GeneralizedObserver(DesignResult):
     r"""A generalized observer (seed 003 eq (2)) and its independent verification.
 
     Runs as ``xh(k+1) = A xh + B u + K xi + H eps``, ``xi(k+1) = N xi + M eps``,
@@ -92,12 +92,7 @@ class GeneralizedObserver(ResultMixin):
     poles: NDArray[np.complex128]
     spectral_radius: float
     kappa2: float
-    status: Status
-    message: str
-    verification: Verification
-    solver_stats: SolverStats
     method: str = "place"
-    target_poles: NDArray[np.complex128] | None = None
     coupling: NDArray[np.float64] | None = None
     coupling_kind: str = "none"
     design: Any = None
@@ -225,11 +220,20 @@ def build_generalized(plant, noise, H, K, N, M, *, method, status, message, stat
         spectral_radius=rho, kappa2=kappa2_of(F), status=status, message=message,
         verification=Verification.of(checks), solver_stats=stats, method=method,
         target_poles=None if target is None else ro(target),
-        coupling=None if coupling is None else ro(coupling), coupling_kind=coupling_kind, design=design)
+        coupling=None if coupling is None else ro(coupling), coupling_kind=coupling_kind, design=design,
+        route=design_route(method, stats))
 
 
-@dataclass(frozen=True, eq=False)
-class NoiseRejectingObserver(ResultMixin):
+def design_route(method: str, stats: SolverStats) -> Route:
+    """The one stage of a generalized observer's design: a placement, the well-conditioned design of
+    the augmented pair, or the given gains checked."""
+    kind = {"place": "direct", "well_conditioned": "engine"}.get(method, "check")
+    return Route([Stage(f"{method}/{stats.backend}" if stats.backend else method, kind, "answered",
+                        stats.native_status)])
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class NoiseRejectingObserver(DesignResult):
     r"""An observer of the plant augmented with an output-disturbance model of the noise.
 
     Runs as ``[xh; dh](k+1) = A_a [xh; dh] + [B; 0] u + L_a (y - C_a [xh; dh])`` with
@@ -267,12 +271,7 @@ class NoiseRejectingObserver(ResultMixin):
     spectral_radius: float
     kappa2: float
     pbh_margin: float
-    status: Status
-    message: str
-    verification: Verification
-    solver_stats: SolverStats
     method: str = "place"
-    target_poles: NDArray[np.complex128] | None = None
     design: Any = None
 
     @property

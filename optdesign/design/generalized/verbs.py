@@ -32,7 +32,7 @@ from .common import (
     readonly,
     sorted_eigs,
 )
-from .results import GeneralizedObserver, NoiseRejectingObserver, build_generalized
+from .results import GeneralizedObserver, NoiseRejectingObserver, build_generalized, design_route
 
 __all__ = ["generalized_observer", "noise_rejecting_observer", "structured_pair"]
 
@@ -426,5 +426,5 @@ def noise_rejecting_observer(
         spectral_radius=rho, kappa2=kappa2_of(Fa), pbh_margin=margin, status=status,
         message=message, verification=Verification.of(checks), solver_stats=stats, method=method,
         target_poles=None if target is None else ro(target),
-        design=design)
+        design=design, route=design_route(method, stats))
 

@@ -187,6 +187,17 @@ def decide_optimality(plant, L, R, omega, solver, tol, time_limit) -> KalmanOpti
     return optimality_by_sdp(ctx, circ, solver, tol, deadline)
 
 
+def _no_message(kind: str, reason: str, margin: float, circ) -> str:
+    """``not Kalman-optimal: <kind>: <reason>`` with the worst frequency and the SDP margin added only
+    where the reason does not already state them (one statement per fact)."""
+    parts = [f"{kind}: {reason}"]
+    if circ is not None and "rad/s" not in reason:
+        parts.append(f"worst frequency {circ.omega_worst:.6g} rad/s, min eigenvalue {circ.min_eigenvalue:.4g}")
+    if np.isfinite(margin) and "smallest eigenvalue" not in reason:
+        parts.append(f"SDP margin {margin:.4g}")
+    return "not Kalman-optimal: " + "; ".join(parts)
+
+
 @dataclass
 class OptimalityContext:
     """What the stages of :func:`is_kalman_optimal` share: the question and how to answer it."""
@@ -213,7 +224,7 @@ class OptimalityContext:
             optimal=False, L=self.L, R=self.R, Q=None, P=None, margin=margin,
             min_eigenvalue=nan if circ is None else circ.min_eigenvalue,
             omega=nan if circ is None else circ.omega_worst, circle=circ, certificate=cert,
-            status=status, message=f"not Kalman-optimal: {cert}", verification=Verification.of(checks),
+            status=status, message=_no_message(kind, reason, margin, circ), verification=Verification.of(checks),
             solver_stats=stats or self.stats())
 
     def yes(self, P, Q, ver, *, margin, status, circ, msg, rep=None) -> KalmanOptimalityResult:

@@ -391,6 +391,26 @@ class Region(ABC):
     def __rand__(self, other: object) -> Region:
         return self.__and__(other)  # only reached for a non-region on the left: refused there
 
+    def plot(self, ax: Any = None, **kw: Any) -> Any:
+        """Shade the region on a matplotlib Axes (a new figure's when ``ax`` is None).
+
+        Bounded regions are drawn whole; unbounded ones in a window at their finite edges (or, on
+        axes that already hold data, within the axes' limits).  Keywords go to
+        :func:`optdesign.plot.draw_region` (``box``, ``color``, ``alpha``, ``label``).
+
+        Returns
+        -------
+        matplotlib Axes
+
+        Raises
+        ------
+        BackendUnavailableError
+            matplotlib is not installed.
+        """
+        from ...plot.regions import draw_region
+
+        return draw_region(self, ax, **kw)
+
     def to_dict(self) -> dict[str, Any]:
         """A JSON-friendly description; :func:`~optdesign.regions.region_from_dict` inverts it."""
         return {"type": type(self).__name__, **{f.name: getattr(self, f.name) for f in fields(self)}}  # type: ignore[arg-type]
