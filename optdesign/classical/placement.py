@@ -48,7 +48,9 @@ def place_observer(
     plant : Plant
         Uses A (n, n) and C (p, n).
     poles : (n,) array_like of complex
-        Desired eigenvalues of ``A - L C`` (closed under conjugation; multiplicity at most p).
+        Desired eigenvalues of ``A - L C``, a 1-D array (closed under conjugation; multiplicity at
+        most ``rank(C)``; for a repeated pole with ``rank(C) = 1`` use :func:`acker` on the dual,
+        ``acker(A', C', poles)'``).
     method : {"YT", "KNV0"}
         scipy's robust placement algorithm.
 
@@ -62,6 +64,8 @@ def place_observer(
         (C, A) unobservable (names the modes): the poles cannot all be placed.
     ValidationError
         A pole repeated more than ``rank(C)`` times (no diagonalizable A - LC exists).
+    DimensionError
+        ``poles`` not a 1-D array of n (a column (n, 1) is refused, not flattened).
 
     References
     ----------
@@ -69,6 +73,9 @@ def place_observer(
     """
     from scipy.signal import place_poles
 
+    if np.ndim(poles) != 1:
+        raise DimensionError(f"poles must be a 1-D array of {plant.n} poles; found an array of shape "
+                             f"{np.shape(poles)} (not flattened)")
     poles = as_poles("poles", poles, plant.n)
     plant.require_observable(what="pole placement")
     rank = np.linalg.matrix_rank(plant.C)

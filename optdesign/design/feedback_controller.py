@@ -38,7 +38,7 @@ from ..analysis import metrics
 from ..classical.placement import acker
 from ..classical.riccati import sort_poles
 from ..errors import DefectivePolesError, DimensionError
-from ..results import Check, SolverStats, Stage, Status, Verification
+from ..results import Check, Route, SolverStats, Stage, Status, Verification
 from ..solvers.eigenstructure import EigenstructureEngine, pole_multiplicities
 from ..solvers.eigenstructure_fixed import place_fixed
 from .verification import (
@@ -50,6 +50,7 @@ from .verification import (
 )
 
 __all__ = ["strict_poles", "input_rank", "needs_ackermann", "controller_fields", "ackermann_fields",
+           "ackermann_observer", "backward_check", "charpoly_check",
            "POLE_TOL", "CHARPOLY_TOL"]
 
 #: relative pole error accepted (as the observer verbs' ``pole_error``; raised to the rounding floor)
@@ -230,9 +231,39 @@ def ackermann_fields(A: NDArray, B: NDArray, target: NDArray, *, discrete: bool,
     v, m = max(pole_multiplicities(target), key=lambda t: t[1])
     msg = (f"one input (rank(B) = 1): the poles fix the gain, computed by Ackermann's formula; pole "
            f"{complex(v):.6g} is repeated {m} times, so A - B K is defective (a Jordan block): kappa2 = inf")
-    stage = Stage("ackermann", "direct", "answered", "rank(B) = 1, repeated pole", cpu)
+    stage = Stage("ackermann", "direct", "answered", "rank one, repeated pole: the gain is unique", cpu)
     return dict(K=K, poles=sort_poles(np.linalg.eigvals(F)), X=None, kappa2=math.inf, kappa2_right=math.inf,
                 eta=math.inf, kappa_fro=math.inf, gain_norm=float(np.linalg.norm(K, 2)), status=Status.SOLVED,
                 message=msg, verification=Verification.of(checks),
                 solver_stats=SolverStats(backend="ackermann", native_status="solved", time=cpu, iterations=0),
                 route=(stage,), outcome=None)
+
+
+def ackermann_observer(plant: Any, target: NDArray, objective: str, *, stable: bool, mask: NDArray | None,
+                       max_gain: float | None) -> Any:
+    """Observer mode of :func:`ackermann_fields`: a repeated pole with ``rank(C) = 1`` fixes L
+    (Ackermann's formula on the dual ``(A', C')``); ``A - L C`` defective, kappa2 infinite.  An
+    :class:`~optdesign.design.well_conditioned.results.ObserverDesign` with the checks on ``A - L C``
+    (the gain bound and structural zeros checked, not designed for: the gain is unique)."""
+    from .well_conditioned.results import ObserverDesign
+
+    f = ackermann_fields(plant.A.T, plant.C.T, target, discrete=plant.is_discrete, stable=stable)
+    L = f["K"].T
+    F = plant.A - L @ plant.C
+    checks = [backward_check(F, target), charpoly_check(F, target)] + [
+        c for c in f["verification"] if c.name == "feedback_target_stability"]
+    words = {"feedback_pole_backward_error": "pole_backward_error", "feedback_charpoly_error": "charpoly_error",
+             "feedback_target_stability": "target_stability"}
+    checks = [Check(name=words[c.name], value=c.value, tolerance=c.tolerance, passed=c.passed, sense=c.sense,
+                    detail=c.detail.replace("A - B K", "A - L C")) for c in checks]
+    gn = float(np.linalg.norm(L, 2))
+    if mask is not None:
+        off = float(np.max(np.abs(L[~mask]))) if (~mask).any() else 0.0
+        checks.append(Check.at_most("mask", off, 0.0, "largest |L| entry outside the structure mask"))
+    if max_gain is not None:
+        checks.append(Check.at_most("gain_bound", gn, float(max_gain), "||L||_2 <= max_gain (the gain is unique)"))
+    msg = f["message"].replace("rank(B)", "rank(C)").replace("A - B K", "A - L C").replace("one input", "one output")
+    return ObserverDesign(L=L, poles=f["poles"], kappa2=math.inf, eta=math.inf, kappa_fro=math.inf, gain_norm=gn,
+                          objective=objective, status=Status.SOLVED, message=msg, solver_stats=f["solver_stats"],
+                          verification=Verification.of(checks), target_poles=target, plant=plant,
+                          route=Route(f["route"]))
