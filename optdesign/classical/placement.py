@@ -165,5 +165,5 @@ def acker(A: ArrayLike, B: ArrayLike, poles: ArrayLike) -> NDArray[np.float64]:
             modes=np.array([], dtype=complex))
     en = np.zeros(n)
     en[-1] = 1.0
-    k = np.linalg.solve(ctrb.T, en) @ phi * s  # K_s = e_n' ctrb_s^-1 phi_s(A_s); K = s K_s
-    return np.outer(g, k)
+    krow = np.linalg.solve(ctrb.T, en) @ phi * s  # K_s = e_n' ctrb_s^-1 phi_s(A_s); K = s K_s
+    return np.outer(g, krow)

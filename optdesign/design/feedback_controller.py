@@ -161,8 +161,8 @@ def controller_fields(A: NDArray, B: NDArray, target: NDArray, *, objective: str
     K = L.T
     F = A - B @ K
     checks: list[Check] = []
-    chk, _ = pole_check(F, target, POLE_TOL, name="feedback_pole_error", what="eig(A - B K) (numpy)")
-    checks.append(chk)
+    pchk, _ = pole_check(F, target, POLE_TOL, name="feedback_pole_error", what="eig(A - B K) (numpy)")
+    checks.append(pchk)
     if stable:
         checks += _rename([stability_check(F, discrete)])
     X = np.asarray(out.V, dtype=complex)   # measure="left": the unit-column right eigenvectors of A - B K
