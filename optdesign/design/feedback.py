@@ -48,7 +48,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, as_str, check_pd
+from .._validate import as_int, as_matrix, as_square, as_str, check_pd
 from ..analysis import metrics
 from ..classical.placement import pole_error as classical_pole_error
 from ..classical.riccati import sort_poles
@@ -230,7 +230,8 @@ def _feedback_from_observer(obs: Any, A: NDArray, B: NDArray, *, plant: Plant | 
                           region=region, observer=obs, plant=plant, status=obs.status,
                           message=f"state feedback by duality: {message}", solver_stats=obs.solver_stats,
                           verification=v, certificate=getattr(obs, "certificate", None),
-                          target_poles=target, extra={"dual": "observer of (A', B'), K = L'"})
+                          target_poles=target, route=getattr(obs, "route", Route()),
+                          extra={"dual": "observer of (A', B'), K = L'"})
 
 
 def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, region: Region | None = None,
@@ -674,5 +675,5 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
                             message=f"inverse LQR by duality: {_primal_words(res.message)}",
                             solver_stats=res.solver_stats,
                             verification=Verification.of(checks), certificate=res.certificate,
-                            target_poles=target,
+                            target_poles=target, route=getattr(res, "route", Route()),
                             extra={"dual": "kalman_for_poles of (A', B'), K = L', X = P"})
