@@ -73,9 +73,11 @@ def place_observer(
     """
     from scipy.signal import place_poles
 
-    if np.ndim(poles) != 1:
+    as_poles("poles", poles)                # non-numeric, ragged, matrix-shaped: its messages
+    shape = np.shape(poles)
+    if len(shape) != 1:
         raise DimensionError(f"poles must be a 1-D array of {plant.n} poles; found an array of shape "
-                             f"{np.shape(poles)} (not flattened)")
+                             f"{shape} (not flattened)")
     poles = as_poles("poles", poles, plant.n)
     plant.require_observable(what="pole placement")
     rank = np.linalg.matrix_rank(plant.C)

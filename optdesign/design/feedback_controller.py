@@ -75,11 +75,12 @@ def strict_poles(name: str, poles: ArrayLike, n: int, *, tol: float = 1e-8) -> N
     DimensionError
         ``poles`` is not 1-D (a (4, 1) column is refused, not flattened), or not ``n`` poles.
     """
-    arr = np.asarray(poles)
-    if arr.ndim != 1:
-        raise DimensionError(f"{name} must be a 1-D array of {n} poles; found an array of shape {arr.shape} "
+    as_poles(name, poles, tol=tol)          # non-numeric, ragged, matrix-shaped: its messages
+    shape = np.shape(poles)
+    if len(shape) != 1:
+        raise DimensionError(f"{name} must be a 1-D array of {n} poles; found an array of shape {shape} "
                              f"(not flattened: pass {name}.ravel() if that is what you mean)")
-    return as_poles(name, arr, n, tol=tol)
+    return as_poles(name, poles, n, tol=tol)
 
 
 def input_rank(M: NDArray) -> int:
