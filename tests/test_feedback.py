@@ -233,6 +233,17 @@ def test_controller_mode_beats_scipy_on_cond_X(name):
             continue
         assert res.kappa2 < metrics.kappa2(A - B @ ref.gain_matrix)
     assert res.kappa2 == pytest.approx(metrics.kappa2(A - B @ res.gain_matrix), rel=1e-6)
+    # the verb: the same measure, its X a verified unit-column right eigenbasis of A - B K
+    d = well_conditioned_feedback(Plant(A, np.eye(A.shape[0]), B=B), poles=poles)
+    F = A - B @ d.K
+    assert d.success and d.kappa2 == d.kappa2_right == pytest.approx(np.linalg.cond(d.X), rel=1e-12)
+    assert np.linalg.norm(F @ d.X - d.X * _col_poles(F, d.X)[None, :]) <= 1e-10 * np.linalg.norm(F)
+    assert d.kappa2 <= res.kappa2 * (1 + 1e-6)      # place caps each stage at maxiter = 30, the verb at 400
+
+
+def _col_poles(F, X):
+    """The eigenvalue of each column of an eigenbasis X of F (Rayleigh quotients)."""
+    return np.array([X[:, j].conj() @ F @ X[:, j] / (X[:, j].conj() @ X[:, j]) for j in range(X.shape[1])])
 
 
 def test_repeated_poles_with_one_input_are_placed_by_ackermann():
