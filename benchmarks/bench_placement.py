@@ -19,7 +19,10 @@ Reported: kappa2, kappa_fro, eta of ``A - LC`` (``optdesign.metrics``), ``||L||_
 search and time / YT-tight.  Sections: 1. the pole-placement problems (KNV, Byers, scipy, SLICOT,
 Byers-Nash, Chu 2007), 2. random plants n = 5..10, p = 2..4, 3. large random plants, 4. one output,
 5. poles repeated beyond rank(C) (nearest distinct designs vs place_varga), 6. COMPleib in region mode,
-7. a block of the DIS2 region sweep, 8. structural zeros of L (augmented Lagrangian vs the IPOPT verb).
+7. a block of the DIS2 region sweep, 8. structural zeros of L (augmented Lagrangian vs the IPOPT verb),
+9. state feedback in controller mode (issue 27): cond(X) of the right eigenvectors of A - B K, the
+public ``place`` against scipy YT / KNV0 and python-control on every problem and the random plants
+(``--sections 9 --out benchmarks/results/placement_controller.md``).
 
 Run: ``python benchmarks/bench_placement.py [--quick] [--sections 1,2,...] [--with-verb]``; writes
 ``benchmarks/results/placement.md``.  Numbers, not pass/fail.
@@ -577,7 +580,121 @@ def section_mask(args, lines):
     lines.append("")
 
 
+# --------------------------------------------------------------------------- 9. state feedback, controller mode
+
+
+def cond_x(F, X=None):
+    """cond(X) of the unit-column right eigenvectors of F (``X`` given: that basis, normalized)."""
+    if X is None:
+        _, X = np.linalg.eig(F)
+    X = np.asarray(X, dtype=complex)
+    X = X / np.linalg.norm(X, axis=0)
+    return float(np.linalg.cond(X))
+
+
+def controller_rows(name, A, B, P):
+    """Rows of one state-feedback problem ``eig(A - B K) = P``: cond(X) of every method."""
+    import control
+    from scipy.signal import place_poles
+
+    from optdesign.design.feedback import place
+
+    def scipy_fsf(**kw):
+        return place_poles(A, B, P, **kw)
+
+    runs = {
+        "scipy YT (defaults)": cpu(scipy_fsf),
+        "scipy YT (rtol 1e-6, 100 it)": cpu(scipy_fsf, rtol=1e-6, maxiter=100),
+        "scipy KNV0": cpu(scipy_fsf, method="KNV0"),
+        "control.place": cpu(control.place, A, B, P),
+        "control.place_varga": cpu(control.place_varga, A, B, P),
+        "dual measure (place_fixed on (A', B'), before)": cpu(place_fixed, A.T, B.T, P),
+        "optdesign place (controller mode)": cpu(place, A, B, P),
+    }
+    vals = {}
+    for meth, (out, t, note) in runs.items():
+        if out is None:
+            vals[meth] = (None, t, note)
+            continue
+        if meth.startswith("scipy"):
+            K, k = out.gain_matrix, cond_x(A - B @ out.gain_matrix, out.X)
+        elif meth.startswith("dual"):
+            K = out.L.T
+            k = cond_x(A - B @ K)
+        elif meth.startswith("optdesign"):
+            K, k = out.gain_matrix, out.kappa2
+            note = note or ("" if out.success else f"status {out.status}")
+        else:
+            K = np.asarray(out)
+            k = cond_x(A - B @ K)
+        err = pole_error(np.linalg.eigvals(A - B @ K), P)
+        if err > 1e-6:
+            note = (note + "; " if note else "") + f"pole error {err:.1e}"
+            k = math.inf if err > 1e-3 else k
+        vals[meth] = (k, t, note)
+    peers_k = [v[0] for m, v in vals.items() if v[0] is not None and not m.startswith(("optdesign", "dual"))]
+    best = min(peers_k) if peers_k else None
+    rows = []
+    for meth, (k, t, note) in vals.items():
+        ratio = k / best if k is not None and best and math.isfinite(best) and math.isfinite(k) else None
+        rows.append(f"| {name} | {meth} | {fmt(k, 7)} | {fmt(ratio)} | {t * 1e3:.1f} | {note} |")
+    ours = vals["optdesign place (controller mode)"][0]
+    return rows, (name, ours, best, vals["dual measure (place_fixed on (A', B'), before)"][0])
+
+
+CONTROLLER_HEADER = ["| problem | method | cond(X) | / best peer | CPU ms | note |", "|---|---|---|---|---|---|"]
+
+
+def section_controller(args, lines):
+    lines += [
+        "## 9. State feedback in controller mode: cond(X) of the right eigenvectors of A - B K",
+        "",
+        "Each pole-placement problem in its source's state-feedback form (A, B) = (A', C') of the stored "
+        "observer form, and the random plants of section 2 transposed the same way.  cond(X): unit-column "
+        "right eigenvectors of A - B K (scipy's X, normalized, for scipy; numpy's eigenvectors for "
+        "python-control and the dual-measure row; optdesign's verified basis for ours, which matters only "
+        "at a semisimple repeated pole, where numpy's basis is arbitrary).  `dual measure`: the engine as "
+        "`place` ran it before issue 27 (minimizing the left eigenvectors' condition).  `/ best peer`: "
+        "over scipy YT (both settings), KNV0, control.place and place_varga.  A pole error above 1e-3 "
+        "counts as inf.",
+        "",
+    ] + CONTROLLER_HEADER
+    summ = []
+    for name in problems.names(kind="pole_placement"):
+        pr = problems.load(name)
+        A, C, P = pr.plant.A, pr.plant.C, np.asarray(pr.targets["poles"])
+        rows, s = controller_rows(name, A.T, C.T, P)
+        lines += rows
+        summ.append(s)
+        print(f"controller {name}: done", file=sys.stderr, flush=True)
+    rng = np.random.default_rng(2024)     # the plants and poles of section 2
+    sizes = [(5, 2), (6, 3), (8, 2), (8, 3), (10, 2), (10, 3), (10, 4)]
+    for n, p in sizes:
+        for rep in range(1 if args.quick else 2):
+            plant = random_observable_plant(rng, n, p)
+            P = random_poles(rng, n)
+            rows, s = controller_rows(f"random n={n} m={p} #{rep}", plant.A.T, plant.C.T, P)
+            lines += rows
+            summ.append(s)
+    ok = [(nm, o, b, d) for nm, o, b, d in summ if o is not None and b is not None and math.isfinite(b)]
+    worse = [nm for nm, o, b, _ in ok if o > b * (1 + 1e-9)]
+    ratios = [o / b for _, o, b, _ in ok]
+    dual_worse = [nm for nm, _, b, d in ok if d is not None and d > b * (1 + 1e-9)]
+    inf_rows = [nm for nm, o, b, _ in summ if o is not None and not math.isfinite(o)]
+    lines += [
+        "",
+        f"optdesign place (controller mode) cond(X) / best peer over {len(ok)} problems with a finite best "
+        f"peer: median {np.median(ratios):.4f}, worst {max(ratios):.6f}; worse than the best peer on "
+        f"{len(worse)}" + (f" ({', '.join(worse)})" if worse else "") + ".  The dual measure (before) was "
+        f"worse than the best peer on {len(dual_worse)}" + (f" ({', '.join(dual_worse)})" if dual_worse else "")
+        + "." + (f"  Defective requests (rank(B) = 1, repeated pole; Ackermann, cond(X) = inf for every "
+                 f"method): {', '.join(inf_rows)}." if inf_rows else ""),
+        "",
+    ]
+
+
 SECTIONS = {
+    "9": section_controller,
     "8": section_mask,
     "1": section_fixed,
     "2": section_random,
@@ -592,7 +709,7 @@ SECTIONS = {
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="fewer random plants, no n = 50")
-    ap.add_argument("--sections", default="1,2,3,4,5,6,7,8")
+    ap.add_argument("--sections", default="1,2,3,4,5,6,7,8,9")
     ap.add_argument("--no-search", dest="search", action="store_false", help="skip the independent search")
     ap.add_argument("--with-verb", action="store_true", help="time the public verb (defaults) on a subset")
     ap.add_argument("--out", default=str(HERE / "results" / "placement.md"))

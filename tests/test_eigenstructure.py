@@ -411,3 +411,42 @@ def test_structural_zeros_by_augmented_lagrangian():
         place_fixed(A, C, P, gain_mask=np.zeros((4, 2), bool))
     same = place_fixed(A, C, P, gain_mask=np.ones((4, 2), bool))  # no zero: the unconstrained engine
     assert same.kappa2 == free.kappa2
+
+
+# ------------------------------------------------------------------ issue 27: the controller measure
+@pytest.mark.parametrize("poles", [[-1.0, -2.0, -3.0, -4.0, -5.0], [-1.0, -2 + 1j, -2 - 1j, -3 + 2j, -3 - 2j]])
+@pytest.mark.parametrize("objective,k", [("kappa2", None), ("kappa2", 4), ("kappa_fro", None)])
+def test_left_measure_gradient_matches_finite_differences(poles, objective, k):
+    """measure="left": cond of the unit-norm LEFT eigenvectors of A - L C (= the right eigenvectors
+    of the state-feedback loop (A - L C)'); analytic gradient against central differences."""
+    from optdesign.solvers.eigenstructure import EigenstructureEngine, FixedPoleModel
+
+    rng = np.random.default_rng(7)
+    A, C = rng.standard_normal((5, 5)), rng.standard_normal((2, 5))
+    model = FixedPoleModel(EigenstructureEngine(A, C), poles, measure="left")
+    x = model.random_coords(rng)
+    f, g = model.evaluate(x, objective, k)
+    h = 1e-6
+    fd = np.array([(model.evaluate(x + h * e, objective, k, gradient=False)[0]
+                    - model.evaluate(x - h * e, objective, k, gradient=False)[0]) / (2 * h) for e in np.eye(x.size)])
+    np.testing.assert_allclose(g, fd, rtol=1e-6, atol=1e-6 * np.max(np.abs(g)))
+    # the value is cond of the transposed unit-row W, i.e. of the right eigenvectors of (A - L C)'
+    L, X, k2, _ = model.design(x)
+    Ft = (A - L @ C).T
+    np.testing.assert_allclose(np.linalg.norm(X, axis=0), 1.0, rtol=1e-13)
+    assert np.linalg.norm(Ft @ X - X * model.poles) <= 1e-10 * np.linalg.norm(Ft)
+    if objective == "kappa2" and k is None:
+        assert np.exp(f) == pytest.approx(np.linalg.cond(X), rel=1e-10) == pytest.approx(k2, rel=1e-12)
+
+
+def test_place_fixed_left_measure_minimizes_cond_of_the_transpose():
+    from optdesign.solvers.eigenstructure_fixed import place_fixed
+
+    prob = problems.load("pp_byers5")
+    A, C, P = prob.plant.A, prob.plant.C, np.asarray(prob.targets["poles"])
+    left = place_fixed(A, C, P, measure="left")
+    right = place_fixed(A, C, P)
+    assert left.kappa2 == pytest.approx(metrics.kappa2((A - left.L @ C).T), rel=1e-6)
+    # each run is better on its own measure
+    assert left.kappa2 < metrics.kappa2((A - right.L @ C).T)
+    assert right.kappa2 < metrics.kappa2(A - left.L @ C)

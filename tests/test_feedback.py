@@ -27,15 +27,14 @@ def _AB(name):
 
 # ------------------------------------------------------------------ place: scipy's drop-in
 @pytest.mark.parametrize("name", PLACEMENT)
-def test_place_is_the_dual_of_the_observer_and_a_place_poles_drop_in(name):
-    A, B, poles, obs_plant = _AB(name)
+def test_place_minimizes_cond_X_and_is_a_place_poles_drop_in(name):
+    """Issue 27, item 3: place minimizes cond(X) of the unit-column RIGHT eigenvectors of A - B K
+    (scipy's X), never worse than scipy's YT and KNV0 on that measure."""
+    A, B, poles, _ = _AB(name)
     res = place(A, B, poles, starts=2)
     ref = scipy.signal.place_poles(A, B, poles)
     assert res.success, res.design.verification.summary()
-    # the dual: the library's observer form of the same benchmark gives K = L'
-    obs = well_conditioned_observer(obs_plant, poles=poles, starts=2)
-    np.testing.assert_array_equal(res.gain_matrix, obs.L.T)
-    assert res.kappa2_dual == obs.kappa2
+    assert res.design.observer is None and res.route.answered.kind == "engine"
     # scipy's fields, shapes and conventions
     assert res.gain_matrix.shape == ref.gain_matrix.shape
     np.testing.assert_allclose(res.requested_poles, ref.requested_poles, rtol=1e-12)
@@ -45,12 +44,12 @@ def test_place_is_the_dual_of_the_observer_and_a_place_poles_drop_in(name):
     assert resid < 100 * A.shape[0] * EPS
     np.testing.assert_allclose(np.linalg.norm(res.X, axis=0), 1.0, rtol=1e-14)
     assert res.kappa2 == pytest.approx(np.linalg.cond(res.X), rel=1e-12)
+    assert res.kappa2 == pytest.approx(metrics.kappa2(F), rel=1e-6)
     assert res.rtol == res.verification["feedback_pole_error"].value <= 1e-6
     assert isinstance(res.nb_iter, int) and res.nb_iter > 0
-    # never worse than scipy YT in what is minimized (YT is one of the starts); scipy's cond(X) (the
-    # right eigenvectors) is not minimized and may be a little worse, but both unit-column condition
-    # numbers lie within sqrt(n) of the optimally scaled one (van der Sluis), hence of each other
-    assert res.kappa2_dual <= metrics.kappa2((A - B @ ref.gain_matrix).T) * (1 + 1e-6)
+    # the measure minimized is scipy's: never worse than YT's cond(X) (YT is one of the starts)
+    assert res.kappa2 <= np.linalg.cond(ref.X) * (1 + 1e-6)
+    # the dual's (left) measure is reported beside it, within sqrt(n) of it (van der Sluis)
     root_n = np.sqrt(A.shape[0]) * (1 + 1e-9)
     assert res.kappa2 <= root_n * res.kappa2_dual and res.kappa2_dual <= root_n * res.kappa2
 
@@ -61,7 +60,7 @@ def test_place_against_python_control():
     res = place(A, B, poles, starts=2)
     for K in (control.place(A, B, poles), control.place_varga(A, B, poles)):
         np.testing.assert_allclose(np.sort(np.linalg.eigvals(A - B @ K).real), np.sort(poles), rtol=1e-6)
-        assert res.kappa2_dual <= metrics.kappa2((A - B @ K).T) * (1 + 1e-6)
+        assert res.kappa2 <= metrics.kappa2(A - B @ K) * (1 + 1e-6)
 
 
 def test_place_single_input_and_unstable_poles():
@@ -84,8 +83,8 @@ def test_place_errors():
     B = np.array([[0.0], [1.0]])
     with pytest.raises(ValidationError, match="method must be one of 'optdesign', 'YT', 'KNV0'; found 'LS'"):
         place(A, B, [-1, -2], method="LS")
-    with pytest.raises(ValidationError, match="rtol must be finite and > 0"):
-        place(A, B, [-1, -2], rtol=-1.0)
+    with pytest.raises(ValidationError, match=r"rtol must be finite and <= 1 .*found 42"):
+        place(A, B, [-1, -2], rtol=42)
     with pytest.raises(ValidationError, match="maxiter must be an integer >= 1; found 0"):
         place(A, B, [-1, -2], maxiter=0)
     with pytest.raises(DimensionError, match=r"B has the wrong shape: expected \(2, \?\), found \(3, 1\)"):
@@ -135,8 +134,9 @@ def test_feedback_errors():
     plant = Plant([[0.0, 1.0], [2.0, -1.0]], [[1.0, 0.0]], B=[[0.0], [1.0]])
     with pytest.raises(DimensionError, match=r"structure has the wrong shape: expected \(1, 2\)"):
         well_conditioned_feedback(plant, poles=[-1, -2], structure=np.ones((2, 1), dtype=bool))
-    with pytest.raises(ValidationError, match=r"nonzero feedthrough D"):
-        well_conditioned_feedback(control.ss(plant.A, plant.B, plant.C, 1.0), poles=[-1, -2])
+    # a feedthrough D is ignored (issue 27: state feedback and LQR never use C or D)
+    with_d = well_conditioned_feedback(control.ss(plant.A, plant.B, plant.C, 1.0), poles=[-1, -2])
+    np.testing.assert_array_equal(with_d.K, well_conditioned_feedback(plant, poles=[-1, -2]).K)
     with pytest.raises(ValidationError, match="B must have at least one column"):
         dual_plant(np.eye(2), np.zeros((2, 0)))
 
@@ -216,3 +216,80 @@ def test_inverse_lqr_errors():
         lqr_for_poles(Plant(np.diag([-1.0, -2.0]), [[1.0, 1.0]], B=[[0.0], [1.0]]), [-3, -4])
     with pytest.raises(ValidationError, match="state feedback needs the input matrix B"):
         lqr_for_poles(Plant([[0.0]], [[1.0]]), [-1.0])
+
+
+# ------------------------------------------------------------------ issue 27: controller mode, strict input
+@pytest.mark.parametrize("name", ["pp_byers5", "pp_chu2007_ex8"])
+def test_controller_mode_beats_scipy_on_cond_X(name):
+    """The two problems where the dual measure lost to scipy's YT on cond(X) (88.96 vs 88.56 and
+    22.64 vs 18.44): the controller-mode engine minimizes cond(X) itself."""
+    A, B, poles, _ = _AB(name)
+    res = place(A, B, poles)
+    assert res.success
+    for method in ("YT", "KNV0"):
+        try:
+            ref = scipy.signal.place_poles(A, B, poles, method=method)
+        except ValueError:  # KNV0: complex poles
+            continue
+        assert res.kappa2 < metrics.kappa2(A - B @ ref.gain_matrix)
+    assert res.kappa2 == pytest.approx(metrics.kappa2(A - B @ res.gain_matrix), rel=1e-6)
+    # the verb: the same measure, its X a verified unit-column right eigenbasis of A - B K
+    d = well_conditioned_feedback(Plant(A, np.eye(A.shape[0]), B=B), poles=poles)
+    F = A - B @ d.K
+    assert d.success and d.kappa2 == d.kappa2_right == pytest.approx(np.linalg.cond(d.X), rel=1e-12)
+    assert np.linalg.norm(F @ d.X - d.X * _col_poles(F, d.X)[None, :]) <= 1e-10 * np.linalg.norm(F)
+    assert d.kappa2 <= res.kappa2 * (1 + 1e-6)      # place caps each stage at maxiter = 30, the verb at 400
+
+
+def _col_poles(F, X):
+    """The eigenvalue of each column of an eigenbasis X of F (Rayleigh quotients)."""
+    return np.array([X[:, j].conj() @ F @ X[:, j] / (X[:, j].conj() @ X[:, j]) for j in range(X.shape[1])])
+
+
+def test_repeated_poles_with_one_input_are_placed_by_ackermann():
+    A = np.diag([1.0, 2.0, 3.0, 4.0])
+    B = np.array([[1.0], [1.0], [1.0], [1.0]])
+    poles = [-2.0, -2.0, -1 + 1j, -1 - 1j]
+    res = place(A, B, poles)
+    assert res.success and res.kappa2 == np.inf and "kappa2 = inf" in res.message
+    assert res.verification["feedback_charpoly_error"].passed
+    np.testing.assert_allclose(np.poly(A - B @ res.gain_matrix), np.real(np.poly(poles)), rtol=1e-9)
+    np.testing.assert_allclose(res.gain_matrix.ravel(), np.ravel(control.acker(A, B, poles)), rtol=1e-8)
+    d = well_conditioned_feedback(Plant(A, np.eye(4), B=B), poles=[-2.0] * 4)
+    assert d.success and d.kappa2 == np.inf and d.route.answered.name == "ackermann"
+    assert np.all(np.isfinite(d.K))
+
+
+def test_repeated_poles_beyond_rank_B_are_refused_in_B_words():
+    from optdesign.errors import DefectivePolesError
+
+    A = np.array([0, 7, 0, 0, 0, 0, 0, 7 / 3.0, 0, 0, 0, 0, 0, 0, 0, 0], dtype=float).reshape(4, 4)
+    B = np.array([0, 0, 0, 0, 1, 0, 0, 1], dtype=float).reshape(4, 2)
+    with pytest.raises(DefectivePolesError, match=r"-2\+0j is requested 4 times but rank\(B\) = 2") as exc:
+        place(A, B, [-2, -2, -2, -2])
+    assert isinstance(exc.value, ValueError) and "rank(C)" not in str(exc.value)
+    with pytest.raises(DefectivePolesError, match=r"rank\(B\) = 2"):
+        well_conditioned_feedback(Plant(A, np.eye(4), B=B), poles=[-2, -2, -2, -2])
+
+
+def test_two_dimensional_poles_are_refused_not_flattened():
+    A = np.array([[0.0, 1.0], [2.0, -1.0]])
+    B = np.array([[0.0], [1.0]])
+    plant = Plant(A, [[1.0, 0.0]], B=B)
+    col = np.array([[-1.0], [-2.0]])
+    with pytest.raises(DimensionError, match=r"poles must be a 1-D array of 2 poles; found .* shape \(2, 1\)"):
+        place(A, B, col)
+    with pytest.raises(DimensionError, match=r"shape \(2, 1\)"):
+        well_conditioned_feedback(plant, poles=col)
+    with pytest.raises(DimensionError, match=r"shape \(2, 1\)"):
+        lqr_for_poles(plant, col)
+    with pytest.raises(ValidationError, match="KNV0.*real poles only"):
+        place(A, B, [-1 + 1j, -1 - 1j], method="KNV0")
+
+
+def test_lqr_for_poles_ignores_D():
+    """LQR uses neither C nor D: a system with a feedthrough is accepted (python-control's lqr)."""
+    A, B, C = [[0.0, 1.0], [-6.0, -5.0]], [[0.0], [1.0]], [[1.0, 0.0]]
+    res = lqr_for_poles(control.ss(A, B, C, [[2.0]]), [-5, -8])
+    assert res.success
+    np.testing.assert_allclose(res.K, [[34.0, 8.0]], rtol=1e-6)

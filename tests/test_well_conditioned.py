@@ -312,13 +312,16 @@ def test_iter_region_starts_is_region_starts_without_the_kalman_start():
         np.testing.assert_array_equal(a[3], b[3])
 
 
-def test_multiplicity_above_rank_is_infeasible_with_certificate():
+def test_repeated_pole_with_one_output_is_placed_by_ackermann():
+    """Issue 27: with rank(C) = 1 the poles fix L (Ackermann on the dual), as python-control's acker;
+    A - LC is defective (kappa2 = inf, said so).  It was an infeasible result with an all-NaN gain."""
     pr = problems.load("pp_chowkokotovic")  # single output, pole -1 twice
     d = well_conditioned_observer(pr.plant, poles=pr.targets["poles"], starts=1)
-    assert d.status == Status.INFEASIBLE and not d.success
-    assert d.certificate["multiplicity"] == 2 and d.certificate["rank_C"] == 1
-    with pytest.raises(Exception, match="repeated|requested 2 times"):
-        d.raise_for_status()
+    assert d.success and d.status == Status.SOLVED and d.kappa2 == np.inf and "kappa2 = inf" in d.message
+    assert d.verification["pole_backward_error"].passed and np.all(np.isfinite(d.L))
+    F = pr.plant.A - d.L @ pr.plant.C      # ||F|| ~ 1e6: each pole an eigenvalue to backward error ~eps
+    for lam in set(pr.targets["poles"]):
+        assert np.linalg.svd(F - lam * np.eye(4), compute_uv=False)[-1] <= 1e-13 * np.linalg.norm(F, 2)
 
 
 def _yt_own_basis_kappa(plant, poles, method="YT"):

@@ -1,7 +1,8 @@
-"""Observer pole placement (duality with state feedback): the classical baseline.
+"""Pole placement, the classical baselines.
 
 ``place_observer`` returns L with ``eig(A - L C) = poles`` using scipy's robust
-Kautsky-Nichols-Van Dooren / Tits-Yang algorithm on the dual pair (A', C').
+Kautsky-Nichols-Van Dooren / Tits-Yang algorithm on the dual pair (A', C'); ``acker`` is
+Ackermann's formula for a rank-one input matrix (the unique gain, also for repeated poles).
 """
 
 from __future__ import annotations
@@ -11,11 +12,11 @@ import warnings
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_poles
+from .._validate import as_matrix, as_poles, as_square
 from ..errors import DimensionError, NotObservableError, ValidationError
 from ..model.plant import Plant
 
-__all__ = ["place_observer", "pole_error"]
+__all__ = ["place_observer", "pole_error", "acker"]
 
 
 def pole_error(achieved: ArrayLike, target: ArrayLike) -> float:
@@ -47,7 +48,9 @@ def place_observer(
     plant : Plant
         Uses A (n, n) and C (p, n).
     poles : (n,) array_like of complex
-        Desired eigenvalues of ``A - L C`` (closed under conjugation; multiplicity at most p).
+        Desired eigenvalues of ``A - L C``, a 1-D array (closed under conjugation; multiplicity at
+        most ``rank(C)``; for a repeated pole with ``rank(C) = 1`` use :func:`acker` on the dual,
+        ``acker(A', C', poles)'``).
     method : {"YT", "KNV0"}
         scipy's robust placement algorithm.
 
@@ -61,6 +64,8 @@ def place_observer(
         (C, A) unobservable (names the modes): the poles cannot all be placed.
     ValidationError
         A pole repeated more than ``rank(C)`` times (no diagonalizable A - LC exists).
+    DimensionError
+        ``poles`` not a 1-D array of n (a column (n, 1) is refused, not flattened).
 
     References
     ----------
@@ -68,6 +73,11 @@ def place_observer(
     """
     from scipy.signal import place_poles
 
+    as_poles("poles", poles)                # non-numeric, ragged, matrix-shaped: its messages
+    shape = np.shape(poles)
+    if len(shape) != 1:
+        raise DimensionError(f"poles must be a 1-D array of {plant.n} poles; found an array of shape "
+                             f"{shape} (not flattened)")
     poles = as_poles("poles", poles, plant.n)
     plant.require_observable(what="pole placement")
     rank = np.linalg.matrix_rank(plant.C)
@@ -86,3 +96,76 @@ def place_observer(
     except (ValueError, np.linalg.LinAlgError) as exc:  # pragma: no cover - guarded above
         raise NotObservableError(f"pole placement failed: {exc}") from exc
     return np.asarray(res.gain_matrix, dtype=float).T
+
+
+def acker(A: ArrayLike, B: ArrayLike, poles: ArrayLike) -> NDArray[np.float64]:
+    """State-feedback gain of Ackermann's formula: ``eig(A - B K) = poles`` for ``rank(B) = 1``.
+
+    With one input the gain is fixed by the poles (repeated ones included, where ``A - B K`` is then
+    a single Jordan block per pole: defective, kappa2 infinite):
+    ``K = e_n' [b, A b, ..., A^{n-1} b]^-1 phi(A)``, ``phi`` the monic polynomial of the poles.
+    Computed on ``A / s`` and ``poles / s`` (``s = max(||A||_2, max |pole|)``, then ``K = K_s``
+    scaled back: ``phi_s(A / s) = phi(A) / s^n``) so that the powers stay bounded.  A ``B`` with
+    several proportional columns (``rank 1``, ``B = b g'``, ``||g|| = 1``) gets the minimum-norm
+    ``K = g k'``.
+
+    Parameters
+    ----------
+    A : (n, n) array_like
+    B : (n, m) array_like
+        Of rank one.
+    poles : (n,) array_like of complex
+        Conjugate-closed.
+
+    Returns
+    -------
+    K : (m, n) ndarray
+
+    Raises
+    ------
+    DimensionError
+        Shapes do not match, or ``rank(B) != 1``.
+    NotControllableError
+        ``(A, B)`` is not controllable (the controllability matrix is numerically singular).
+
+    References
+    ----------
+    Ackermann, J., "Der Entwurf linearer Regelungssysteme im Zustandsraum", Regelungstechnik 20
+    (1972) 297-300; python-control ``acker``.
+
+    Examples
+    --------
+    >>> acker([[0, 1], [0, 0]], [[0], [1]], [-1, -1]).tolist()
+    [[1.0, 2.0]]
+    """
+    from ..errors import NotControllableError
+
+    A = as_square("A", A)
+    n = A.shape[0]
+    B = as_matrix("B", B, (n, None))
+    P = as_poles("poles", poles, n)
+    U, sv, Vt = np.linalg.svd(B)
+    rank = int(np.sum(sv > max(B.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)))
+    if rank != 1:
+        raise DimensionError(f"acker needs rank(B) = 1; found rank(B) = {rank}")
+    b, g = U[:, 0] * sv[0], Vt[0]
+    s = max(float(np.linalg.norm(A, 2)), float(np.max(np.abs(P))), 1e-300)
+    As = A / s
+    coef = np.real(np.poly(P / s))
+    ctrb = np.empty((n, n))
+    ctrb[:, 0] = b
+    for k in range(1, n):
+        ctrb[:, k] = As @ ctrb[:, k - 1]
+    phi = np.zeros((n, n))
+    for c in coef:  # Horner: phi(As)
+        phi = phi @ As + c * np.eye(n)
+    sv_c = np.linalg.svd(ctrb, compute_uv=False)
+    if not sv_c[-1] > n * np.finfo(float).eps * sv_c[0]:
+        raise NotControllableError(
+            f"(A, B) is not controllable: the controllability matrix has condition number "
+            f"{sv_c[0] / sv_c[-1] if sv_c[-1] > 0 else float('inf'):.3g}; Ackermann's formula needs it invertible",
+            modes=np.array([], dtype=complex))
+    en = np.zeros(n)
+    en[-1] = 1.0
+    krow = np.linalg.solve(ctrb.T, en) @ phi * s  # K_s = e_n' ctrb_s^-1 phi_s(A_s); K = s K_s
+    return np.outer(g, krow)

@@ -17,12 +17,16 @@ controller answer at no cost:
   plant (discrete: ``K = (R + B' X B)^-1 B' X A``, the dual predictor gain), so ``X = P`` and
   ``K = L'``.
 
-What "kappa2" measures.  The observer engine minimizes kappa2 of the unit-column eigenvectors of
-the dual's ``A' - L B' = (A - B K)'``, i.e. of the *left* eigenvectors of ``A - B K``; scipy's
-``X`` (and ``kappa2_right`` here) are the *right* eigenvectors.  Both are eigenvector matrices of
-the same spectrum, equal up to a diagonal scaling of the inverse (``kappa2_right = cond(V S)``
-with ``S`` the eigenvalue condition numbers) and within ``sqrt(n)`` of the optimally scaled
-condition number (van der Sluis), so they are close but not equal; both are reported.
+What "kappa2" measures.  State feedback is measured by ``cond(X)`` of the unit-column *right*
+eigenvectors ``X`` of ``A - B K`` (scipy's ``X``, MATLAB's ``place``, Kautsky-Nichols-Van Dooren,
+Byers-Nash, Chu).  With fixed poles and no bounds the placement engine runs in controller mode and
+minimizes exactly that (:mod:`optdesign.design.feedback_controller`); ``kappa2`` and
+``kappa2_right`` are then equal.  The routes that design the observer of the dual pair (poles in a
+region, gain or trade-off bounds, structural zeros, objective eta) minimize kappa2 of the
+unit-column eigenvectors of ``(A - B K)'``, i.e. of the *left* eigenvectors of ``A - B K``;
+``kappa2`` is then that, and ``kappa2_right`` is ``cond(X)`` beside it.  The two are eigenvector
+matrices of the same spectrum, within ``sqrt(n)`` of the optimally scaled condition number of each
+other (van der Sluis), close but not equal.
 
 References
 ----------
@@ -37,20 +41,23 @@ van der Sluis, A., "Condition numbers and equilibration of matrices", Numer. Mat
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_int, as_matrix, as_poles, as_positive_float, as_square, as_str, check_pd
+from .._validate import as_int, as_matrix, as_square, as_str, check_pd
 from ..analysis import metrics
+from ..classical.placement import pole_error as classical_pole_error
 from ..classical.riccati import sort_poles
 from ..errors import NotControllableError, ValidationError
-from ..model.coerce import as_plant
+from ..model.coerce import as_system
 from ..model.plant import Plant
 from ..model.regions import Region
-from ..results import Check, DesignResult, Status, Verification
+from ..results import Check, DesignResult, Route, Status, Verification
+from .feedback_controller import ackermann_fields, controller_fields, input_rank, needs_ackermann, strict_poles
 from .inverse_kalman import kalman_for_poles
 from .verification import pole_check, stability_check
 from .well_conditioned import well_conditioned_observer
@@ -103,8 +110,10 @@ def dual_plant(A: ArrayLike, B: ArrayLike, *, dt: float | None = None, G: ArrayL
 
 
 def _feedback_plant(plant: Any) -> tuple[Plant, NDArray, NDArray]:
-    """``(plant, A, B)`` of a Plant (or a system, via :func:`as_plant`) that has an input matrix B."""
-    pl = as_plant(plant)
+    """``(plant, A, B)`` of a Plant (or a system, via :func:`~optdesign.model.coerce.as_system`) that
+    has an input matrix B.  A feedthrough D is ignored: state feedback ``u = -K x`` (and LQR) never
+    uses C or D."""
+    pl = as_system(plant).plant
     if pl.B is None:
         label = f" {pl.name!r}" if pl.name else ""
         raise ValidationError(f"state feedback needs the input matrix B; plant{label} has none "
@@ -162,17 +171,20 @@ class FeedbackDesign(DesignResult):
     poles : (n,) ndarray of complex
         ``eig(A - B K)`` by numpy, sorted by real then imaginary part.
     kappa2 : float
-        What was minimized: kappa2 of the unit-column eigenvectors of ``(A - B K)'`` (the left
-        eigenvectors of ``A - B K``; see the module notes).
+        What was minimized: ``cond(X)`` of the unit-column right eigenvectors of ``A - B K`` (fixed
+        poles, controller mode; infinite for a defective loop), or in the dual route kappa2 of the
+        unit-column eigenvectors of ``(A - B K)'`` (see the module notes).
     kappa2_right : float
-        kappa2 of the unit-column right eigenvectors of ``A - B K`` (``cond(X)`` of scipy's
-        ``place_poles``).
+        ``cond(X)``: kappa2 of the unit-column right eigenvectors of ``A - B K`` (scipy's measure).
     eta, kappa_fro, gain_norm : float
         Of the dual design (``||K||_2 = ||L||_2``; eta is invariant under transposition).
     objective : str
     region : Region or None
-    observer : ObserverDesign
-        The dual design (its starts, solver statistics, V).
+    observer : ObserverDesign or None
+        The dual design (its starts, solver statistics, V); None in controller mode.
+    X : (n, n) ndarray of complex or None
+        Controller mode: the verified unit-column right eigenvectors of ``A - B K`` whose condition
+        number is ``kappa2`` (columns in the engine's pole order); None otherwise.
     plant : Plant
         The plant (with B).
     verification : Verification
@@ -191,6 +203,7 @@ class FeedbackDesign(DesignResult):
     region: Region | None = None
     observer: Any = field(default=None, repr=False)
     plant: Plant | None = field(default=None, repr=False)
+    X: NDArray[np.complex128] | None = field(default=None, repr=False)
 
     def __repr__(self) -> str:
         return (f"FeedbackDesign(status={Status(self.status).value}, success={self.success}, "
@@ -217,7 +230,8 @@ def _feedback_from_observer(obs: Any, A: NDArray, B: NDArray, *, plant: Plant | 
                           region=region, observer=obs, plant=plant, status=obs.status,
                           message=f"state feedback by duality: {message}", solver_stats=obs.solver_stats,
                           verification=v, certificate=getattr(obs, "certificate", None),
-                          target_poles=target, extra={"dual": "observer of (A', B'), K = L'"})
+                          target_poles=target, route=getattr(obs, "route", Route()),
+                          extra={"dual": "observer of (A', B'), K = L'"})
 
 
 def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, region: Region | None = None,
@@ -272,11 +286,59 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
     mask = None
     if structure is not None:
         mask = as_matrix("structure", structure, (B.shape[1], A.shape[0])).astype(bool).T
-    target = None if poles is None else as_poles("poles", poles, A.shape[0])
-    obs = well_conditioned_observer(dual, poles=poles, region=region, structure=mask,
+    target = None
+    if poles is not None:
+        target = strict_poles("poles", poles, A.shape[0])
+        fields = _controller_design(A, B, target, pl.is_discrete, allow_unstable, structure is not None,
+                                    options)
+        if fields is not None:
+            return _feedback_from_fields(fields, pl, target, options.get("objective", "kappa2"))
+    obs = well_conditioned_observer(dual, poles=target, region=region, structure=mask,
                                     allow_unstable=allow_unstable, **options)
     return _feedback_from_observer(obs, A, B, plant=pl, target=target, region=region,
                                    discrete=pl.is_discrete, stable=not allow_unstable)
+
+
+#: options of :func:`well_conditioned_feedback` that send fixed poles to the dual route (the NLP)
+_DUAL_ROUTE_OPTIONS = ("max_gain", "kappa2_max", "eta_max", "nlp_solver", "solver")
+
+
+def _controller_design(A: NDArray, B: NDArray, target: NDArray, discrete: bool, allow_unstable: bool,
+                       masked: bool, options: dict[str, Any], *, max_iter: int = 400,
+                       final_ftol: float | None = None) -> dict[str, Any] | None:
+    """The fields of a controller-mode design (Ackermann for a repeated pole with one input, else the
+    engine on cond(X)), or None where the dual route answers (bounds, masks, eta, the NLP asked for,
+    or the engine found nothing)."""
+    from .well_conditioned.evaluation import check_target_stable
+
+    if not allow_unstable:
+        check_target_stable(target, discrete)
+    if needs_ackermann(target, input_rank(B)):
+        return ackermann_fields(A, B, target, discrete=discrete, stable=not allow_unstable)
+    objective = options.get("objective", "kappa2")
+    if masked or objective not in ("kappa2", "kappa_fro") or any(
+            options.get(k) is not None for k in _DUAL_ROUTE_OPTIONS):
+        return None
+    fields = controller_fields(A, B, target, objective=objective, discrete=discrete, stable=not allow_unstable,
+                               starts=options.get("starts"), seed=int(options.get("seed", 0)),
+                               time_limit=options.get("time_limit"), max_iter=max_iter, final_ftol=final_ftol)
+    return fields if fields["K"] is not None else None
+
+
+def _feedback_from_fields(f: dict[str, Any], pl: Plant, target: NDArray, objective: str) -> FeedbackDesign:
+    """A :class:`FeedbackDesign` of controller-mode fields."""
+    out = f.get("outcome")
+    extra: dict[str, Any] = {"mode": "controller: cond(X) of the right eigenvectors of A - B K"}
+    if out is not None:
+        best = min(out.starts, key=lambda r: r.objective_value) if out.starts else None
+        extra.update(starts=len(out.starts), last_iterations=getattr(best, "last_iterations", 0),
+                     last_decrease=getattr(best, "last_decrease", float("nan")),
+                     stop_reason=getattr(best, "reason", ""))
+    return FeedbackDesign(K=f["K"], poles=f["poles"], kappa2=f["kappa2"], kappa2_right=f["kappa2_right"],
+                          eta=f["eta"], kappa_fro=f["kappa_fro"], gain_norm=f["gain_norm"], objective=objective,
+                          region=None, observer=None, plant=pl, X=f["X"], status=f["status"], message=f["message"],
+                          solver_stats=f["solver_stats"], verification=f["verification"], certificate=None,
+                          target_poles=target, route=Route(f["route"]), extra=extra)
 
 
 # --------------------------------------------------------------------------- place_poles drop-in
@@ -305,20 +367,21 @@ class PlacementResult(DesignResult):
         The poles asked for, in the same order.
     X : (n, n) ndarray of complex
         Unit-column right eigenvectors of ``A - B K``, column j for ``computed_poles[j]``
-        (``(A - B K) X = X diag(computed_poles)``).
+        (``(A - B K) X = X diag(computed_poles)``); for a defective loop (a repeated pole with one
+        input) numpy's eigenvectors, numerically dependent.
     rtol : float
         The relative accuracy achieved on the poles (max relative distance of ``computed_poles``
-        to ``requested_poles``).  scipy reports the relative change of ``det X`` of its last
-        iteration here; there is no such iteration in an NLP.
+        to ``requested_poles``).  (:func:`optdesign.compat.scipy.place_poles` reports scipy's
+        meaning.)
     nb_iter : int
-        NLP iterations over all starts.
+        Engine (BFGS) iterations over all starts and stages.
     kappa2 : float
-        ``cond(X)`` (what scipy's robustness measure approximates).
+        ``cond(X)``: what was minimized (infinite for a defective loop).
     kappa2_dual : float
-        What was minimized: kappa2 of the unit-column left eigenvectors (see
-        :mod:`optdesign.design.feedback`).
+        kappa2 of the unit-column left eigenvectors of ``A - B K`` (the dual observer's measure), for
+        comparison.
     design : FeedbackDesign
-        The full design (the dual observer, its starts and checks).
+        The full design (starts, checks, route).
     """
 
     gain_matrix: NDArray[np.float64] | None
@@ -336,35 +399,73 @@ class PlacementResult(DesignResult):
                 f"kappa2={self.kappa2:.6g}, rtol={self.rtol:.1e}, nb_iter={self.nb_iter})")
 
 
+def _scipy_rtol(rtol: Any) -> float:
+    """scipy's rule: a finite real ``rtol <= 1`` (``<= 0`` runs every stage to ``maxiter``)."""
+    try:
+        r = float(rtol)
+    except (TypeError, ValueError):
+        raise ValidationError(f"rtol must be a real number <= 1; found {rtol!r}") from None
+    if not math.isfinite(r) or r > 1.0:
+        raise ValidationError(f"rtol must be finite and <= 1 (scipy: 'rtol can not be greater than 1'); "
+                              f"found {rtol!r}")
+    return r
+
+
+def _in_scipy_order(F: NDArray, X: NDArray | None) -> tuple[NDArray, NDArray]:
+    """``(computed poles, X)`` of ``F`` in scipy's order, ``X`` (columns of any order, unit norm)
+    matched to the poles by eigen-residual; numpy's eigenvectors where ``X`` is None."""
+    w = np.linalg.eigvals(F) if X is not None else None
+    if X is None:
+        w, X = np.linalg.eig(F)
+        X = X / np.linalg.norm(X, axis=0)
+    assert w is not None
+    order: list[int] = []
+    cols: list[int] = []
+    for z in _scipy_order(w):
+        j = next(i for i in np.argsort(np.abs(w - z)) if i not in order)
+        order.append(int(j))
+        res = np.linalg.norm(F @ X - X * z, axis=0)
+        k = next(i for i in np.argsort(res) if i not in cols)
+        cols.append(int(k))
+    return w[order], X[:, cols]
+
+
 def place(A: ArrayLike, B: ArrayLike, poles: ArrayLike, method: str = "optdesign", rtol: float = 1e-3,
           maxiter: int = 30, *, objective: str = "kappa2", dt: float | None = None, **options: Any
           ) -> PlacementResult:
-    """Robust pole placement, a drop-in for :func:`scipy.signal.place_poles`.
+    """Robust pole placement minimizing ``cond(X)``, with the call form of :func:`scipy.signal.place_poles`.
 
-    ``from optdesign import place as place_poles`` switches: same arguments, same result fields
-    (``gain_matrix``, ``computed_poles``, ``requested_poles``, ``X``, ``rtol``, ``nb_iter``), plus
-    ``status`` / ``success`` / ``verification``.  The gain minimizes the eigenvector condition number
-    (:func:`well_conditioned_feedback` with fixed poles); scipy's YT and KNV0 placements are among
-    its starts, and the design is never worse than its starts in the minimized measure.
+    Same arguments and result fields as scipy (``gain_matrix``, ``computed_poles``,
+    ``requested_poles``, ``X``, ``rtol``, ``nb_iter``), plus ``status`` / ``success`` /
+    ``verification``; :func:`optdesign.compat.scipy.place_poles` is the strict drop-in (scipy's
+    meanings of ``rtol`` and ``nb_iter``, its warning).  The gain minimizes ``cond(X)`` of the
+    unit-column right eigenvectors of ``A - B K`` (scipy's robustness measure) by the placement
+    engine in controller mode; scipy's YT and KNV0 placements are among its starts, and the design
+    is never worse than its starts.  With one input and a repeated pole the gain is unique
+    (Ackermann's formula; ``A - B K`` defective, kappa2 infinite).
 
     Parameters
     ----------
     A : (n, n) array_like
     B : (n, m) array_like
     poles : (n,) array_like
-        Closed-loop poles, conjugate-closed; a pole may repeat up to ``rank(B)`` times.  Unstable
-        poles are allowed (the verification then checks the poles, not stability).
+        Closed-loop poles, a 1-D array (a column (n, 1) is refused, as scipy does), conjugate-closed;
+        a pole may repeat up to ``rank(B)`` times, or any number of times when ``rank(B) = 1``.
+        Unstable poles are allowed (the verification then checks the poles, not stability).
     method : {"optdesign", "YT", "KNV0"}
-        Accepted for compatibility: YT and KNV0 are always starts, the optimization always runs.
-    rtol, maxiter
-        Accepted (and validated) for compatibility with scipy's signature; they tune scipy's
-        iteration, not the NLP (IPOPT's tolerance: ``options={"ipopt.tol": ...}``).
+        Accepted for compatibility (YT and KNV0 are always starts; the optimization always runs);
+        ``"KNV0"`` refuses complex poles, as scipy does.
+    rtol : float
+        Relative-decrease tolerance of the engine's last stage where tighter than its own (1e-9);
+        ``<= 0`` runs that stage to ``maxiter``; ``> 1`` is refused (scipy's rule).
+    maxiter : int
+        BFGS iterations per stage of the engine's continuation, ``>= 1`` (measured on the 31
+        benchmark problems: 30 gives cond(X) within 8e-4 of 400, the same on 30 of them).
     objective : {"kappa2", "kappa_fro", "eta"}
     dt : float, optional
         Sampling period: the stability test of a discrete design (``|z| < 1``).
     **options
-        Passed to :func:`well_conditioned_feedback` (``structure``, ``max_gain``, ``starts``,
-        ``seed``, ``options``, ``time_limit``, ...).
+        Passed to :func:`well_conditioned_feedback` (``starts``, ``seed``, ``time_limit``, ...).
 
     Returns
     -------
@@ -373,9 +474,14 @@ def place(A: ArrayLike, B: ArrayLike, poles: ArrayLike, method: str = "optdesign
     Raises
     ------
     ValidationError
-        Bad method, rtol or maxiter; and as :func:`well_conditioned_feedback`.
-    NotObservableError
-        (A, B) not controllable.
+        Bad method, rtol or maxiter; KNV0 with complex poles.
+    DimensionError
+        Bad shapes; poles not a 1-D array of n.
+    DefectivePolesError
+        A pole repeated more than ``rank(B)`` times with ``rank(B) >= 2`` (no diagonalizable, hence no
+        finite-cond(X), closed loop; scipy refuses it too).
+    NotControllableError
+        (A, B) not controllable (a ``ValueError``, as scipy's).
 
     Examples
     --------
@@ -385,38 +491,51 @@ def place(A: ArrayLike, B: ArrayLike, poles: ArrayLike, method: str = "optdesign
     ([[8.0, 4.0]], True)
     """
     as_str("method", method, ("optdesign", "YT", "KNV0"))
-    rtol = as_positive_float("rtol", rtol)
+    rtol = _scipy_rtol(rtol)
     maxiter = as_int("maxiter", maxiter, 1)
     A = as_square("A", A)
     B = as_matrix("B", B, (A.shape[0], None))
-    target = as_poles("poles", poles, A.shape[0])
+    target = strict_poles("poles", poles, A.shape[0])
+    if method == "KNV0" and np.any(target.imag != 0):
+        raise ValidationError("method 'KNV0' places real poles only (scipy: 'Complex poles are not supported "
+                              f"by KNV0'); found complex poles {[complex(z) for z in target if z.imag]}")
     disc = dt is not None
     stable = bool(np.all(np.abs(target) < 1.0)) if disc else bool(np.all(target.real < 0.0))
-    C = np.zeros((1, A.shape[0]))
-    pl = Plant(A, C, B=B, dt=dt)
-    design = well_conditioned_feedback(pl, poles=target, objective=objective, allow_unstable=not stable,
-                                       **options)
+    pl = Plant(A, np.zeros((1, A.shape[0])), B=B, dt=dt)
+    _require_controllable(dual_plant(A, B, dt=dt), "placing every closed-loop pole")
+    fields = _controller_design(A, B, target, disc, not stable, bool(options.get("structure") is not None),
+                                {"objective": objective, **options}, max_iter=maxiter,
+                                final_ftol=min(rtol, 1e-9))
+    if fields is not None:
+        design = _feedback_from_fields(fields, pl, target, objective)
+    else:
+        design = well_conditioned_feedback(pl, poles=target, objective=objective, allow_unstable=not stable,
+                                           **options)
+    return _placement_result(A, B, target, design, method=method, rtol=rtol, maxiter=maxiter)
+
+
+def _placement_result(A: NDArray, B: NDArray, target: NDArray, design: FeedbackDesign, *, method: str,
+                      rtol: float, maxiter: int) -> PlacementResult:
     req = _scipy_order(target)
     K = design.K
     if K is None or not np.all(np.isfinite(K)):
-        computed, X, kappa, achieved = np.full(req.shape, np.nan + 0j), None, float("nan"), float("inf")
+        computed, X, kappa, achieved, kd = np.full(req.shape, np.nan + 0j), None, math.nan, math.inf, math.nan
     else:
-        w, V = np.linalg.eig(A - B @ K)
-        order = []
-        for z in _scipy_order(w):   # match each eigenvalue to its eigenvector column
-            j = next(i for i in np.argsort(np.abs(w - z)) if i not in order)
-            order.append(int(j))
-        computed, X = w[order], V[:, order] / np.linalg.norm(V[:, order], axis=0)
-        kappa = float(np.linalg.cond(X))
-        achieved = design.verification["feedback_pole_error"].value \
-            if "feedback_pole_error" in design.verification else float("nan")
+        F = A - B @ K
+        computed, X = _in_scipy_order(F, design.X)
+        kappa = design.kappa2_right if design.X is not None or not math.isfinite(design.kappa2_right) \
+            else float(np.linalg.cond(X))
+        pe = [c for c in design.verification if c.name == "feedback_pole_error"]
+        achieved = pe[0].value if pe else float(classical_pole_error(np.linalg.eigvals(F), target))
+        kd = float(metrics.kappa2(F.T))
     iters = design.solver_stats.iterations or 0
     return PlacementResult(gain_matrix=K, computed_poles=computed, requested_poles=req, X=X, rtol=achieved,
-                           nb_iter=int(iters), kappa2=kappa, kappa2_dual=design.kappa2, design=design,
+                           nb_iter=int(iters), kappa2=kappa, kappa2_dual=kd, design=design,
                            status=design.status, message=design.message, solver_stats=design.solver_stats,
                            verification=design.verification, certificate=design.certificate,
-                           target_poles=target,
-                           extra={"method": method, "scipy_rtol": rtol, "scipy_maxiter": maxiter})
+                           target_poles=target, route=design.route,
+                           extra={"method": method, "scipy_rtol": rtol, "scipy_maxiter": maxiter,
+                                  **design.extra})
 
 
 # --------------------------------------------------------------------------- inverse LQR
@@ -495,6 +614,7 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
     ----------
     plant : Plant or state-space system
         A (n, n), B (n, m); C (p, n) only for the ``"output"`` structures; continuous or discrete.
+        A feedthrough D is ignored (LQR uses neither C nor D).
     poles : (n,) array_like of complex
         Target closed-loop poles, conjugate-closed (stable: every LQR loop is).
     R : (m, m) array_like, optional
@@ -539,7 +659,7 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
     Gd, kstruct = _lqr_structure(structure, pl)
     dual = dual_plant(A, B, dt=pl.dt, G=Gd, R=Rm, name=pl.name)
     _require_controllable(dual, "placing every LQR pole")
-    target = as_poles("poles", poles, pl.n)
+    target = strict_poles("poles", poles, pl.n)
     res = kalman_for_poles(dual, target, objective=objective, q_structure=kstruct, Q_nominal=Q_nominal,
                            **options)
     K = None if res.L is None else np.array(res.L, dtype=float).T
@@ -555,5 +675,5 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
                             message=f"inverse LQR by duality: {_primal_words(res.message)}",
                             solver_stats=res.solver_stats,
                             verification=Verification.of(checks), certificate=res.certificate,
-                            target_poles=target,
+                            target_poles=target, route=getattr(res, "route", Route()),
                             extra={"dual": "kalman_for_poles of (A', B'), K = L', X = P"})

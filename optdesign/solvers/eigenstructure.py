@@ -64,6 +64,8 @@ from ..errors import DefectivePolesError, DimensionError, ValidationError
 
 __all__ = [
     "OBJECTIVES",
+    "MEASURES",
+    "left_spectral_objective",
     "KAPPA2_CONTINUATION",
     "DefectivePolesError",
     "EigenstructureEngine",
@@ -89,6 +91,10 @@ OBJECTIVES = ("kappa2", "kappa_fro", "eta")
 KAPPA2_CONTINUATION: tuple[int | None, ...] = (4, 64, 1024, 16384, None)
 
 Objective = Literal["kappa2", "kappa_fro", "eta"]
+
+#: which eigenvectors of ``A - L C`` the conditioning objectives measure (:class:`FixedPoleModel`)
+MEASURES = ("right", "left")
+Measure = Literal["right", "left"]
 
 
 # --------------------------------------------------------------------------- pole sets
@@ -305,9 +311,10 @@ class EigenstructureEngine:
                 out.append(mu)
         return np.asarray(out, dtype=complex)
 
-    def model(self, poles: ArrayLike) -> FixedPoleModel:
-        """The parametrization for one pole set (bases from the cache)."""
-        return FixedPoleModel(self, poles)
+    def model(self, poles: ArrayLike, *, measure: Measure = "right") -> FixedPoleModel:
+        """The parametrization for one pole set (bases from the cache); ``measure`` as
+        :class:`FixedPoleModel`."""
+        return FixedPoleModel(self, poles, measure=measure)
 
 
 class FixedPoleModel:
@@ -325,6 +332,13 @@ class FixedPoleModel:
         Relative tolerance of :func:`~optdesign._validate.as_poles` (real vs complex, conjugate
         partners); 0 for poles that are exactly conjugate-closed (a pair close to the real axis
         stays a pair).
+    measure : {"right", "left"}, default "right"
+        Which eigenvectors of ``A - L C`` the objectives (kappa2, kappa_fro) measure: ``"right"``
+        the unit-column right eigenvectors ``V~`` (the observer's measure); ``"left"`` the unit-norm
+        left eigenvectors, i.e. ``X = W~^T`` with unit columns -- the right eigenvectors of the
+        transpose ``(A - L C)' = A_c - B_c K`` of a state-feedback loop (``A_c = A'``,
+        ``B_c = C'``, ``K = L'``): cond(X) of scipy's ``place_poles`` and of Byers & Nash.  eta is
+        invariant under transposition and the same in both.
 
     Raises
     ------
@@ -336,8 +350,12 @@ class FixedPoleModel:
         A pole repeated more than ``rank C`` times.
     """
 
-    def __init__(self, engine: EigenstructureEngine, poles: ArrayLike, *, tol: float = 1e-8) -> None:
+    def __init__(self, engine: EigenstructureEngine, poles: ArrayLike, *, tol: float = 1e-8,
+                 measure: Measure = "right") -> None:
+        if measure not in MEASURES:
+            raise ValidationError(f"measure must be one of {MEASURES}; found {measure!r}")
         self.engine = engine
+        self.measure = measure
         n = engine.n
         P = as_poles("poles", poles, n, tol=tol)
         sl = self.slots = _Slots.of(P)
@@ -480,6 +498,8 @@ class FixedPoleModel:
         try:
             if objective == "eta":
                 f, K = self._eta(W, gradient)
+            elif self.measure == "left":
+                f, K = left_spectral_objective(W, objective, k, gradient)
             else:
                 f, K, _ = spectral_objective(W, objective, k, gradient)
         except np.linalg.LinAlgError:
@@ -565,8 +585,10 @@ class FixedPoleModel:
         return np.real((eng.A - M) @ eng.Cpinv)
 
     def design(self, x: NDArray) -> tuple[NDArray[np.float64], NDArray[np.complex128], float, float]:
-        """``(L, V~, kappa2, kappa_fro)`` of the coordinates: the gain, the unit-column right
-        eigenvectors (complex) and their condition numbers.
+        """``(L, V~, kappa2, kappa_fro)`` of the coordinates: the gain, the measured unit-column
+        eigenvector matrix (complex) and its condition numbers.  ``V~`` holds the right eigenvectors
+        of ``A - L C`` (``measure="right"``, ``(A - L C) V~ = V~ diag(poles)``) or the transposed
+        unit-norm left eigenvectors (``"left"``: ``X = W~^T``, ``(A - L C)' X = X diag(poles)``).
 
         Raises
         ------
@@ -576,7 +598,10 @@ class FixedPoleModel:
         W = self.W(x)
         V = np.linalg.inv(W)
         L = self._gain_from(W, V)
-        Vt = (V / np.linalg.norm(V, axis=0)).astype(complex)
+        if self.measure == "left":
+            Vt = (W / np.linalg.norm(W, axis=1)[:, None]).T.astype(complex)
+        else:
+            Vt = (V / np.linalg.norm(V, axis=0)).astype(complex)
         s = np.linalg.svd(Vt, compute_uv=False)
         k2 = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
         kf = float(np.linalg.norm(Vt) * np.linalg.norm(np.linalg.inv(Vt)))
@@ -631,6 +656,40 @@ def spectral_objective(
     K = spectral_dW(F, V, Vt, d)
     K[~np.isfinite(f)] = 0.0
     return f, K, V
+
+
+def left_spectral_objective(
+    W: NDArray, objective: str, k: int | None, gradient: bool = True
+) -> tuple[NDArray, NDArray | None]:
+    """``(f (s,), K = df/dW)`` of kappa2 / its bound ``phi_k`` / kappa_fro of the unit-row ``W~``.
+
+    ``W~ = R^-1 W`` (``r_j = ||w_j||``) measured as ``X = W~^T`` (unit columns; kappa2 is the same for
+    ``W~`` and ``X``).  With ``G~ = df/dW~ = (df/dX)^T`` and ``dr_j = Re(conj(w_j) . dw_j) / r_j``:
+    row ``j`` of ``K`` is ``g~_j / r_j - w_j Re(conj(g~_j) . w_j) / r_j^3``.  kappa2 needs no inverse
+    (one SVD); ``f = inf`` (and ``K`` zero) for singular members.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        kappa_fro of an exactly singular member (the caller evaluates the members one by one).
+    """
+    r = np.sqrt((W.real**2 + W.imag**2).sum(axis=2) if np.iscomplexobj(W) else np.einsum("sij,sij->si", W, W))
+    if not (r.min() > 0.0 and math.isfinite(float(r.max()))):
+        raise np.linalg.LinAlgError("zero or non-finite eigenvector row")
+    Wt = W / r[:, :, None]
+    X = Wt.transpose(0, 2, 1)
+    ones = np.ones(r.shape)
+    Xinv = np.linalg.inv(X) if objective == "kappa_fro" else X  # only kappa_fro reads it
+    f, F = _spectral_terms(X, ones, Xinv, objective, k)
+    f = np.where(np.isfinite(f), f, math.inf)
+    if not gradient:
+        return f, None
+    Gt = F.transpose(0, 2, 1)
+    a = (Gt.conj() * W).real.sum(axis=2) if np.iscomplexobj(Gt) or np.iscomplexobj(W) \
+        else np.einsum("sij,sij->si", Gt, W)
+    K = Gt / r[:, :, None] - W * (a / r**3)[:, :, None]
+    K[~np.isfinite(f)] = 0.0
+    return f, K
 
 
 def padded_bases(bases: list[NDArray], n: int, r: int, dtype) -> NDArray:

@@ -38,6 +38,7 @@ from .eigenstructure import (
     OBJECTIVES,
     EigenstructureEngine,
     FixedPoleModel,
+    Measure,
     Objective,
     pole_multiplicities,
     spread_poles,
@@ -79,6 +80,11 @@ class StartRecord:
         Why the last stage stopped.
     time : float
         CPU seconds.
+    last_iterations : int
+        BFGS steps of the last continuation stage (the exact objective).
+    last_decrease : float
+        Relative decrease of the objective over the last iterations of that stage
+        (:attr:`~optdesign.solvers.quasi_newton.QNResult.decrease`).
     L : (n, p) ndarray or None
         The start's final gain (None when it has none), so that a caller can verify every start.
     V : (n, n) ndarray of complex or None
@@ -98,6 +104,8 @@ class StartRecord:
     L: NDArray[np.float64] | None = field(default=None, repr=False)
     V: NDArray[np.complex128] | None = field(default=None, repr=False)
     poles: NDArray[np.complex128] | None = field(default=None, repr=False)
+    last_iterations: int = 0
+    last_decrease: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -193,6 +201,9 @@ def run_starts(
     deadline: Deadline,
     max_iter: int,
     stages: tuple[int | None, ...],
+    *,
+    report: dict[int, tuple[int, float]] | None = None,
+    final_ftol: float | None = None,
 ) -> list[tuple[NDArray, int, int, str]]:
     """Minimize from every row of ``X0`` through the continuation ``stages``.
 
@@ -202,13 +213,18 @@ def run_starts(
     to 1e-6) stop there: they would follow the same path (measured on random n = 4..6 plants: of 8
     starts, 4 to 6 typically end in two or three basins).  Per start
     ``(x, iterations, evaluations, reason)``; a dropped start reports ``"duplicate"``.
+    ``report`` (a dict, filled): per start index, ``(iterations, relative decrease)`` of the last
+    stage it ran.  ``final_ftol``: the decrease tolerance of the last stage (default its own).
     """
     X = np.array(X0, dtype=float)
     s = X.shape[0]
     its, evs, reasons = np.zeros(s, int), np.zeros(s, int), ["converged"] * s
     H: list[NDArray | None] = [None] * s
     alive = list(range(s))
-    for k in stages:
+    for si, k in enumerate(stages):
+        ftol = _STAGE_FTOL.get(k, 1e-8)
+        if final_ftol is not None and si == len(stages) - 1:
+            ftol = final_ftol
         if deadline.expired:
             for i in alive:
                 reasons[i] = "time_limit"
@@ -218,7 +234,7 @@ def run_starts(
             return model.evaluate_batch(Z, objective, _k)
 
         res, Hs = bfgs_minimize_batch(
-            fun, X[alive], max_iter=max_iter, ftol=_STAGE_FTOL.get(k, 1e-8), gtol=0.0 if k is None else _GTOL,
+            fun, X[alive], max_iter=max_iter, ftol=ftol, gtol=0.0 if k is None else _GTOL,
             deadline=deadline, H0=[H[i] for i in alive],
         )
         for j, (i, r) in enumerate(zip(alive, res, strict=True)):
@@ -226,7 +242,9 @@ def run_starts(
             its[i] += r.iterations
             evs[i] += r.evaluations
             reasons[i] = r.reason
-        alive = _distinct(model, X, alive, [r.f for r in res], reasons, _STAGE_FTOL.get(k, 1e-8))
+            if report is not None:
+                report[i] = (int(r.iterations), float(r.decrease))
+        alive = _distinct(model, X, alive, [r.f for r in res], reasons, max(ftol, 1e-12))
     return [(model.normalize(X[i]), int(its[i]), int(evs[i]), reasons[i]) for i in range(s)]
 
 
@@ -268,6 +286,8 @@ def place_fixed(
     gain_mask: ArrayLike | None = None,
     max_iter: int = 400,
     engine: EigenstructureEngine | None = None,
+    measure: Measure = "right",
+    final_ftol: float | None = None,
 ) -> PlacementOutcome:
     """Observer gain with prescribed poles minimizing kappa2 (or kappa_fro, eta) of ``A - L C``.
 
@@ -300,6 +320,14 @@ def place_fixed(
         BFGS iterations per continuation stage.
     engine : EigenstructureEngine, optional
         Re-use the bases of an engine built for ``(A, C)`` (``A`` and ``C`` are then ignored).
+    measure : {"right", "left"}, default "right"
+        Which eigenvectors of ``A - L C`` kappa2 / kappa_fro measure (:class:`FixedPoleModel`):
+        ``"left"`` is the state-feedback measure of the transposed loop ``A' - C' L'`` (cond of its
+        unit-column right eigenvectors, scipy's ``X``); the outcome's ``V`` and condition numbers
+        are then of that matrix (``(A - L C)' V = V diag(poles)``).
+    final_ftol : float, optional
+        Relative-decrease tolerance of the last continuation stage (default 1e-9); a value <= 0
+        runs that stage to ``max_iter`` or to a failed line search (scipy's ``rtol <= 0``).
 
     Returns
     -------
@@ -330,7 +358,7 @@ def place_fixed(
     starts = default_starts(eng.n) if starts is None else as_int("starts", starts, 1)
     requested = as_poles("poles", poles, eng.n)
     target = requested if separation is None else spread_poles(requested, eng.rank, separation)
-    model = FixedPoleModel(eng, target)
+    model = FixedPoleModel(eng, target, measure=measure)
     if objective == "eta" and any(m > 1 for _, m in pole_multiplicities(target)):
         raise ValidationError("objective 'eta' needs distinct poles (eta is infinite at a repeated pole)")
     common: dict[str, Any] = {"requested_poles": requested,
@@ -341,7 +369,7 @@ def place_fixed(
     cands = _start_points(model, eng, target, starts, seed, warm_start)
     if zero is not None:
         return masked_solve(model, cands, objective, dl, max_iter, zero, t0, common)
-    records, best = _solve_starts(model, cands, objective, dl, max_iter)
+    records, best = _solve_starts(model, cands, objective, dl, max_iter, final_ftol)
     its, evs = sum(r.iterations for r in records), sum(r.evaluations for r in records)
     timed_out = any(r.reason == "time_limit" for r in records)
     if best is None:
@@ -385,7 +413,8 @@ def default_starts(n: int) -> int:
 
 
 def _solve_starts(
-    model: FixedPoleModel, cands: list[tuple[str, NDArray]], objective: str, dl: Deadline, max_iter: int
+    model: FixedPoleModel, cands: list[tuple[str, NDArray]], objective: str, dl: Deadline, max_iter: int,
+    final_ftol: float | None = None,
 ) -> tuple[list[StartRecord], tuple[int, NDArray] | None]:
     """Run every start (lockstep); per-start records and ``(index, coordinates)`` of the best."""
     stages = KAPPA2_CONTINUATION if objective == "kappa2" else (None,)
@@ -393,8 +422,11 @@ def _solve_starts(
     v0 = [model.metric(x0, objective) for _, x0 in cands]
     live = [i for i, v in enumerate(v0) if math.isfinite(v)]
     runs = []
+    last: dict[int, tuple[int, float]] = {}
     if live:
-        runs = run_starts(model, np.stack([cands[i][1] for i in live]), objective, dl, max_iter, stages)
+        runs = run_starts(model, np.stack([cands[i][1] for i in live]), objective, dl, max_iter, stages,
+                          report=last, final_ftol=final_ftol)
+    last_of = {i: last.get(j, (0, math.nan)) for j, i in enumerate(live)}
     share = (time.process_time() - ts) / max(1, len(live))
     out = dict(zip(live, runs, strict=True))
     records: list[StartRecord] = []
@@ -411,7 +443,8 @@ def _solve_starts(
             L, Vt, k2, _ = model.design(x)
         except np.linalg.LinAlgError:
             L, Vt, k2 = None, None, math.inf
-        records.append(StartRecord(origin, k2, val, v0[i], its, evs, reason, share, L, Vt, model.poles))
+        records.append(StartRecord(origin, k2, val, v0[i], its, evs, reason, share, L, Vt, model.poles,
+                                   *last_of[i]))
         if math.isfinite(val) and (best is None or val < best[0]):
             best = (val, i, x)
     return records, None if best is None else (best[1], best[2])
@@ -560,8 +593,8 @@ def masked_solve(
         L = model.design(X[i])[0]
         L[zero] = 0.0
         ok = viol[i] <= MASK_TOL
-        k2 = metrics.kappa2(eng.A - L @ eng.C) if ok else math.inf
-        val = _metric_of_gain(eng, L, objective) if ok else math.inf
+        k2 = metrics.kappa2(_measured(model, L)) if ok else math.inf
+        val = _metric_of_gain(model, L, objective) if ok else math.inf
         why = reason if ok else f"mask violation {viol[i]:.1e}"
         records.append(StartRecord(origin, k2, val, math.inf, 0, 0, why, 0.0, L if ok else None))
         if ok and math.isfinite(val) and (best is None or val < best[0]):
@@ -576,7 +609,7 @@ def masked_solve(
             its, evs, tuple(records), time=time.process_time() - t0, **common,
         )
     val, ib, L = best
-    V, w = metrics.eigenvector_matrix(eng.A - L @ eng.C, return_eigenvalues=True)
+    V, w = metrics.eigenvector_matrix(_measured(model, L), return_eigenvalues=True)
     sv = np.linalg.svd(V, compute_uv=False)
     status = Status.TIME_LIMIT if reason == "time_limit" else Status.OPTIMAL
     return PlacementOutcome(
@@ -588,6 +621,12 @@ def masked_solve(
     )
 
 
-def _metric_of_gain(eng: EigenstructureEngine, L: NDArray, objective: str) -> float:
-    X = eng.A - L @ eng.C
+def _measured(model: FixedPoleModel, L: NDArray) -> NDArray:
+    """The matrix whose right eigenvectors ``model`` measures: ``A - L C`` or its transpose."""
+    F = model.engine.A - L @ model.engine.C
+    return F.T if model.measure == "left" else F
+
+
+def _metric_of_gain(model: FixedPoleModel, L: NDArray, objective: str) -> float:
+    X = _measured(model, L)
     return {"kappa2": metrics.kappa2, "kappa_fro": metrics.kappa_fro, "eta": metrics.eta}[objective](X)

@@ -74,6 +74,9 @@ class QNResult:
         Objective evaluations (the start included).
     reason : str
         Why it stopped (see the module docstring).
+    decrease : float
+        Relative decrease of ``f`` over the last ``window`` iterations (or since the start, if
+        fewer), ``(f_{k - window} - f) / max(1, |f|)``: what the ``ftol`` test compares.
     """
 
     x: NDArray[np.float64]
@@ -82,6 +85,7 @@ class QNResult:
     iterations: int
     evaluations: int
     reason: str
+    decrease: float = float("nan")
 
 
 class _Member:
@@ -268,7 +272,16 @@ def bfgs_minimize_batch(
             else:
                 still.append(m)
         running = still
-    return [QNResult(m.x, m.f, m.g, m.it, m.nev, m.reason) for m in mem], [m.H for m in mem]
+    return [QNResult(m.x, m.f, m.g, m.it, m.nev, m.reason, _decrease(m.hist, m.f, window)) for m in mem], \
+        [m.H for m in mem]
+
+
+def _decrease(hist: list[float], f: float, window: int) -> float:
+    """Relative decrease of ``f`` over the last ``window`` accepted iterations (or all of them)."""
+    if len(hist) < 2:
+        return 0.0
+    ref = hist[-1 - min(window, len(hist) - 1)]
+    return float((ref - f) / max(1.0, abs(f)))
 
 
 def bfgs_minimize(

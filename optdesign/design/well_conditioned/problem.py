@@ -470,6 +470,10 @@ class WellConditionedProblem:
         rank = self.engine.rank
         vals, counts = np.unique(np.round(target, 10), return_counts=True)
         k = int(np.argmax(counts))
+        if counts[k] > rank == 1 and objective != "eta":  # one output: the poles fix L (issue 27)
+            from ..feedback_controller import ackermann_observer
+            return ackermann_observer(plant, target, objective, stable=not self.allow_unstable, mask=self.mask,
+                                      max_gain=self.bounds.get("max_gain"))
         if counts[k] > rank:
             reason = (
                 f"pole {vals[k]} is requested {counts[k]} times but rank(C) = {rank}: the eigenspace of "

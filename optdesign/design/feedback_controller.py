@@ -1,0 +1,270 @@
+r"""State feedback on its own measure: the controller mode of the fixed-pole placement engine.
+
+``A - B K`` with prescribed poles is placed by the eigenstructure engine built on the dual pair
+``(A', B')`` (:class:`~optdesign.solvers.eigenstructure.EigenstructureEngine`), but with
+``measure="left"``: the engine's left eigenvectors of ``A' - K' B'`` are the right eigenvectors of
+``A - B K``, so it minimizes ``cond(X)`` of the unit-column right eigenvector matrix ``X`` of the
+closed loop -- the measure of scipy's ``place_poles`` (its ``X``), MATLAB's ``place`` and the
+Kautsky-Nichols-Van Dooren / Byers-Nash / Chu literature -- not the dual's (the left eigenvectors
+of ``A - B K``).
+
+Poles repeated beyond ``rank(B)``: with one input (``rank(B) = 1``) the poles fix the gain, which
+Ackermann's formula gives (``A - B K`` is then defective: kappa2 infinite, and said so); with more
+inputs no ``A - B K`` has a pole of geometric multiplicity above ``rank(B)`` and the request is
+refused (:class:`~optdesign.errors.DefectivePolesError`, a ``ValueError``), as scipy refuses it.
+
+Every answer is verified here, on ``A - B K`` itself (numpy's eigenvalues; the engine's basis
+against the eigen-equation and against ``metrics.kappa2``), independently of the engine.
+
+References
+----------
+Kautsky, Nichols & Van Dooren, Int. J. Control 41(5) (1985); Byers & Nash, "Approaches to robust
+pole assignment", Int. J. Control 49(1) (1989); Chu, "Pole assignment via the Schur form", Systems
+& Control Letters 56 (2007); Ackermann, Regelungstechnik 20 (1972).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from .._deadline import Deadline
+from .._validate import as_poles
+from ..analysis import metrics
+from ..classical.placement import acker
+from ..classical.riccati import sort_poles
+from ..errors import DefectivePolesError, DimensionError
+from ..results import Check, Route, SolverStats, Stage, Status, Verification
+from ..solvers.eigenstructure import EigenstructureEngine, pole_multiplicities
+from ..solvers.eigenstructure_fixed import place_fixed
+from .verification import (
+    eig_residual_check,
+    eigen_spread,
+    kappa2_agreement_check,
+    pole_check,
+    stability_check,
+)
+
+__all__ = ["strict_poles", "input_rank", "needs_ackermann", "controller_fields", "ackermann_fields",
+           "ackermann_observer", "backward_check", "charpoly_check",
+           "POLE_TOL", "CHARPOLY_TOL"]
+
+#: relative pole error accepted (as the observer verbs' ``pole_error``; raised to the rounding floor)
+POLE_TOL = 1e-6
+#: normalized characteristic-polynomial error accepted for a defective (Ackermann) closed loop,
+#: whose eigenvalues are computable only to ``eps^(1/m)`` at a pole of multiplicity m; the
+#: coefficients of ``det(sI - F)`` are (backward stable eigenvalues), so they are checked instead
+CHARPOLY_TOL = 1e-8
+#: backward error of a requested pole, ``sigma_min(F - lambda I) / max(||F||_2, |lambda|)``, accepted
+#: in units of ``n eps`` (measured: 1e-18 for Ackermann's gain on the Chow-Kokotovic plant with
+#: ||F|| ~ 1e6, 1e-7 for the same gain perturbed by 1e-6)
+BACKWARD_FACTOR = 1e3
+
+_EPS = float(np.finfo(float).eps)
+
+
+def strict_poles(name: str, poles: ArrayLike, n: int, *, tol: float = 1e-8) -> NDArray[np.complex128]:
+    """``as_poles`` refusing any array that is not 1-D (scipy: "Poles must be a 1D array like.").
+
+    Raises
+    ------
+    DimensionError
+        ``poles`` is not 1-D (a (4, 1) column is refused, not flattened), or not ``n`` poles.
+    """
+    as_poles(name, poles, tol=tol)          # non-numeric, ragged, matrix-shaped: its messages
+    shape = np.shape(poles)
+    if len(shape) != 1:
+        raise DimensionError(f"{name} must be a 1-D array of {n} poles; found an array of shape {shape} "
+                             f"(not flattened: pass {name}.ravel() if that is what you mean)")
+    return as_poles(name, poles, n, tol=tol)
+
+
+def input_rank(M: NDArray) -> int:
+    """Numerical rank of an input (or output) matrix, relative to its largest singular value."""
+    s = np.linalg.svd(np.asarray(M, dtype=float), compute_uv=False)
+    return int(np.sum(s > max(M.shape) * _EPS * (float(s[0]) if s.size else 0.0)))
+
+
+def needs_ackermann(target: NDArray, rank: int, *, matrix: str = "B", loop: str = "A - B K") -> bool:
+    """True when a pole repeats and ``rank == 1`` (the gain is fixed: Ackermann's formula).
+
+    Raises
+    ------
+    DefectivePolesError
+        A pole repeated more than ``rank`` times with ``rank >= 2``.
+    """
+    mults = pole_multiplicities(target)
+    v, m = max(mults, key=lambda t: t[1])
+    if m <= rank:
+        return False
+    if rank == 1:
+        return True
+    raise DefectivePolesError(
+        f"poles: {complex(v):.6g} is requested {m} times but rank({matrix}) = {rank}: every eigenvalue of "
+        f"{loop} has at most rank({matrix}) independent eigenvectors, so {loop} would be defective; with "
+        f"rank({matrix}) >= 2 this request is refused (scipy's place_poles refuses it too); repeat a pole "
+        f"at most {rank} times, or spread it (optdesign.solvers.eigenstructure.spread_poles)",
+        pole=v, multiplicity=m, rank=rank)
+
+
+def _basis_checks(F: NDArray, X: NDArray, poles: NDArray, k2_x: float) -> tuple[list[Check], float]:
+    """The engine's basis against the eigen-equation and metrics.kappa2; returns (checks, kappa2)."""
+    checks = [eig_residual_check(F, X, poles)]
+    k2_np = float(metrics.kappa2(F))
+    if math.isfinite(k2_np):
+        checks.append(kappa2_agreement_check(k2_x, k2_np, eigen_spread(F, poles)))
+    # a semisimple repeated pole: the basis is not unique; the verified engine basis is reported
+    return checks, k2_x
+
+
+def _rename(checks: list[Check]) -> list[Check]:
+    """Observer words in a check's detail -> state-feedback words (``stability_margin`` ->
+    ``feedback_stability_margin``, as the dual route names it)."""
+    names = {"stability_margin": "feedback_stability_margin"}
+    return [Check(name=names.get(c.name, c.name), value=c.value, tolerance=c.tolerance, passed=c.passed, sense=c.sense,
+                  detail=c.detail.replace("A - LC", "A - B K").replace("A - L C", "A - B K"))
+            for c in checks]
+
+
+def controller_fields(A: NDArray, B: NDArray, target: NDArray, *, objective: str, discrete: bool,
+                      stable: bool, starts: int | None, seed: int, time_limit: float | Deadline | None,
+                      gain_mask: NDArray | None = None, max_iter: int = 400,
+                      final_ftol: float | None = None) -> dict[str, Any]:
+    """Fixed poles on the engine in controller mode; the fields of a ``FeedbackDesign`` (K, poles,
+    kappa2 (= cond(X)), X, ...) with the verification on ``A - B K``.
+
+    ``gain_mask`` (m, n) of bool: free entries of K.  ``max_iter`` and ``final_ftol`` as
+    :func:`~optdesign.solvers.eigenstructure_fixed.place_fixed` (the drop-in's ``maxiter``, ``rtol``).
+    """
+    t0 = time.process_time()
+    eng = EigenstructureEngine(A.T, B.T)
+    out = place_fixed(eng.A, eng.C, target, objective=objective, starts=starts, seed=seed,  # type: ignore[arg-type]
+                      deadline=Deadline.of(time_limit), engine=eng, measure="left", max_iter=max_iter,
+                      gain_mask=None if gain_mask is None else np.asarray(gain_mask, dtype=bool).T,
+                      final_ftol=final_ftol)
+    cpu = time.process_time() - t0
+    stage = Stage("eigenstructure_engine (controller mode: cond of the right eigenvectors of A - B K)",
+                  "engine", "answered", out.message, cpu)
+    stats = SolverStats(backend="eigenstructure", native_status=out.status.value, time=cpu,
+                        iterations=int(out.iterations))
+    L = np.asarray(out.L, dtype=float)
+    if not np.all(np.isfinite(L)):
+        nan = math.nan
+        chk = [Check.at_most("finite_gain", math.inf, 0.0, "the engine found no gain")]
+        return dict(K=None, poles=np.full(A.shape[0], nan + 0j), X=None, kappa2=nan, kappa2_right=nan,
+                    eta=nan, kappa_fro=nan, gain_norm=nan, status=out.status, message=out.message,
+                    verification=Verification.of(chk), solver_stats=stats,
+                    route=(Stage(stage.name, "engine", out.status.value, out.message, cpu),), outcome=out)
+    K = L.T
+    F = A - B @ K
+    checks: list[Check] = []
+    pchk, _ = pole_check(F, target, POLE_TOL, name="feedback_pole_error", what="eig(A - B K) (numpy)")
+    checks.append(pchk)
+    if stable:
+        checks += _rename([stability_check(F, discrete)])
+    X = np.asarray(out.V, dtype=complex)   # measure="left": the unit-column right eigenvectors of A - B K
+    more, k2 = _basis_checks(F, X, np.asarray(out.poles), float(out.kappa2))
+    checks += _rename(more)
+    if gain_mask is not None:
+        zero = ~np.asarray(gain_mask, dtype=bool)
+        off = float(np.max(np.abs(K[zero]))) if zero.any() else 0.0
+        checks.append(Check.at_most("mask", off, 0.0, "largest |K| entry outside the structure mask"))
+    kf = float(np.linalg.norm(X) * np.linalg.norm(np.linalg.inv(X)))
+    status = Status.SOLVED if out.status == Status.SOLVED else out.status
+    if status == Status.ITERATION_LIMIT:  # a verified improvement on its start (as the observer verbs)
+        status = Status.OPTIMAL_INACCURATE
+    msg = (f"state feedback, controller mode: cond(X) of the unit-column right eigenvectors of A - B K "
+           f"= {k2:.6g} ({out.message})")
+    return dict(K=K, poles=sort_poles(np.linalg.eigvals(F)), X=X, kappa2=k2, kappa2_right=k2,
+                eta=float(metrics.eta(F)), kappa_fro=kf, gain_norm=float(np.linalg.norm(K, 2)),
+                status=status, message=msg, verification=Verification.of(checks), solver_stats=stats,
+                route=(stage,), outcome=out)
+
+
+def charpoly_check(F: NDArray, target: NDArray) -> Check:
+    """``feedback_charpoly_error``: the coefficients of ``det(sI - F)`` against those of the target
+    poles, on the scale ``s = max(1, ||F||_2, max |pole|)`` and relative to ``binom(n, k)`` (the
+    largest the k-th coefficient of n poles of modulus <= 1 can be)."""
+    n = F.shape[0]
+    s = max(1.0, float(np.linalg.norm(F, 2)), float(np.max(np.abs(target))))
+    c_f = np.real(np.poly(np.linalg.eigvals(F / s)))
+    c_t = np.real(np.poly(np.asarray(target) / s))
+    binom = np.array([math.comb(n, k) for k in range(n + 1)], dtype=float)
+    err = float(np.max(np.abs(c_f - c_t) / binom))
+    return Check.at_most("feedback_charpoly_error", err, CHARPOLY_TOL,
+                         "max |coefficient of det(sI - (A - B K)) - of prod(s - pole)| / binom(n, k), on the "
+                         "scale max(1, ||A - B K||, max |pole|) (a defective loop: its eigenvalues are "
+                         "not computable to better than eps^(1/multiplicity))")
+
+
+def backward_check(F: NDArray, target: NDArray) -> Check:
+    """``feedback_pole_backward_error``: each distinct requested pole ``lambda`` is an exact eigenvalue
+    of a matrix within ``sigma_min(F - lambda I)`` of F; the largest such distance relative to
+    ``max(||F||_2, |lambda|)``, against ``BACKWARD_FACTOR n eps``.  Sharp where eigenvalues are not
+    (a Jordan block moves its eigenvalue by ``eps^(1/m)``; the backward error stays at eps)."""
+    n = F.shape[0]
+    nF = float(np.linalg.norm(F, 2))
+    worst = 0.0
+    for lam, _ in pole_multiplicities(target):
+        s = np.linalg.svd(F - lam * np.eye(n), compute_uv=False)[-1]
+        worst = max(worst, float(s) / max(nF, abs(lam), 1e-300))
+    return Check.at_most("feedback_pole_backward_error", worst, BACKWARD_FACTOR * n * _EPS,
+                         "max over the requested poles of sigma_min(A - B K - pole I) / max(||A - B K||, |pole|)")
+
+
+def ackermann_fields(A: NDArray, B: NDArray, target: NDArray, *, discrete: bool, stable: bool) -> dict[str, Any]:
+    """Repeated poles with ``rank(B) = 1``: the unique gain (Ackermann), kappa2 infinite."""
+    t0 = time.process_time()
+    K = acker(A, B, target)
+    cpu = time.process_time() - t0
+    F = A - B @ K
+    checks = [backward_check(F, target), charpoly_check(F, target)]
+    if stable:
+        # the poles themselves are verified through the characteristic polynomial; stability of a
+        # defective loop is decided on the target poles with the check's own margin
+        worst = float(np.max(np.abs(target))) if discrete else float(np.max(np.real(target)))
+        checks.append(Check.at_most("feedback_target_stability", worst, 1.0 if discrete else 0.0,
+                                    "the requested poles are stable (spectral radius < 1 / max Re < 0)"))
+    v, m = max(pole_multiplicities(target), key=lambda t: t[1])
+    msg = (f"one input (rank(B) = 1): the poles fix the gain, computed by Ackermann's formula; pole "
+           f"{complex(v):.6g} is repeated {m} times, so A - B K is defective (a Jordan block): kappa2 = inf")
+    stage = Stage("ackermann", "direct", "answered", "rank one, repeated pole: the gain is unique", cpu)
+    return dict(K=K, poles=sort_poles(np.linalg.eigvals(F)), X=None, kappa2=math.inf, kappa2_right=math.inf,
+                eta=math.inf, kappa_fro=math.inf, gain_norm=float(np.linalg.norm(K, 2)), status=Status.SOLVED,
+                message=msg, verification=Verification.of(checks),
+                solver_stats=SolverStats(backend="ackermann", native_status="solved", time=cpu, iterations=0),
+                route=(stage,), outcome=None)
+
+
+def ackermann_observer(plant: Any, target: NDArray, objective: str, *, stable: bool, mask: NDArray | None,
+                       max_gain: float | None) -> Any:
+    """Observer mode of :func:`ackermann_fields`: a repeated pole with ``rank(C) = 1`` fixes L
+    (Ackermann's formula on the dual ``(A', C')``); ``A - L C`` defective, kappa2 infinite.  An
+    :class:`~optdesign.design.well_conditioned.results.ObserverDesign` with the checks on ``A - L C``
+    (the gain bound and structural zeros checked, not designed for: the gain is unique)."""
+    from .well_conditioned.results import ObserverDesign
+
+    f = ackermann_fields(plant.A.T, plant.C.T, target, discrete=plant.is_discrete, stable=stable)
+    L = f["K"].T
+    F = plant.A - L @ plant.C
+    checks = [backward_check(F, target), charpoly_check(F, target)] + [
+        c for c in f["verification"] if c.name == "feedback_target_stability"]
+    words = {"feedback_pole_backward_error": "pole_backward_error", "feedback_charpoly_error": "charpoly_error",
+             "feedback_target_stability": "target_stability"}
+    checks = [Check(name=words[c.name], value=c.value, tolerance=c.tolerance, passed=c.passed, sense=c.sense,
+                    detail=c.detail.replace("A - B K", "A - L C")) for c in checks]
+    gn = float(np.linalg.norm(L, 2))
+    if mask is not None:
+        off = float(np.max(np.abs(L[~mask]))) if (~mask).any() else 0.0
+        checks.append(Check.at_most("mask", off, 0.0, "largest |L| entry outside the structure mask"))
+    if max_gain is not None:
+        checks.append(Check.at_most("gain_bound", gn, float(max_gain), "||L||_2 <= max_gain (the gain is unique)"))
+    msg = f["message"].replace("rank(B)", "rank(C)").replace("A - B K", "A - L C").replace("one input", "one output")
+    return ObserverDesign(L=L, poles=f["poles"], kappa2=math.inf, eta=math.inf, kappa_fro=math.inf, gain_norm=gn,
+                          objective=objective, status=Status.SOLVED, message=msg, solver_stats=f["solver_stats"],
+                          verification=Verification.of(checks), target_poles=target, plant=plant,
+                          route=Route(f["route"]))
