@@ -1,4 +1,4 @@
-"""Well-conditioned state feedback by duality, compared with scipy and python-control.
+"""Well-conditioned state feedback, compared with scipy and python-control.
 
 The benchmark: Kautsky, Nichols & Van Dooren 1985, Example 1 (a chemical reactor, 4 states,
 2 inputs), closed-loop poles -0.2, -0.5, -5.0566, -8.6659.  Every method places the same poles;
@@ -9,8 +9,8 @@ they differ in how sensitive those poles are to errors in A.  The script compare
 * ``optdesign.lqr_for_poles`` -- an LQR gain (a state weight Q >= 0) with the same poles, when one
   exists, with its guaranteed margins;
 
-by kappa2 of the closed-loop eigenvectors (right, scipy's ``cond(X)``, and left, what optdesign
-minimizes), ``||K||``, the CPU time, and how far the closed-loop poles move when A is perturbed by
+by kappa2 of the closed-loop eigenvectors (right, scipy's ``cond(X)``, what optdesign minimizes
+for state feedback since 0.2.0, and left, the dual observer's measure), ``||K||``, the CPU time, and how far the closed-loop poles move when A is perturbed by
 random relative errors of 1e-2 (500 samples; figure ``examples/figures/feedback_knv1985_ex1.png``).
 
 Run (headless)::

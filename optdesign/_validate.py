@@ -395,9 +395,9 @@ def as_poles(
     Returns the poles as a complex vector, sorted with conjugate pairs adjacent
     (the member with positive imaginary part first) and conjugates made exact.
 
-    ``poles`` is a vector: shape ``(k,)``, or ``(1, k)`` / ``(k, 1)`` (one row or column, flattened);
-    a genuinely 2-D array such as shape ``(2, 2)`` is refused (:func:`as_vector`), as are strings,
-    numeric ones included.
+    ``poles`` is a vector of shape ``(k,)``.  A 2-D array is refused, a row ``(1, k)`` or a column
+    ``(k, 1)`` too (as scipy's ``place_poles`` refuses them: since 0.2.0, a (k, 1) array was
+    flattened before), as are strings, numeric ones included.
 
     Raises
     ------
@@ -410,6 +410,14 @@ def as_poles(
     NotConjugateClosedError
         A complex pole without its conjugate (with multiplicity).
     """
+    if not isinstance(poles, str):
+        try:
+            shape = np.shape(poles)
+        except ValueError:  # ragged: as_vector names it
+            shape = ()
+        if len(shape) == 2 and 1 in shape:
+            raise DimensionError(f"{name} must be a 1-D vector of shape (k,); found shape {shape} "
+                                 f"(pass np.ravel({name}) for a row or a column)")
     p = as_vector(name, poles, n, allow_complex=True).astype(complex)
     scale = max(1.0, float(np.max(np.abs(p)))) if p.size else 1.0
     is_real = np.abs(p.imag) <= tol * scale

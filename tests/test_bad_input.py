@@ -46,12 +46,13 @@ def test_bad_poles_are_refused_by_every_verb(verb, poles, error, match):
     assert isinstance(info.value, OptDesignError)
 
 
-def test_a_row_or_a_column_of_poles_is_a_vector():
-    flat = od.kalman_for_poles(PLANT, [-5.0, -8.0])
+@pytest.mark.parametrize("verb", VERBS)
+def test_a_row_or_a_column_of_poles_is_refused(verb):
+    """Issue 27 item 6: scipy's place_poles refuses poles of shape (4, 1); so does every verb (0.1 flattened
+    a row or a column silently)."""
     for shaped in ([[-5.0, -8.0]], [[-5.0], [-8.0]]):
-        res = od.kalman_for_poles(PLANT, shaped)
-        assert res.success
-        np.testing.assert_allclose(res.L, flat.L, rtol=1e-9)
+        with pytest.raises(DimensionError, match=r"poles must be a 1-D vector of shape \(k,\); found shape "):
+            VERBS[verb](shaped)
 
 
 def test_numbers_written_as_strings_are_refused():
