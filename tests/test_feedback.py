@@ -12,7 +12,7 @@ import scipy.signal
 from optdesign import Plant, kalman_for_poles, problems, well_conditioned_observer
 from optdesign.analysis import metrics
 from optdesign.design.feedback import dual_plant, lqr_for_poles, place, well_conditioned_feedback
-from optdesign.errors import DimensionError, NotObservableError, ValidationError
+from optdesign.errors import DimensionError, NotControllableError, ValidationError
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.results import Status
 
@@ -91,7 +91,7 @@ def test_place_errors():
         place(A, np.ones((3, 1)), [-1, -2])
     with pytest.raises(DimensionError, match="poles has the wrong length: expected 2, found 3"):
         place(A, B, [-1, -2, -3])
-    with pytest.raises(NotObservableError, match=r"\(A, B\) is not controllable.*uncontrollable mode\(s\) -1"
+    with pytest.raises(NotControllableError, match=r"\(A, B\) is not controllable.*uncontrollable mode\(s\) -1"
                        ):
         place(np.diag([-1.0, -2.0]), np.array([[0.0], [1.0]]), [-3, -4])
     with pytest.raises(ValidationError, match="objective must be one of"):
@@ -212,7 +212,7 @@ def test_inverse_lqr_errors():
         lqr_for_poles(plant, [-5, -8], R=np.eye(2))
     with pytest.raises(ValidationError, match="R must be positive definite"):
         lqr_for_poles(plant, [-5, -8], R=[[-1.0]])
-    with pytest.raises(NotObservableError, match=r"\(A, B\) is not controllable"):
+    with pytest.raises(NotControllableError, match=r"\(A, B\) is not controllable"):
         lqr_for_poles(Plant(np.diag([-1.0, -2.0]), [[1.0, 1.0]], B=[[0.0], [1.0]]), [-3, -4])
     with pytest.raises(ValidationError, match="state feedback needs the input matrix B"):
         lqr_for_poles(Plant([[0.0]], [[1.0]]), [-1.0])
@@ -277,7 +277,7 @@ def test_two_dimensional_poles_are_refused_not_flattened():
     B = np.array([[0.0], [1.0]])
     plant = Plant(A, [[1.0, 0.0]], B=B)
     col = np.array([[-1.0], [-2.0]])
-    with pytest.raises(DimensionError, match=r"poles must be a 1-D array of 2 poles; found .* shape \(2, 1\)"):
+    with pytest.raises(DimensionError, match=r"poles must be a 1-D vector of shape \(k,\); found shape \(2, 1\)"):
         place(A, B, col)
     with pytest.raises(DimensionError, match=r"shape \(2, 1\)"):
         well_conditioned_feedback(plant, poles=col)

@@ -73,12 +73,7 @@ def place_observer(
     """
     from scipy.signal import place_poles
 
-    as_poles("poles", poles)                # non-numeric, ragged, matrix-shaped: its messages
-    shape = np.shape(poles)
-    if len(shape) != 1:
-        raise DimensionError(f"poles must be a 1-D array of {plant.n} poles; found an array of shape "
-                             f"{shape} (not flattened)")
-    poles = as_poles("poles", poles, plant.n)
+    poles = as_poles("poles", poles, plant.n)   # 1-D only: a column (n, 1) is refused, not flattened
     plant.require_observable(what="pole placement")
     rank = np.linalg.matrix_rank(plant.C)
     vals, counts = np.unique(np.round(poles, 10), return_counts=True)

@@ -48,7 +48,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._validate import as_int, as_matrix, as_square, as_str, check_pd
+from .._validate import as_int, as_matrix, as_poles, as_square, as_str, check_pd
 from ..analysis import metrics
 from ..classical.placement import pole_error as classical_pole_error
 from ..classical.riccati import sort_poles
@@ -57,7 +57,7 @@ from ..model.coerce import as_system
 from ..model.plant import Plant
 from ..model.regions import Region
 from ..results import Check, DesignResult, Route, Status, Verification
-from .feedback_controller import ackermann_fields, controller_fields, input_rank, needs_ackermann, strict_poles
+from .feedback_controller import ackermann_fields, controller_fields, input_rank, needs_ackermann
 from .inverse_kalman import kalman_for_poles
 from .verification import pole_check, stability_check
 from .well_conditioned import well_conditioned_observer
@@ -288,7 +288,7 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
         mask = as_matrix("structure", structure, (B.shape[1], A.shape[0])).astype(bool).T
     target = None
     if poles is not None:
-        target = strict_poles("poles", poles, A.shape[0])
+        target = as_poles("poles", poles, A.shape[0])
         fields = _controller_design(A, B, target, pl.is_discrete, allow_unstable, structure is not None,
                                     options)
         if fields is not None:
@@ -495,7 +495,7 @@ def place(A: ArrayLike, B: ArrayLike, poles: ArrayLike, method: str = "optdesign
     maxiter = as_int("maxiter", maxiter, 1)
     A = as_square("A", A)
     B = as_matrix("B", B, (A.shape[0], None))
-    target = strict_poles("poles", poles, A.shape[0])
+    target = as_poles("poles", poles, A.shape[0])
     if method == "KNV0" and np.any(target.imag != 0):
         raise ValidationError("method 'KNV0' places real poles only (scipy: 'Complex poles are not supported "
                               f"by KNV0'); found complex poles {[complex(z) for z in target if z.imag]}")
@@ -659,7 +659,7 @@ def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
     Gd, kstruct = _lqr_structure(structure, pl)
     dual = dual_plant(A, B, dt=pl.dt, G=Gd, R=Rm, name=pl.name)
     _require_controllable(dual, "placing every LQR pole")
-    target = strict_poles("poles", poles, pl.n)
+    target = as_poles("poles", poles, pl.n)
     res = kalman_for_poles(dual, target, objective=objective, q_structure=kstruct, Q_nominal=Q_nominal,
                            **options)
     K = None if res.L is None else np.array(res.L, dtype=float).T

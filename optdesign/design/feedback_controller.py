@@ -30,14 +30,13 @@ import time
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from .._deadline import Deadline
-from .._validate import as_poles
 from ..analysis import metrics
 from ..classical.placement import acker
 from ..classical.riccati import sort_poles
-from ..errors import DefectivePolesError, DimensionError
+from ..errors import DefectivePolesError
 from ..results import Check, Route, SolverStats, Stage, Status, Verification
 from ..solvers.eigenstructure import EigenstructureEngine, pole_multiplicities
 from ..solvers.eigenstructure_fixed import place_fixed
@@ -49,7 +48,7 @@ from .verification import (
     stability_check,
 )
 
-__all__ = ["strict_poles", "input_rank", "needs_ackermann", "controller_fields", "ackermann_fields",
+__all__ = ["input_rank", "needs_ackermann", "controller_fields", "ackermann_fields",
            "ackermann_observer", "backward_check", "charpoly_check",
            "POLE_TOL", "CHARPOLY_TOL"]
 
@@ -65,22 +64,6 @@ CHARPOLY_TOL = 1e-8
 BACKWARD_FACTOR = 1e3
 
 _EPS = float(np.finfo(float).eps)
-
-
-def strict_poles(name: str, poles: ArrayLike, n: int, *, tol: float = 1e-8) -> NDArray[np.complex128]:
-    """``as_poles`` refusing any array that is not 1-D (scipy: "Poles must be a 1D array like.").
-
-    Raises
-    ------
-    DimensionError
-        ``poles`` is not 1-D (a (4, 1) column is refused, not flattened), or not ``n`` poles.
-    """
-    as_poles(name, poles, tol=tol)          # non-numeric, ragged, matrix-shaped: its messages
-    shape = np.shape(poles)
-    if len(shape) != 1:
-        raise DimensionError(f"{name} must be a 1-D array of {n} poles; found an array of shape {shape} "
-                             f"(not flattened: pass {name}.ravel() if that is what you mean)")
-    return as_poles(name, poles, n, tol=tol)
 
 
 def input_rank(M: NDArray) -> int:
