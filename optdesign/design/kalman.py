@@ -162,11 +162,13 @@ class KalmanFilter(DesignResult):
         """The innovation gain (MATLAB's ``M``): the field ``Kf``."""
         return self.Kf
 
-    def estimator(self, form: str | None = None, *, output: str = "auto") -> Any:
+    def estimator(self, form: str | None = None, *, output: str = "auto", io: str = "optdesign") -> Any:
         """The filter as a system, inputs ``[u; y]``, outputs ``[y_hat; x_hat]``
         (:func:`~optdesign.design.estimator.estimator_system`): ``form`` ``"continuous"``,
-        ``"predictor"`` (discrete default, MATLAB's ``'delayed'``) or ``"filter"`` (``'current'``)."""
-        return estimator_of(self, form=form, output=output)
+        ``"predictor"`` (discrete default, MATLAB's ``'delayed'``) or ``"filter"`` (``'current'``).
+        ``io="control"``: python-control's layout, inputs ``[y; u]``, output ``x_hat`` (for
+        ``control.create_statefbk_iosystem(sys, K, estimator=...)``)."""
+        return estimator_of(self, form=form, output=output, io=io)
 
     def summary(self) -> str:
         """Multi-line human-readable report (used by ``optdesign kalman``)."""
