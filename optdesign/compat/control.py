@@ -48,7 +48,7 @@ equations", IEEE TAC 24(6) (1979) 913-921.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -120,7 +120,8 @@ def _matrix(name: str, X: Any) -> NDArray[np.float64]:
     try:
         M = np.array(X, ndmin=2, dtype=float)
     except (TypeError, ValueError) as exc:
-        raise ControlArgumentError(f"{name} must be a numeric matrix; found {type(X).__name__} ({exc})") from exc
+        raise ControlArgumentError(f"{name} must be a numeric matrix; found {type(X).__name__} "
+                                   f"({exc})") from exc
     if M.ndim != 2:
         raise ControlDimensionError(f"{name} must be a 2D matrix; found {M.ndim} dimensions")
     return M
@@ -132,8 +133,8 @@ def _check_shape(name: str, M: NDArray, rows: int, cols: int, *, square: bool = 
     if square and M.shape[0] != M.shape[1]:
         raise ControlDimensionError(f"{name} must be a square matrix; found shape {M.shape}")
     if M.shape != (rows, cols):
-        raise ControlDimensionError(f"Incompatible dimensions of {name} matrix; expected ({rows}, {cols}) but "
-                                    f"found {M.shape}")
+        raise ControlDimensionError(f"Incompatible dimensions of {name} matrix; expected ({rows}, {cols}) "
+                                    f"but found {M.shape}")
     return M
 
 
@@ -155,8 +156,9 @@ def _split_args(args: tuple, fname: str, nsys: int) -> tuple[NDArray, NDArray, N
     ``f(sys, ...)`` / ``f(A, B[, C], ...)`` forms; ``nsys`` is the number of matrices the system
     replaces (2 for lqr: A, B; 3 for lqe: A, G, C)."""
     if len(args) < 3:
+        mats = "A, G, C" if nsys == 3 else "A, B"
         raise ControlArgumentError(f"{fname}: not enough input arguments (found {len(args)}; the forms are "
-                                   f"{fname}(sys, Q, R) and {fname}({'A, G, C' if nsys == 3 else 'A, B'}, Q, R))")
+                                   f"{fname}(sys, Q, R) and {fname}({mats}, Q, R))")
     first = args[0]
     if _is_statespace(first):
         C = np.array(first.C, ndmin=2, dtype=float) if nsys == 3 else None
@@ -190,7 +192,7 @@ def _lqe(args: tuple, method: Any, discrete: bool, fname: str) -> tuple[NDArray,
     if len(rest) > 3:
         raise ControlArgumentError(f"{fname}: too many arguments ({len(args)})")
     n = A.shape[0]
-    assert C is not None
+    C = cast(NDArray, C)
     _check_shape("A", A, n, n, square=True)
     _check_shape("G", G, n, G.shape[1])
     _check_shape("C", C, C.shape[0], n)
@@ -350,7 +352,8 @@ def dlqr(*args: Any, method: Any = None, integral_action: Any = None, **kwargs: 
     """
     _no_keywords(kwargs)
     if args and _is_statespace(args[0]) and _strict_continuous(args[0]):
-        raise ControlArgumentError("dlqr: dsys must be discrete time (dt != 0); found a continuous-time system")
+        raise ControlArgumentError("dlqr: dsys must be discrete time (dt != 0); found a continuous-time "
+                                   "system")
     return _lqr(args, method, integral_action, True, "dlqr")
 
 
@@ -459,7 +462,8 @@ def _labels(labels: Any, what: str, default: list[str]) -> list[str]:
         return [labels.format(i=i) for i in range(len(default))]
     labels = list(labels)
     if len(labels) != len(default):
-        raise ControlDimensionError(f"incorrect length of {what}_labels: {len(labels)} instead of {len(default)}")
+        raise ControlDimensionError(f"incorrect length of {what}_labels: {len(labels)} instead of "
+                                    f"{len(default)}")
     return labels
 
 
@@ -544,8 +548,8 @@ def create_estimator_iosystem(sys: Any, QN: Any, RN: Any, P0: Any = None, G: Any
     Bu = np.array(sys.B, dtype=float)[:, ctrl]
     Dsys = np.array(sys.D, dtype=float).reshape(sys.noutputs, nin)
     if np.any(Dsys[:, [j for j in dist if j not in ctrl]]):
-        raise ControlNotImplementedError("a nonzero feedthrough D of the disturbance inputs is not implemented "
-                                         "(its noise would correlate with the measurement)")
+        raise ControlNotImplementedError("a nonzero feedthrough D of the disturbance inputs is not "
+                                         "implemented (its noise would correlate with the measurement)")
     RN_ = _matrix("RN", RN)
     if C is not None:
         if sys.noutputs != n or not np.allclose(sys.C, np.eye(n)):

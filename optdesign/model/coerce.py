@@ -253,8 +253,8 @@ def _noise_inputs(A: NDArray, B: NDArray, G: Any, Q: Any, known: Any
     if nin and m < nin:
         rest = list(range(nin - m, nin))
         kn = tuple(range(nin - m))
-        note = (f"Q is {m} x {m} and sys has {nin} inputs: the last {m} input(s) {rest} are the process noise, "
-                f"inputs {list(kn)} known (MATLAB's kalman(sys, Qn, Rn); known= to choose others)")
+        note = (f"Q is {m} x {m} and sys has {nin} inputs: the last {m} input(s) {rest} are the process "
+                f"noise, inputs {list(kn)} known (MATLAB's kalman(sys, Qn, Rn); known= to choose others)")
         return B[:, list(kn)], B[:, rest], kn, rest, note
     if m == n and not nin:
         return None, None, None, [], "sys has no inputs and Q is n x n: the noise enters every state (G = I)"
@@ -304,7 +304,8 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
         ``ValidationError``.
     ValidationError
         Q with more rows than ``sys`` has inputs and neither G nor ``known`` (unless ``sys`` has
-        no inputs and Q is n x n), data given twice (a Plant's own Q, R or G; G with noise inputs from ``known``),
+        no inputs and Q is n x n), data given twice (a Plant's own Q, R or G; G with noise inputs
+        from ``known``),
         ``sensors`` / ``known`` not distinct 0-based indices in range (the bad entry is named).
     DimensionError, NotFiniteError, NotSymmetricError, NotPositiveSemidefiniteError, NotPositiveDefiniteError
         From the Plant constructor (names the matrix).

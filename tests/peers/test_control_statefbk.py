@@ -72,8 +72,9 @@ def test_place_varga_distinct_poles():
     _check_placed(P, oc.place(A, B, P), A, B)
 
 
-@pytest.mark.xfail(reason="issue 27 item 5 (the scipy helper's branch): a pole repeated with rank(B) = 1 is "
-                          "placed by Ackermann's gain; before it the native place returns no gain", strict=False)
+@pytest.mark.xfail(reason="issue 27 item 5 (the scipy helper's branch): a pole repeated with rank(B) = 1 "
+                          "is placed by Ackermann's gain; before it the native place returns no gain",
+                   strict=False)
 @pytest.mark.parametrize("A, P, dt", [
     ([[1.0, -2.0], [3.0, -4.0]], [-2.0, -2.0], None),      # testPlace_varga_continuous
     ([[1.0, 0.0], [0.0, 0.5]], [0.5, 0.5], 1.0),           # testPlace_varga_discrete
@@ -205,7 +206,8 @@ def test_lqr_matches_python_control_and_is_a_riccati_solution():
         else:
             res = A.T @ S + S @ A - (S @ B + N) @ K + Q
         assert np.linalg.norm(res) <= 1e-10 * np.linalg.norm(S)
-        np.testing.assert_allclose(np.sort_complex(E), np.sort_complex(np.linalg.eigvals(A - B @ K)), atol=1e-10)
+        np.testing.assert_allclose(np.sort_complex(E), np.sort_complex(np.linalg.eigvals(A - B @ K)),
+                                   atol=1e-10)
 
 
 # ------------------------------------------------------------------ create_statefbk_iosystem with our gains
@@ -226,10 +228,12 @@ def test_statefbk_iosys(nstates, ninputs, noutputs, nintegrators, type_):
         sys_ = ct.rss(nstates, noutputs, ninputs, strictly_proper=True)
         L, _, _ = oc.lqe(sys_.A, sys_.B, sys_.C, np.eye(ninputs), np.eye(noutputs))
         est = ct.ss(sys_.A - L @ sys_.C, np.hstack([L, sys_.B]), np.eye(nstates), 0,
-                    inputs=sys_.output_labels + sys_.input_labels, outputs=[f"xhat[{i}]" for i in range(nstates)])
+                    inputs=sys_.output_labels + sys_.input_labels,
+                    outputs=[f"xhat[{i}]" for i in range(nstates)])
     if nintegrators:
         C_int = np.eye(nintegrators, nstates)
-        A_aug = np.block([[sys_.A, np.zeros((nstates, nintegrators))], [C_int, np.zeros((nintegrators,) * 2)]])
+        A_aug = np.block([[sys_.A, np.zeros((nstates, nintegrators))],
+                          [C_int, np.zeros((nintegrators,) * 2)]])
         B_aug = np.vstack([sys_.B, np.zeros((nintegrators, ninputs))])
         aug = ct.ss(A_aug, B_aug, np.hstack([sys_.C, np.zeros((sys_.C.shape[0], nintegrators))]), 0)
     else:
@@ -255,7 +259,8 @@ def test_statefbk_iosys(nstates, ninputs, noutputs, nintegrators, type_):
         Dc = np.block([[z((nstates, nstates + ninputs))], [Kp, np.eye(ninputs)]])
     else:
         Be1, Be2 = est.B[:, :noutputs], est.B[:, noutputs:]
-        Ac = np.block([[sys_.A, -sys_.B @ Ki, -sys_.B @ Kp], [z((nintegrators, nstates + nintegrators)), C_int],
+        Ac = np.block([[sys_.A, -sys_.B @ Ki, -sys_.B @ Kp],
+                       [z((nintegrators, nstates + nintegrators)), C_int],
                        [Be1 @ sys_.C, -Be2 @ Ki, est.A - Be2 @ Kp]])
         Bc = np.block([[sys_.B @ Kp, sys_.B], [-C_int, z((nintegrators, ninputs))], [Be2 @ Kp, Be2]])
         Cc = np.block([[sys_.C, z((noutputs, nintegrators + nstates))], [z(Kp.shape), -Ki, -Kp]])
