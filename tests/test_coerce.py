@@ -35,7 +35,7 @@ def test_plant_passes_through_and_takes_missing_noise_data():
 @pytest.mark.parametrize("dt", [0, None, 0.1])
 def test_python_control_statespace(dt):
     sys_ = control.ss(AD if dt else A, B, C, 0, dt)
-    plant = as_plant(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    plant = as_plant(sys_, Q=np.eye(2), R=[[1.0]])
     np.testing.assert_array_equal(plant.A, AD if dt else A)
     np.testing.assert_array_equal(plant.C, C)
     np.testing.assert_array_equal(plant.B, B)
@@ -48,7 +48,7 @@ def test_python_control_statespace(dt):
 def test_scipy_systems():
     for sys_, dt in ((signal.lti(A, B, C, [[0.0]]), None), (signal.StateSpace(A, B, C, [[0.0]]), None),
                      (signal.dlti(AD, B, C, [[0.0]], dt=0.25), 0.25)):
-        plant = as_plant(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+        plant = as_plant(sys_, Q=np.eye(2), R=[[1.0]])
         np.testing.assert_array_equal(plant.B, B)
         assert plant.dt == dt
         assert system_kind(sys_) == "scipy"
@@ -57,20 +57,20 @@ def test_scipy_systems():
 def test_every_kind_gives_the_same_kalman_filter():
     ref = kalman(Plant(A, C, Q=np.eye(2), R=[[0.5]], B=B))
     for sys_ in (control.ss(A, B, C, 0), signal.lti(A, B, C, [[0.0]])):
-        kf = kalman(sys_, G=np.eye(2), Q=np.eye(2), R=[[0.5]])
+        kf = kalman(sys_, Q=np.eye(2), R=[[0.5]])
         np.testing.assert_array_equal(kf.L, ref.L)
         np.testing.assert_array_equal(kf.P, ref.P)
         assert kf.success
     refd = kalman(Plant(AD, C, Q=np.eye(2), R=[[0.5]], dt=0.1))
     for sys_ in (control.ss(AD, B, C, 0, 0.1), signal.dlti(AD, B, C, [[0.0]], dt=0.1)):
-        kf = kalman(sys_, G=np.eye(2), Q=np.eye(2), R=[[0.5]])
+        kf = kalman(sys_, Q=np.eye(2), R=[[0.5]])
         np.testing.assert_array_equal(kf.L, refd.L)
         np.testing.assert_array_equal(kf.Kf, refd.Kf)
 
 
 def test_feedthrough_is_kept_by_as_system_and_refused_by_as_plant():
     sys_ = control.ss(A, B, C, [[0.5]])
-    data = as_system(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    data = as_system(sys_, Q=np.eye(2), R=[[1.0]])
     np.testing.assert_array_equal(data.D, [[0.5]])
     assert data.H is None and data.source == "python-control StateSpace"
     with pytest.raises(ValidationError, match=r"nonzero feedthrough D \(max \|D\| = 0.5\).*estimator_system"):
@@ -113,7 +113,7 @@ def test_known_and_sensors_split_inputs_and_outputs():
     (dict(known=[5]), r"known\[0\] = 5 is out of range: the system has 3 inputs"),
     (dict(known=[0], G=np.eye(2)), r"G given twice: with known=\[0\] the other inputs \[1, 2\]"),
     (dict(Q=np.eye(4)), r"Q is 4 x 4 but sys has 3 input\(s\) and the plant has n = 2 states: say how the "
-                        r"noise enters -- G= \(n x 4; G=np.eye\(2\) for noise on every state\), or known="),
+                        r"noise enters -- G= \(n x 4\), or known="),
 ])
 def test_selection_errors(kw, match):
     sys_ = control.ss(A, np.ones((2, 3)), np.ones((3, 2)), 0)
@@ -183,7 +183,7 @@ from optdesign.model.coerce import as_plant
 from optdesign.design.estimator import EstimatorArrays
 from optdesign.errors import BackendUnavailableError
 sys_ = signal.lti([[0., 1.], [-6., -5.]], [[0.], [1.]], [[1., 0.]], [[0.]])
-kf = kalman(as_plant(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.]]))
+kf = kalman(as_plant(sys_, Q=np.eye(2), R=[[1.]]))
 est = kf.estimator()
 assert isinstance(est, EstimatorArrays), type(est)
 A, B, C, D = est

@@ -129,7 +129,7 @@ def test_matches_the_documented_kalman_example():
 def test_feedthrough_and_arrays_output():
     """With a known-input feedthrough D the estimator subtracts D u and adds it to y_hat."""
     sys_ = control.ss(A, B, C, [[0.4]])
-    kf = kalman(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    kf = kalman(sys_, Q=np.eye(2), R=[[1.0]])
     assert kf.D is not None
     est = kf.estimator(output="arrays")
     assert isinstance(est, EstimatorArrays) and est.form == "continuous" and est.dt is None
@@ -140,7 +140,7 @@ def test_feedthrough_and_arrays_output():
     assert len(est) == 4
     # filter form with D: x_hat[k|k] = x_hat + M (y - C x_hat - D u)
     sysd = control.ss(AD, B, C, [[0.4]], 0.1)
-    kd = kalman(sysd, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    kd = kalman(sysd, Q=np.eye(2), R=[[1.0]])
     _, _, Cf, Df = kd.estimator("filter", output="arrays")
     np.testing.assert_allclose(Df[1:], np.hstack([-kd.M * 0.4, kd.M]))
     np.testing.assert_allclose(Cf[1:], np.eye(2) - kd.M @ C)

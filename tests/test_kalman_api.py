@@ -466,17 +466,22 @@ def test_octave_kalman_scalar_with_cross_covariance():
     np.testing.assert_allclose(kalman(sys_, Q=[[1.0]], R=[[1.0]], N=[[1.0]]).L, kf.L, atol=1e-12)
 
 
-def test_more_noise_channels_than_inputs_asks_for_g():
-    """No silent G = I beside a B of the system's own (issue 27); G = I only without inputs."""
+def test_q_n_by_n_beyond_the_inputs_is_every_state_and_said():
+    """Q n x n with fewer inputs than n: G = I, the library's convention (what kalman_for_poles
+    returns Q for), said in the message and notes -- not silently (issue 27); another size of Q
+    beyond the inputs asks for G= or known=."""
     sys_ = control.ss([[-1.0, 0.2], [0.0, -2.0]], [[0.0], [1.0]], [[1.0, 0.0]], 0)
-    with pytest.raises(ValidationError, match=r"Q is 2 x 2 but sys has 1 input\(s\) .* G=np.eye\(2\) for "
-                                              r"noise on every state\), or known="):
-        kalman(sys_, Q=np.eye(2), R=[[1.0]])
+    kf = kalman(sys_, Q=np.eye(2), R=[[1.0]])
     explicit = kalman(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    np.testing.assert_array_equal(kf.L, explicit.L)
+    np.testing.assert_array_equal(kf.plant.B, [[0.0], [1.0]])
+    assert "Q is n x n = 2 x 2 and sys has 1 input(s): the noise enters every state (G = I" in kf.message
+    with pytest.raises(ValidationError, match=r"Q is 3 x 3 but sys has 1 input\(s\) and the plant has n = 2 "
+                                              r"states: say how the noise enters -- G= \(n x 3\), or known="):
+        kalman(sys_, Q=np.eye(3), R=[[1.0]])
     free = kalman(scipy.signal.StateSpace(sys_.A, np.zeros((2, 0)), sys_.C, np.zeros((1, 0))), Q=np.eye(2),
                   R=[[1.0]])
     np.testing.assert_array_equal(free.L, explicit.L)
-    assert "the noise enters every state (G = I)" in free.message
 
 
 def test_transfer_functions_raise_a_type_error():

@@ -312,8 +312,8 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
         the peers (the rule of :mod:`optdesign.model.coerce`, said in ``extra["notes"]``): Q the
         size of the system's inputs -- the noise enters through ``sys.B`` (python-control's
         ``lqe(sys, QN, RN)``); Q smaller -- the *last* ``len(Q)`` inputs are the noise, the others
-        known (MATLAB's ``kalman(sys, Qn, Rn)``); Q larger -- refused, asking for ``G=`` or
-        ``known=`` (``G = I`` only for a system without inputs).  A system with ``dt=True`` is
+        known (MATLAB's ``kalman(sys, Qn, Rn)``); Q larger and n x n -- every state (``G = I``,
+        the library's convention, said); otherwise refused, asking for ``G=`` or ``known=``.  A system with ``dt=True`` is
         designed with ``dt = 1`` (said in the message and ``extra["dt_unspecified"]``).
     N : (m, p) array_like, optional
         Cross-covariance ``E[w v']`` (``control.lqe(..., NN)``, MATLAB ``kalman(sys, Q, R, N)``);
@@ -340,7 +340,7 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
         it, ``control.ss(sys)``); a ``TypeError`` and a ``ValidationError``.
     ValidationError
         ``plant`` has no Q or no R, ``method`` is unknown, bad ``sensors`` / ``known`` (named), Q
-        with more rows than a system has inputs and neither ``G=`` nor ``known=``.
+        with more rows than a system has inputs, not n x n, and neither ``G=`` nor ``known=``.
     NotPositiveSemidefiniteError
         N makes ``[[Q, N], [N', R]]`` indefinite.
     NotPositiveDefiniteError

@@ -36,9 +36,12 @@ rule, in order (what was used is in ``SystemData.notes``):
    the same gain; ``known=[]`` selects it.)
 4. Q is ``m x m`` with ``m`` smaller than the number of inputs: MATLAB's ``kalman(sys, Qn, Rn)``
    -- the *last* m inputs are the process noise, the others known.
-5. Otherwise (more noise channels than inputs): a system without inputs takes ``G = I`` when Q
-   is ``n x n``; a system with inputs is refused, asking for ``G=`` (``G=np.eye(n)``: noise on
-   every state) or ``known=`` -- never a silent ``G = I`` beside a B of its own.
+5. Q is ``n x n`` with more rows than the system has inputs: the noise enters every state,
+   ``G = I`` -- the library's own convention (a :class:`Plant` without G, the Q that
+   :func:`optdesign.kalman_for_poles` returns), said in the notes, never silently.  Neither peer
+   answers this call (python-control and MATLAB refuse a Q larger than the inputs).
+6. Otherwise (Q neither matches nor fits the inputs, and is not n x n): refused, asking for
+   ``G=`` or ``known=``.
 
 References
 ----------
@@ -256,13 +259,15 @@ def _noise_inputs(A: NDArray, B: NDArray, G: Any, Q: Any, known: Any
         note = (f"Q is {m} x {m} and sys has {nin} inputs: the last {m} input(s) {rest} are the process "
                 f"noise, inputs {list(kn)} known (MATLAB's kalman(sys, Qn, Rn); known= to choose others)")
         return B[:, list(kn)], B[:, rest], kn, rest, note
-    if m == n and not nin:
-        return None, None, None, [], "sys has no inputs and Q is n x n: the noise enters every state (G = I)"
+    if m == n:
+        note = (f"Q is n x n = {n} x {n} and sys has {nin} input(s): the noise enters every state (G = I; "
+                f"G= or known= to say otherwise)")
+        return (B if nin else None), None, None, [], note
     inputs = f"sys has {nin} input(s)" if nin else "sys has no inputs"
     raise ValidationError(
         f"Q is {m} x {m} but {inputs} and the plant has n = {n} states: say how the noise enters -- G= "
-        f"(n x {m}; G=np.eye({n}) for noise on every state), or known=[...] to list the known inputs of sys "
-        f"(the other inputs are the process noise, as in MATLAB's kalman(sys, Q, R, N, sensors, known))")
+        f"(n x {m}), or known=[...] to list the known inputs of sys (the other inputs are the process "
+        f"noise, as in MATLAB's kalman(sys, Q, R, N, sensors, known))")
 
 
 def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors: Any = None,
@@ -303,8 +308,8 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
         another kind of object (the accepted kinds are listed); a ``TypeError`` and a
         ``ValidationError``.
     ValidationError
-        Q with more rows than ``sys`` has inputs and neither G nor ``known`` (unless ``sys`` has
-        no inputs and Q is n x n), data given twice (a Plant's own Q, R or G; G with noise inputs
+        Q with more rows than ``sys`` has inputs, not n x n, and neither G nor ``known``; data
+        given twice (a Plant's own Q, R or G; G with noise inputs
         from ``known``),
         ``sensors`` / ``known`` not distinct 0-based indices in range (the bad entry is named).
     DimensionError, NotFiniteError, NotSymmetricError, NotPositiveSemidefiniteError, NotPositiveDefiniteError
