@@ -4,24 +4,18 @@ r"""python-control's call forms and returns, answered by optdesign's verified ve
 switches these functions of python-control: the same positional forms, defaults and returns
 (ndarrays and tuples, not result objects), with every answer checked before it is returned.
 
-=================================  ================================================================
-python-control                     answered by
-=================================  ================================================================
-``K = place(A, B, p)``             :func:`optdesign.place` (minimum cond(X) placement), closed-loop
-                                   eigenvalues checked against ``p``
-``L, P, E = lqe(A, G, C, QN, RN)``  :func:`optdesign.kalman` (continuous; a discrete ``sys`` goes to
-``L, P, E = lqe(sys, QN, RN)``      ``dlqe`` as in python-control), Riccati residual, forward error
-                                   and the other solver's P checked
-``L, P, E = dlqe(...)``            :func:`optdesign.kalman` (discrete predictor gain
-                                   ``A P C' (C P C' + R)^-1``, python-control's ``dlqe``)
-``K, S, E = lqr(A, B, Q, R[, N])``  :func:`optdesign.kalman` of the dual pair ``(A', B')``: LQR's
-``K, S, E = dlqr(...)``             Riccati equation *is* the filter equation of the dual, so the
-                                   same solvers and checks answer it; ``integral_action=`` as
-                                   python-control
-``create_estimator_iosystem``      python-control's time-varying estimator (states ``[xhat; P]``)
-                                   with ``P0`` defaulting to the verified steady-state P of
-                                   :func:`optdesign.kalman`
-=================================  ================================================================
+* ``K = place(A, B, p)``: :func:`optdesign.place` (the minimum cond(X) placement); the closed-loop
+  eigenvalues are checked against ``p``.
+* ``L, P, E = lqe(A, G, C, QN, RN)`` / ``lqe(sys, QN, RN)``: :func:`optdesign.kalman`, continuous (a
+  discrete ``sys`` goes to ``dlqe``, as in python-control); Riccati residual, forward error and the
+  other solver's P checked.
+* ``L, P, E = dlqe(...)``: :func:`optdesign.kalman`, discrete (the predictor gain
+  ``A P C' (C P C' + R)^-1`` of python-control's ``dlqe``).
+* ``K, S, E = lqr(A, B, Q, R[, N])`` / ``dlqr(...)``: :func:`optdesign.kalman` of the dual pair
+  ``(A', B')`` -- LQR's Riccati equation *is* the filter equation of the dual, so the same solvers
+  and checks answer it; ``integral_action=`` as python-control.
+* ``create_estimator_iosystem(sys, QN, RN, ...)``: python-control's time-varying estimator (states
+  ``[xhat; P]``), with the steady state of :func:`optdesign.kalman` as its check.
 
 ``method=``: python-control's ``None`` (its default: slycot, then scipy), ``"slycot"`` and
 ``"scipy"`` are accepted.  ``None`` and ``"scipy"`` run scipy's Riccati solvers (with our
