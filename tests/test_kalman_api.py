@@ -510,3 +510,10 @@ def test_drss_systems_with_dt_true_are_designed_with_dt_one():
     assert kf.plant.dt == 1.0 and kf.extra["dt_unspecified"]
     assert "unspecified sampling period (dt=True): designed with dt = 1" in kf.message
     assert "dt=True: unspecified, taken as 1" in kf.summary()
+
+
+def test_kalmd_route_is_the_discrete_solve():
+    cont = Plant([[0.0, 1.0], [-2.0, -0.3]], [[1.0, 0.0]], Q=np.eye(2), R=[[0.5]])
+    kd = kalmd(cont, 0.1, method="hamiltonian")
+    assert [(s.name, s.kind, s.outcome) for s in kd.route] == [("hamiltonian", "engine", "answered")]
+    assert "route: hamiltonian [engine]: answered" in kd.summary()

@@ -181,6 +181,8 @@ class KalmanFilter(DesignResult):
             f"Kalman filter for plant{label} ({time_kind}, n = {plant.n}, p = {plant.p}, m = {plant.m})",
             f"  method: {self.method}   status: {self.status}   success: {self.success}",
         ]
+        if self.route:
+            lines.append(f"  route: {self.route}")
 
         def block(name: str, X: NDArray) -> None:
             with np.printoptions(precision=6, suppress=False, linewidth=100):
