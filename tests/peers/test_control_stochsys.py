@@ -243,3 +243,19 @@ def test_indices(ctrl_indices, dist_indices):
     er = ct.input_output_response(estim, t, [resp.outputs, U], [np.zeros(4), np.eye(4)], solve_ivp_kwargs=ivp,
                                   params={"correct": False})
     np.testing.assert_allclose(resp.states, er.outputs, rtol=1e-2)
+
+
+def test_estimator_with_control_feedthrough():
+    """Beyond python-control (which raises NotImplementedError for D != 0): the feedthrough of the
+    control inputs is subtracted, so an exact estimate has zero innovation; a feedthrough of the
+    disturbances is refused with a typed NotImplementedError."""
+    sys_ = ct.ss([[-1.0, 0.2], [0.0, -2.0]], [[0.0, 1.0], [1.0, 0.0]], [[1.0, 0.0]], [[0.5, 0.0]])
+    est = oc.create_estimator_iosystem(sys_, np.eye(1), np.eye(1), control_indices=[0])
+    x, u = np.array([0.3, -0.2]), np.array([0.7])
+    y = sys_.C @ x + sys_.D[:, [0]] @ u
+    P = np.eye(2)
+    dx = est.dynamics(0.0, np.concatenate([x, P.ravel()]), np.concatenate([y, u]))[:2]
+    np.testing.assert_allclose(dx, sys_.A @ x + sys_.B[:, [0]] @ u, atol=1e-14)
+    with pytest.raises(NotImplementedError, match="feedthrough D of the disturbance inputs"):
+        oc.create_estimator_iosystem(ct.ss(sys_.A, sys_.B, sys_.C, [[0.0, 0.5]]), np.eye(1), np.eye(1),
+                                     control_indices=[0])
