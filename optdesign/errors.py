@@ -17,6 +17,7 @@ import numpy as np
 __all__ = [
     "OptDesignError",
     "ValidationError",
+    "ArgumentTypeError",
     "DimensionError",
     "NotFiniteError",
     "NotSymmetricError",
@@ -45,6 +46,12 @@ class OptDesignError(Exception):
 
 class ValidationError(OptDesignError, ValueError):
     """An input is malformed (wrong shape, non-finite, wrong property)."""
+
+
+class ArgumentTypeError(ValidationError, TypeError):
+    """An argument of a kind the verb cannot take (a transfer function where a state-space
+    system is needed; a keyword a verb does not support): ``except TypeError`` catches it, as
+    python-control's ``ControlArgument``."""
 
 
 class DimensionError(ValidationError):

@@ -112,7 +112,8 @@ def test_known_and_sensors_split_inputs_and_outputs():
     (dict(sensors=[0.0]), r"sensors\[0\] must be an integer index; found 0.0"),
     (dict(known=[5]), r"known\[0\] = 5 is out of range: the system has 3 inputs"),
     (dict(known=[0], G=np.eye(2)), r"G given twice: with known=\[0\] the other inputs \[1, 2\]"),
-    (dict(Q=[[1.0]]), r"Q is 1 x 1 but the plant has n = 2 states: say how the noise enters"),
+    (dict(Q=np.eye(4)), r"Q is 4 x 4 but sys has 3 input\(s\) and the plant has n = 2 states: say how the "
+                        r"noise enters -- G= \(n x 4\), or known="),
 ])
 def test_selection_errors(kw, match):
     sys_ = control.ss(A, np.ones((2, 3)), np.ones((3, 2)), 0)
@@ -142,11 +143,18 @@ def test_other_objects_are_refused_with_one_message():
         as_plant(control.frd([1.0, 2.0], [0.1, 1.0]))
 
 
-def test_unspecified_sampling_time_is_refused():
-    with pytest.raises(ValidationError, match=r"unspecified sampling time \(dt=True\).*control.ss"):
-        as_plant(control.ss(AD, B, C, 0, True))
-    with pytest.raises(ValidationError, match=r"unspecified sampling time \(dt=True\).*scipy.signal.dlti"):
-        as_plant(signal.dlti(AD, B, C, [[0.0]]))
+def test_unspecified_sampling_time_is_one_and_said():
+    """dt=True (control.drss, scipy's dlti default): discrete with dt = 1, said in the notes and the
+    Kalman result (issue 27 item 4; it was refused)."""
+    for sys_ in (control.ss(AD, B, C, 0, True), signal.dlti(AD, B, C, [[0.0]])):
+        data = as_system(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+        assert data.plant.dt == 1.0 and data.dt_unspecified
+        assert any("unspecified sampling period (dt=True): designed with dt = 1" in t for t in data.notes)
+        kf = kalman(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+        ref = kalman(Plant(AD, C, Q=np.eye(2), R=[[1.0]], dt=1.0))
+        np.testing.assert_array_equal(kf.L, ref.L)
+        assert "dt = 1" in kf.message and kf.extra["dt_unspecified"] is True
+    assert not as_system(control.ss(AD, B, C, 0, 0.5)).dt_unspecified
 
 
 def test_data_given_twice_or_misplaced():

@@ -186,3 +186,42 @@ def test_errors():
 
     with pytest.raises(ValidationError, match=r"the result has no gain L \(status not_found\)"):
         estimator_of(Failed(), plant)
+
+
+# ------------------------------------------------------------------ python-control's layout (issue 27)
+@pytest.mark.parametrize("form", ["predictor", "filter"])
+def test_control_layout_matches_ours_permuted(form):
+    """io="control": inputs [y; u], output x_hat -- the rows of x_hat of our estimator, its input
+    columns permuted."""
+    kd = kalman(control.ss(AD, B, C, [[0.4]], 0.1), G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    ours = kd.estimator(form, output="arrays")
+    theirs = kd.estimator(form, output="arrays", io="control")
+    np.testing.assert_array_equal(theirs.A, ours.A)
+    np.testing.assert_array_equal(theirs.B, ours.B[:, [1, 0]])
+    np.testing.assert_array_equal(theirs.C, ours.C[1:])
+    np.testing.assert_array_equal(theirs.D, ours.D[1:][:, [1, 0]])
+    assert theirs.inputs == ("y[0]", "u[0]") and theirs.outputs == ("xhat[0]", "xhat[1]")
+    with pytest.raises(ValidationError, match="io must be one of 'optdesign', 'control'"):
+        kd.estimator(io="matlab")
+
+
+def test_control_layout_closes_the_loop_in_create_statefbk_iosystem():
+    """python-control's stochsys_test.py::test_estimator_iosys, with our steady-state estimator:
+    control.create_statefbk_iosystem(sys, K, estimator=est) accepts it and the closed loop is
+    [[A, -B K], [L C, A - L C - B K]] (python-control's check, from the estimator's blocks).  Before
+    issue 27 our [u; y] -> [y_hat; x_hat] estimator could not be passed."""
+    np.random.seed(0)
+    sys_ = control.drss(4, 2, 2, strictly_proper=True)
+    K, _, _ = control.dlqr(sys_, np.eye(4), np.eye(2))
+    kf = kalman(sys_, Q=np.eye(2), R=np.eye(2))
+    est = kf.estimator(io="control")
+    assert isinstance(est, control.StateSpace) and est.ninputs == 4 and est.noutputs == 4
+    _, clsys = control.create_statefbk_iosystem(sys_, K, estimator=est)
+    cls = clsys.linearize(0, 0) if not isinstance(clsys, control.StateSpace) else clsys
+    L = kf.L
+    A_cl = np.block([[sys_.A, -sys_.B @ K], [L @ sys_.C, sys_.A - L @ sys_.C - sys_.B @ K]])
+    np.testing.assert_allclose(cls.A[:8, :8], A_cl, atol=1e-12)
+    # the separation principle: the closed-loop poles are those of A - B K and A - L C
+    expect = np.concatenate([np.linalg.eigvals(sys_.A - sys_.B @ K), kf.poles])
+    got = np.linalg.eigvals(cls.A)
+    assert max(np.min(np.abs(got - z)) for z in expect) < 1e-8

@@ -232,8 +232,22 @@ def test_cross_check_explains_carex_2_6_by_the_other_solvers_error():
     cc = kf.verification["cross_check"]
     assert cc.value > 1e-4  # scipy really is off ...
     assert kf.verification["forward_error"].value < 1e-13  # ... and ours really is not
-    with pytest.raises(RiccatiError, match="relative residual .* exceeds"):
-        kalman(prob.plant, method="scipy")
+    # scipy's answer is refused by its residual; the Hamiltonian solver answers as the fallback
+    # (it raised RiccatiError before the fallback), and the route says so
+    fb = kalman(prob.plant, method="scipy")
+    assert [(s.name, s.kind, s.outcome) for s in fb.route] == [("scipy", "backend", "failed"),
+                                                                ("hamiltonian", "fallback", "answered")]
+    assert "relative residual" in fb.route[0].detail and "fallback: the scipy solver failed" in fb.message
+    assert fb.method == "hamiltonian" and fb.success
+    np.testing.assert_allclose(fb.P, kf.P, rtol=1e-12)
+
+
+def test_route_names_the_riccati_method_that_ran():
+    plant = Plant([[0.0, 1.0], [-2.0, -0.3]], [[1.0, 0.0]], Q=np.eye(2), R=[[0.5]])
+    for method, kind in (("scipy", "backend"), ("hamiltonian", "engine")):
+        kf = kalman(plant, method=method)
+        assert len(kf.route) == 1 and kf.route.answered.name == method and kf.route[0].kind == kind
+        assert kf.route[0].time is not None and kf.record()["route"] == method
 
 
 # ------------------------------------------------------------------------ error paths

@@ -16,6 +16,7 @@ from optdesign import Plant, kalman, riccati_de
 from optdesign.classical.riccati import filter_are_error
 from optdesign.design.kalman import kalman_finite_horizon, kalmd, van_loan
 from optdesign.errors import (
+    ArgumentTypeError,
     DimensionError,
     NotPositiveDefiniteError,
     NotPositiveSemidefiniteError,
@@ -373,3 +374,146 @@ def test_errors():
         kalman_finite_horizon(dplant, np.eye(2), 10, tol=0.0)
     with pytest.raises(ValidationError, match="Ts must be finite and > 0"):
         van_loan(cont.A, np.eye(2), -1.0)
+
+
+# ------------------------------------------------------------------ the peers' noise conventions (issue 27)
+def test_q_the_size_of_the_inputs_takes_the_noise_through_sys_b_as_control_lqe():
+    """python-control's ``lqe(sys, QN, RN)``: G = sys.B.  Before issue 27 this raised (Q 2 x 2 with
+    n = 3 asked for G=), and with n == m it took G = I."""
+    rng = np.random.default_rng(27)
+    for n, m in ((3, 2), (2, 2)):
+        A = rng.standard_normal((n, n)) - 2.0 * np.eye(n)
+        B, C = rng.standard_normal((n, m)), rng.standard_normal((1, n))
+        sys_ = control.ss(A, B, C, 0)
+        QN, RN = np.diag([1.0, 3.0]), np.array([[0.5]])
+        kf = kalman(sys_, Q=QN, R=RN)
+        L, P, E = control.lqe(sys_, QN, RN)
+        np.testing.assert_allclose(kf.L, L, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(kf.P, P, rtol=1e-9, atol=1e-12)
+        np.testing.assert_array_equal(kf.plant.G, B)
+        np.testing.assert_array_equal(kf.plant.B, B)          # the inputs stay known (noise added to them)
+        assert any("python-control's lqe(sys, QN, RN)" in t for t in kf.extra["notes"])
+        assert "the noise enters through sys.B" in kf.message
+    # MATLAB's all-noise reading of the same call: same gain, no known inputs
+    every = kalman(sys_, Q=QN, R=RN, known=[])
+    np.testing.assert_array_equal(every.L, kf.L)
+    assert every.plant.B is None
+
+
+def test_fewer_noise_channels_than_inputs_reads_the_last_inputs_as_noise_as_matlab():
+    """MATLAB's kalman(sys, Qn, Rn): the last size(Qn) inputs are noise, the others known.  Before
+    issue 27, Q n x n took G = I (here L = 1.0 where the MATLAB reading gives 0.4142)."""
+    sys_ = control.ss([[-1.0]], [[1.0, 0.5]], [[1.0]], 0)       # inputs [u, w]
+    kf = kalman(sys_, Q=[[4.0]], R=[[1.0]])
+    np.testing.assert_array_equal(kf.plant.G, [[0.5]])
+    np.testing.assert_array_equal(kf.plant.B, [[1.0]])
+    assert kf.extra["known"] == (0,)
+    # scalar ARE: -2 P - P^2 + 0.25 * 4 = 0  ->  P = sqrt(2) - 1 = L
+    np.testing.assert_allclose(kf.L, [[np.sqrt(2.0) - 1.0]], rtol=1e-12)
+    np.testing.assert_array_equal(kalman(sys_, Q=[[4.0]], R=[[1.0]], known=[0]).L, kf.L)
+    assert "the last 1 input(s) [1] are the process noise" in kf.message
+
+
+def _octave_kalman_plant(seed: int):
+    """GNU Octave control package, inst/kalman.m, the shared fixture of its 2nd and 3rd tests: a
+    discrete n = 3 plant (dt = 1) with inputs [u, w1, w2], D = [1, 0, 0], Q = I2, R = 1 (Octave
+    draws Bw = rand - 0.5; a fixed seed here).  Reference: 2000 steps of the filter recursion
+    (Octave runs 30 and asserts to 4e-4; the fixed point is reached to rounding here)."""
+    rng = np.random.default_rng(seed)
+    A = np.array([[1.1269, -0.4940, 0.1129], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    Bw = rng.random((3, 2)) - 0.5
+    B = np.hstack([[[-0.3832], [0.5919], [0.5191]], Bw])
+    C = np.array([[1.0, 0.0, 0.0]])
+    sys_ = control.ss(A, B, C, [[1.0, 0.0, 0.0]], 1)
+    PP = np.eye(3)
+    for _ in range(2000):
+        Pinf = A @ PP @ A.T + Bw @ Bw.T
+        K = Pinf @ C.T / (C @ Pinf @ C.T + 1.0)
+        PP = (np.eye(3) - K @ C) @ Pinf
+    return sys_, A, C, Pinf, K
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_octave_kalman_tests(seed):
+    """Octave's kalman.m tests 2 and 3 (``kalman(sys, Q, R, [], 1, 1)`` and ``'current'``): P, the
+    predictor gain (inv(A) L = the filter gain K) and the estimator's A, for MATLAB's explicit
+    selection and for its default reading (the last size(Q) inputs are noise)."""
+    sys_, A, C, Pinf, K = _octave_kalman_plant(seed)
+    for kw in (dict(sensors=[0], known=[0]), {}):
+        kf = kalman(sys_, Q=np.eye(2), R=[[1.0]], **kw)
+        assert kf.success
+        np.testing.assert_allclose(kf.P, Pinf, atol=1e-9)
+        np.testing.assert_allclose(np.linalg.solve(A, kf.L), K, atol=1e-9)
+        np.testing.assert_allclose(kf.M, K, atol=1e-9)
+        Ae = kf.estimator(output="arrays").A
+        np.testing.assert_allclose(Ae, A - kf.L @ C, atol=1e-12)
+        # 'current': the same state matrix A - A K C (Octave asserts kalmfc.a = A - A*K*C)
+        np.testing.assert_allclose(kf.estimator("filter", output="arrays").A, A - A @ K @ C, atol=1e-9)
+
+
+def test_octave_kalman_scalar_with_cross_covariance():
+    """Octave's kalman.m test 1: ``sys = ss(-2, 1, 1, 3); kalman(sys, 1, 1, 1)``: the input is the
+    noise and feeds through (H = 3), N = 1: g = 0.25, x = 0, estimator [a, b; c, d] =
+    [-2.25, 0.25; 1, 0; 1, 0] (Octave's reading: no known input, ``known=[]`` here)."""
+    sys_ = control.ss(-2.0, 1.0, 1.0, 3.0)
+    kf = kalman(sys_, Q=[[1.0]], R=[[1.0]], N=[[1.0]], known=[])
+    np.testing.assert_allclose(kf.L, [[0.25]], atol=1e-12)
+    np.testing.assert_allclose(kf.P, [[0.0]], atol=1e-12)
+    Ae, Be, Ce, De = kf.estimator(output="arrays")
+    np.testing.assert_allclose(np.block([[Ae, Be], [Ce, De]]), [[-2.25, 0.25], [1.0, 0.0], [1.0, 0.0]],
+                               atol=1e-12)
+    # the python-control reading (Q matches the input: noise added to the known input): same gain
+    np.testing.assert_allclose(kalman(sys_, Q=[[1.0]], R=[[1.0]], N=[[1.0]]).L, kf.L, atol=1e-12)
+
+
+def test_q_n_by_n_beyond_the_inputs_is_every_state_and_said():
+    """Q n x n with fewer inputs than n: G = I, the library's convention (what kalman_for_poles
+    returns Q for), said in the message and notes -- not silently (issue 27); another size of Q
+    beyond the inputs asks for G= or known=."""
+    sys_ = control.ss([[-1.0, 0.2], [0.0, -2.0]], [[0.0], [1.0]], [[1.0, 0.0]], 0)
+    kf = kalman(sys_, Q=np.eye(2), R=[[1.0]])
+    explicit = kalman(sys_, G=np.eye(2), Q=np.eye(2), R=[[1.0]])
+    np.testing.assert_array_equal(kf.L, explicit.L)
+    np.testing.assert_array_equal(kf.plant.B, [[0.0], [1.0]])
+    assert "Q is n x n = 2 x 2 and sys has 1 input(s): the noise enters every state (G = I" in kf.message
+    with pytest.raises(ValidationError, match=r"Q is 3 x 3 but sys has 1 input\(s\) and the plant has n = 2 "
+                                              r"states: say how the noise enters -- G= \(n x 3\), or known="):
+        kalman(sys_, Q=np.eye(3), R=[[1.0]])
+    free = kalman(scipy.signal.StateSpace(sys_.A, np.zeros((2, 0)), sys_.C, np.zeros((1, 0))), Q=np.eye(2),
+                  R=[[1.0]])
+    np.testing.assert_array_equal(free.L, explicit.L)
+
+
+def test_transfer_functions_raise_a_type_error():
+    """python-control raises a TypeError (ControlArgument) for a transfer function; so do we, also a
+    ValidationError, saying control.ss(sys)."""
+    for tf in (control.tf([1.0], [1.0, 2.0]), scipy.signal.lti([1.0], [1.0, 2.0])):
+        with pytest.raises(TypeError, match=r"TransferFunction.*(control.ss\(sys\)|sys.to_ss\(\))") as info:
+            kalman(tf, Q=[[1.0]], R=[[1.0]])
+        assert isinstance(info.value, ArgumentTypeError) and isinstance(info.value, ValidationError)
+
+
+def test_kalmd_with_n_is_a_typed_error():
+    cont = Plant([[0.0, 1.0], [-2.0, -0.3]], [[1.0, 0.0]], Q=np.eye(2), R=[[0.5]])
+    with pytest.raises(ArgumentTypeError, match=r"kalmd has no cross-covariance N \(as MATLAB's kalmd\).*"
+                                                 r"kalman\(discrete_plant, N=Nd\)"):
+        kalmd(cont, 0.1, N=np.zeros((2, 1)))
+
+
+def test_drss_systems_with_dt_true_are_designed_with_dt_one():
+    np.random.seed(27)                                  # control.drss draws from numpy's global state
+    sys_ = control.drss(3, 1, 2, strictly_proper=True)  # python-control's dlqe ignores D; we fold it in
+    assert sys_.dt is True
+    kf = kalman(sys_, Q=np.eye(2), R=[[1.0]])
+    L, P, _ = control.dlqe(sys_, np.eye(2), [[1.0]])
+    np.testing.assert_allclose(kf.L, L, rtol=1e-8, atol=1e-12)
+    assert kf.plant.dt == 1.0 and kf.extra["dt_unspecified"]
+    assert "unspecified sampling period (dt=True): designed with dt = 1" in kf.message
+    assert "dt=True: unspecified, taken as 1" in kf.summary()
+
+
+def test_kalmd_route_is_the_discrete_solve():
+    cont = Plant([[0.0, 1.0], [-2.0, -0.3]], [[1.0, 0.0]], Q=np.eye(2), R=[[0.5]])
+    kd = kalmd(cont, 0.1, method="hamiltonian")
+    assert [(s.name, s.kind, s.outcome) for s in kd.route] == [("hamiltonian", "engine", "answered")]
+    assert "route: hamiltonian [engine]: answered" in kd.summary()

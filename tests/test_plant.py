@@ -198,8 +198,8 @@ def test_from_control_round_trip():
     assert p.B.shape == (2, 1) and not p.is_discrete
     sysd = control.ss(A2, [[0.0], [1.0]], C2, 0, dt=0.1)
     assert Plant.from_control(sysd).dt == 0.1
-    with pytest.raises(ValidationError, match="unspecified sampling time"):
-        Plant.from_control(control.ss(A2, [[0.0], [1.0]], C2, 0, dt=True))
+    # dt=True (unspecified period, control.drss): dt = 1 (issue 27; it was refused)
+    assert Plant.from_control(control.ss(A2, [[0.0], [1.0]], C2, 0, dt=True)).dt == 1.0
     with pytest.raises(ValidationError, match="must be a control.StateSpace"):
         Plant.from_control("not a system")
 

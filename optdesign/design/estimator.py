@@ -2,7 +2,10 @@ r"""Systems out: an observer or Kalman filter as a state-space system.
 
 The estimator takes the known inputs and the measurements, ``[u; y]``, and returns the output
 and state estimates, ``[y_hat; x_hat]`` -- the signal layout of MATLAB's ``kalman`` / ``estim``
-(python-control's ``create_estimator_iosystem`` takes ``[y; u]`` and returns ``x_hat`` only).
+(``io="optdesign"``, the default).  ``io="control"`` gives python-control's layout: inputs
+``[y; u]``, output ``x_hat`` only (what ``create_estimator_iosystem`` returns, and what
+``control.create_statefbk_iosystem(sys, K, estimator=est)`` takes; signals named ``y[i]``,
+``u[i]``, ``xhat[i]`` -- python-control's default labels, so they connect by name).
 With the observer gain L (error dynamics ``A - L C``) and the feedthrough D of the known inputs:
 
 continuous (``form="continuous"``)::
@@ -47,12 +50,14 @@ from .._validate import as_matrix, as_str
 from ..errors import BackendUnavailableError, ValidationError
 from ..model.plant import Plant
 
-__all__ = ["EstimatorArrays", "estimator_system", "estimator_of", "FORMS", "OUTPUTS"]
+__all__ = ["EstimatorArrays", "estimator_system", "estimator_of", "FORMS", "OUTPUTS", "IOS"]
 
 #: estimator forms
 FORMS = ("continuous", "predictor", "filter")
 #: what :func:`estimator_system` returns
 OUTPUTS = ("auto", "control", "arrays")
+#: signal layouts: ours (MATLAB's) and python-control's
+IOS = ("optdesign", "control")
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,9 +68,9 @@ class EstimatorArrays:
     ----------
     A : (n, n) ndarray
     B : (n, nu + p) ndarray
-        Inputs ``[u; y]``.
+        Inputs ``[u; y]`` (``io="control"``: ``[y; u]``).
     C : (p + n, n) ndarray
-        Outputs ``[y_hat; x_hat]``.
+        Outputs ``[y_hat; x_hat]`` (``io="control"``: ``x_hat``, (n, n)).
     D : (p + n, nu + p) ndarray
     dt : float or None
         Sampling period (None: continuous).
@@ -105,8 +110,9 @@ def _form(plant: Plant, form: str | None) -> str:
 
 def estimator_system(plant: Plant, L: ArrayLike, *, form: str | None = None, M: ArrayLike | None = None,
                      My: ArrayLike | None = None, D: ArrayLike | None = None, output: str = "auto",
-                     name: str | None = None) -> Any:
-    """The estimator of ``plant`` with gain L as a system: inputs ``[u; y]``, outputs ``[y_hat; x_hat]``.
+                     name: str | None = None, io: str = "optdesign") -> Any:
+    """The estimator of ``plant`` with gain L as a system: inputs ``[u; y]``, outputs ``[y_hat; x_hat]``
+    (``io="control"``: inputs ``[y; u]``, output ``x_hat``).
 
     Parameters
     ----------
@@ -128,6 +134,12 @@ def estimator_system(plant: Plant, L: ArrayLike, *, form: str | None = None, M: 
         :class:`EstimatorArrays`.
     name : str, optional
         Name of the python-control system.
+    io : {"optdesign", "control"}
+        Signal layout: ``"optdesign"`` (MATLAB's ``kalman`` / ``estim``: ``[u; y] -> [y_hat;
+        x_hat]``) or ``"control"`` (python-control's ``create_estimator_iosystem``: ``[y; u] ->
+        x_hat``; pass it as ``estimator=`` to ``control.create_statefbk_iosystem``).  The default
+        stays ours: it carries the output estimate (and, in filter form, ``My``), which
+        python-control's layout drops.
 
     Returns
     -------
@@ -147,6 +159,7 @@ def estimator_system(plant: Plant, L: ArrayLike, *, form: str | None = None, M: 
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
     form = _form(plant, form)
     output = as_str("output", output, OUTPUTS)
+    io = as_str("io", io, IOS)
     A, C = plant.A, plant.C
     n, p = plant.n, plant.p
     L = as_matrix("L", L, (n, p))
@@ -169,6 +182,10 @@ def estimator_system(plant: Plant, L: ArrayLike, *, form: str | None = None, M: 
     inputs = tuple(f"u[{i}]" for i in range(nu)) + tuple(f"y[{i}]" for i in range(p))
     outputs = tuple(f"yhat[{i}]" for i in range(p)) + tuple(f"xhat[{i}]" for i in range(n))
     states = tuple(f"xe[{i}]" for i in range(n))
+    if io == "control":     # inputs [y; u], output x_hat: python-control's create_estimator_iosystem
+        perm = list(range(nu, nu + p)) + list(range(nu))
+        Be, Ce, De = Be[:, perm], Ce[p:], De[p:][:, perm]
+        inputs, outputs = tuple(inputs[j] for j in perm), outputs[p:]
     if output != "arrays":
         try:
             control = import_control("output='control' (or use output='arrays')")
@@ -183,7 +200,7 @@ def estimator_system(plant: Plant, L: ArrayLike, *, form: str | None = None, M: 
 
 
 def estimator_of(result: Any, plant: Plant | None = None, *, form: str | None = None,
-                 output: str = "auto") -> Any:
+                 output: str = "auto", io: str = "optdesign") -> Any:
     """The estimator of a design result (``result.estimator()``).
 
     Reads ``L`` (and, where the result has them, the innovation gains ``M`` / ``My`` and the
@@ -205,4 +222,4 @@ def estimator_of(result: Any, plant: Plant | None = None, *, form: str | None = 
         raise ValidationError(f"{type(result).__name__} does not carry its plant: pass plant=")
     M = getattr(result, "M", None)
     return estimator_system(plant, L, form=form, M=M, My=getattr(result, "My", None),
-                            D=getattr(result, "D", None), output=output)
+                            D=getattr(result, "D", None), output=output, io=io)

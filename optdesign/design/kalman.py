@@ -62,10 +62,11 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline
 from .._validate import as_int, as_matrix, as_positive_float, as_square, check_psd, sym_tol
 from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_error, filter_are_residual, sort_poles
-from ..errors import NotPositiveDefiniteError, NotPositiveSemidefiniteError, RiccatiError, ValidationError
+from ..errors import (ArgumentTypeError, NotPositiveDefiniteError, NotPositiveSemidefiniteError, RiccatiError,
+                      ValidationError)
 from ..model.coerce import SystemData, as_system
 from ..model.plant import Plant
-from ..results import Check, DesignResult, SolverStats, Status, Verification
+from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 from .estimator import estimator_of
 from .verification import cross_check, forward_error_check, psd_check, psd_tolerance, stability_check
 
@@ -161,21 +162,27 @@ class KalmanFilter(DesignResult):
         """The innovation gain (MATLAB's ``M``): the field ``Kf``."""
         return self.Kf
 
-    def estimator(self, form: str | None = None, *, output: str = "auto") -> Any:
+    def estimator(self, form: str | None = None, *, output: str = "auto", io: str = "optdesign") -> Any:
         """The filter as a system, inputs ``[u; y]``, outputs ``[y_hat; x_hat]``
         (:func:`~optdesign.design.estimator.estimator_system`): ``form`` ``"continuous"``,
-        ``"predictor"`` (discrete default, MATLAB's ``'delayed'``) or ``"filter"`` (``'current'``)."""
-        return estimator_of(self, form=form, output=output)
+        ``"predictor"`` (discrete default, MATLAB's ``'delayed'``) or ``"filter"`` (``'current'``).
+        ``io="control"``: python-control's layout, inputs ``[y; u]``, output ``x_hat`` (for
+        ``control.create_statefbk_iosystem(sys, K, estimator=...)``)."""
+        return estimator_of(self, form=form, output=output, io=io)
 
     def summary(self) -> str:
         """Multi-line human-readable report (used by ``optdesign kalman``)."""
         plant = self.plant
         label = f" {plant.name!r}" if plant.name else ""
         time_kind = f"discrete, dt = {plant.dt:g}" if plant.is_discrete else "continuous"
+        if self.extra.get("dt_unspecified"):
+            time_kind += " (dt=True: unspecified, taken as 1)"
         lines = [
             f"Kalman filter for plant{label} ({time_kind}, n = {plant.n}, p = {plant.p}, m = {plant.m})",
             f"  method: {self.method}   status: {self.status}   success: {self.success}",
         ]
+        if self.route:
+            lines.append(f"  route: {self.route}")
 
         def block(name: str, X: NDArray) -> None:
             with np.printoptions(precision=6, suppress=False, linewidth=100):
@@ -298,9 +305,18 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
     plant : Plant, control.StateSpace or scipy.signal StateSpace / lti / dlti
         With Q (m, m) and R (p, p), carried or given here.
     method : {"scipy", "hamiltonian"}
-        Riccati solver; the other one is run as an independent cross-check.
+        Riccati solver; the other one is run as an independent cross-check, and as the fallback
+        when the first fails (:class:`RiccatiError`: inaccurate or no answer).  ``route`` says
+        which ran and which answered.
     Q, R, G : array_like, optional
         Noise data where ``plant`` does not carry them (:func:`optdesign.model.coerce.as_system`).
+        For a *system* (not a Plant) without ``G=`` / ``known=``, how the noise enters follows
+        the peers (the rule of :mod:`optdesign.model.coerce`, said in ``extra["notes"]``): Q the
+        size of the system's inputs -- the noise enters through ``sys.B`` (python-control's
+        ``lqe(sys, QN, RN)``); Q smaller -- the *last* ``len(Q)`` inputs are the noise, the others
+        known (MATLAB's ``kalman(sys, Qn, Rn)``); Q larger and n x n -- every state (``G = I``,
+        the library's convention, said); otherwise refused, asking for ``G=`` or ``known=``.  A system with ``dt=True`` is
+        designed with ``dt = 1`` (said in the message and ``extra["dt_unspecified"]``).
     N : (m, p) array_like, optional
         Cross-covariance ``E[w v']`` (``control.lqe(..., NN)``, MATLAB ``kalman(sys, Q, R, N)``);
         ``[[Q, N], [N', R]]`` must be positive semidefinite.
@@ -321,9 +337,12 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
 
     Raises
     ------
-    ValidationError
+    ArgumentTypeError
         ``plant`` is not a Plant or a state-space system (a transfer function: with how to convert
-        it), has no Q or no R, ``method`` is unknown, bad ``sensors`` / ``known`` (named).
+        it, ``control.ss(sys)``); a ``TypeError`` and a ``ValidationError``.
+    ValidationError
+        ``plant`` has no Q or no R, ``method`` is unknown, bad ``sensors`` / ``known`` (named), Q
+        with more rows than a system has inputs, not n x n, and neither ``G=`` nor ``known=``.
     NotPositiveSemidefiniteError
         N makes ``[[Q, N], [N', R]]`` indefinite.
     NotPositiveDefiniteError
@@ -361,7 +380,7 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
     Ne, Rb = _noise_data(plant, N, data.H)
     work = _reduced_plant(plant, Ne, Rb)
     t0 = time.perf_counter()
-    res = filter_are(work, method)
+    res, method, route = _solve_with_fallback(work, method)
     elapsed = time.perf_counter() - t0
     P = res.P
     shift = None if Ne is None else plant.G @ np.linalg.solve(Rb, Ne.T).T      # G N_e R^-1
@@ -402,8 +421,12 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
     verification = Verification.of(checks)
     kind = "discrete" if plant.is_discrete else "continuous"
     message = f"steady-state {kind} Kalman filter by the {method} Riccati solver"
+    if len(route) > 1:
+        message += f" (fallback: the {route[0].name} solver failed)"
     if Ne is not None:
         message += " with cross-covariance N"
+    if data.notes:
+        message += "; " + "; ".join(data.notes)
     if verification.passed:
         message += "; all independent checks passed"
     else:
@@ -411,13 +434,48 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
     stats = SolverStats(backend=method, native_status="solved", time=elapsed,
                         extra={"cross_check_method": other, "cross_check_time": cross_time})
     info: dict[str, Any] = {"sensors": data.sensors, "known": data.known, **(extra or {})}
+    if data.notes:
+        info["notes"] = data.notes
+    if data.dt_unspecified:
+        info["dt_unspecified"] = True
     if data.H is not None:
         info["R_used"] = Rb
     poles = sort_poles(np.linalg.eigvals(plant.A - L @ C)) if shift is not None else res.poles
     return KalmanFilter(L=L, P=P, poles=poles, residual=residual, Kf=res.Kf, plant=plant, Z=Z, My=My,
                         N=Ne, D=data.D, H=data.H,
                         status=Status.TIME_LIMIT if deadline.expired else Status.SOLVED,
-                        message=message, solver_stats=stats, verification=verification, extra=info)
+                        message=message, solver_stats=stats, verification=verification, extra=info,
+                        route=route)
+
+
+def _stage_kind(method: str) -> str:
+    """scipy's solvers are a library backend; the Hamiltonian/symplectic Schur method is ours."""
+    return "backend" if method == "scipy" else "engine"
+
+
+def _solve_with_fallback(work: Plant, method: str) -> tuple[Any, str, Route]:
+    """``filter_are`` by ``method``; on a :class:`RiccatiError` (no accurate answer) once more by the
+    other method.  Returns the answer, the method that gave it and the route.  Both failing raises
+    the first error (the second's reason appended).  A :class:`NotObservableError` is a property of
+    the data, not of the solver: it propagates at once."""
+    t0 = time.process_time()
+    try:
+        res = filter_are(work, method)
+    except RiccatiError as first:
+        failed = Stage(method, _stage_kind(method), "failed", _short(str(first)), time.process_time() - t0)
+        other = _METHODS[1] if method == _METHODS[0] else _METHODS[0]
+        t1 = time.process_time()
+        try:
+            res = filter_are(work, other)
+        except RiccatiError as second:
+            raise RiccatiError(f"{first} (the {other} solver failed too: {second})") from first
+        return res, other, Route([failed, Stage(other, "fallback", "answered", "after a RiccatiError",
+                                                time.process_time() - t1)])
+    return res, method, Route([Stage(method, _stage_kind(method), "answered", "", time.process_time() - t0)])
+
+
+def _short(text: str, limit: int = 120) -> str:
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 # ------------------------------------------------------------------ kalmd
@@ -461,8 +519,8 @@ def van_loan(A: ArrayLike, W: ArrayLike, Ts: float) -> tuple[NDArray[np.float64]
 
 
 def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None = None,
-          R: ArrayLike | None = None, G: ArrayLike | None = None, sensors: Any = None, known: Any = None,
-          time_limit: float | None = None) -> KalmanFilter:
+          R: ArrayLike | None = None, G: ArrayLike | None = None, N: ArrayLike | None = None,
+          sensors: Any = None, known: Any = None, time_limit: float | None = None) -> KalmanFilter:
     r"""Discrete Kalman filter for a continuous plant (MATLAB's ``kalmd``).
 
     The plant is discretized with a zero-order hold at period ``Ts`` (``Ad = e^(A Ts)``,
@@ -482,6 +540,10 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
         Sampling period, > 0.
     method, Q, R, G, sensors, known, time_limit
         As :func:`kalman`.
+    N : None
+        Not supported (MATLAB's kalmd has no N either): a continuous cross-covariance has no
+        discrete equivalent of the form ``Rd = R / Ts``.  Given, it raises
+        :class:`~optdesign.errors.ArgumentTypeError` saying what to do instead.
 
     Returns
     -------
@@ -491,6 +553,8 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
 
     Raises
     ------
+    ArgumentTypeError
+        ``N`` given (a ``TypeError``, as an unknown keyword would be, and a ``ValidationError``).
     ValidationError
         ``Ts`` not a finite number > 0; a discrete plant; a noise feedthrough H from ``known``
         (kalmd has no N); and everything :func:`kalman` raises.
@@ -502,6 +566,11 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
     """
     if method not in _METHODS:
         raise ValidationError(f"method must be one of {_METHODS}; found {method!r}")
+    if N is not None:
+        raise ArgumentTypeError(
+            "kalmd has no cross-covariance N (as MATLAB's kalmd): a continuous E[w v'] has no discrete "
+            "equivalent of the form Rd = R / Ts; discretize the plant and its noise yourself and call "
+            "kalman(discrete_plant, N=Nd), or design the continuous filter with kalman(plant, N=N)")
     deadline = Deadline(time_limit)
     Ts = as_positive_float("Ts", Ts)
     data = as_system(plant, G=G, Q=Q, R=R, sensors=sensors, known=known)
@@ -524,7 +593,8 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
         Bd = scipy.linalg.expm(Z * Ts)[:n, n:]
     Rd = R / Ts
     dp = Plant(Ad, cp.C, Q=Qd, R=Rd, dt=Ts, B=Bd, name=cp.name)
-    disc = SystemData(dp, D=data.D, sensors=data.sensors, known=data.known, source=data.source)
+    disc = SystemData(dp, D=data.D, sensors=data.sensors, known=data.known, source=data.source,
+                      notes=data.notes)
     return _steady_filter(disc, method, None, deadline,
                           extra={"Ts": Ts, "Qd": Qd, "Rd": Rd, "continuous_plant": cp})
 

@@ -8,10 +8,14 @@ Every design verb accepts
 
 and converts it with :func:`as_plant` (or :func:`as_system`, which also keeps the feedthrough
 matrices that a :class:`Plant` does not model).  The noise data that a system does not carry
-(``Q``, ``R``, ``G``) are keyword arguments.  Transfer functions are refused with how to convert
-them: a state estimator needs a state-space realization, and the realization chosen fixes what
-the states are -- and with them Q, P, kappa2 and every other design quantity -- so the choice is
-the caller's (``control.ss(sys)``, ``sys.to_ss()``).
+(``Q``, ``R``, ``G``) are keyword arguments.  Transfer functions are refused
+(:class:`~optdesign.errors.ArgumentTypeError`, a ``TypeError`` as python-control's
+``ControlArgument``) with how to convert them: a state estimator needs a state-space
+realization, and the realization chosen fixes what the states are -- and with them Q, P, kappa2
+and every other design quantity -- so the choice is the caller's (``control.ss(sys)``,
+``sys.to_ss()``).  A discrete system with an unspecified sampling period (python-control's
+``dt=True``, what ``control.drss`` returns) is designed with ``dt = 1`` and the result says so
+(``SystemData.notes``): every gain of a discrete design is independent of the period.
 
 python-control is optional: it is imported only when the object to convert comes from it.
 
@@ -19,6 +23,25 @@ Input and output selection follows MATLAB's ``kalman(sys, Q, R, N, sensors, know
 lists the (0-based) inputs of ``sys`` that are known (deterministic, they make up ``u`` and
 ``B``); the other inputs are the process noise ``w`` (their columns of ``sys.B`` make up ``G``,
 their columns of ``sys.D`` the noise feedthrough ``H``); ``sensors`` lists the measured outputs.
+
+How the noise enters a *system* (not a Plant, which carries its own G) when Q is given -- the
+rule, in order (what was used is in ``SystemData.notes``):
+
+1. ``known=`` given: MATLAB's selection above.
+2. ``G=`` given: the noise enters through G; every input of ``sys`` is known.
+3. Q is ``m x m`` with ``m`` = the number of inputs of ``sys``: the noise enters through
+   ``sys.B`` -- python-control's ``lqe(sys, QN, RN)`` and ``create_estimator_iosystem`` ("the
+   disturbances are added to the system inputs"): ``G = sys.B``, the inputs stay known
+   (``B = sys.B``) and ``H = sys.D``.  (MATLAB's reading, every input noise and none known, gives
+   the same gain; ``known=[]`` selects it.)
+4. Q is ``m x m`` with ``m`` smaller than the number of inputs: MATLAB's ``kalman(sys, Qn, Rn)``
+   -- the *last* m inputs are the process noise, the others known.
+5. Q is ``n x n`` with more rows than the system has inputs: the noise enters every state,
+   ``G = I`` -- the library's own convention (a :class:`Plant` without G, the Q that
+   :func:`optdesign.kalman_for_poles` returns), said in the notes, never silently.  Neither peer
+   answers this call (python-control and MATLAB refuse a Q larger than the inputs).
+6. Otherwise (Q neither matches nor fits the inputs, and is not n x n): refused, asking for
+   ``G=`` or ``known=``.
 
 References
 ----------
@@ -39,7 +62,7 @@ from numpy.typing import NDArray
 
 from .._backends import import_control
 from .._validate import as_matrix
-from ..errors import ValidationError
+from ..errors import ArgumentTypeError, ValidationError
 from .plant import Plant
 
 __all__ = ["SystemData", "as_system", "as_plant", "system_kind", "SYSTEM_KINDS"]
@@ -70,6 +93,11 @@ class SystemData:
         The selections made (0-based), None when not given.
     source : str
         What the input was (``"Plant"``, ``"python-control StateSpace"``, ``"scipy StateSpace"``).
+    notes : tuple of str
+        The conventions applied, in words: how the noise enters (the rule of the module notes)
+        and an unspecified sampling period taken as 1.  Empty for a Plant.
+    dt_unspecified : bool
+        The system was discrete with ``dt=True``; ``plant.dt`` is 1.
     """
 
     plant: Plant
@@ -78,6 +106,8 @@ class SystemData:
     sensors: tuple[int, ...] | None = None
     known: tuple[int, ...] | None = None
     source: str = "Plant"
+    notes: tuple[str, ...] = ()
+    dt_unspecified: bool = False
 
 
 def system_kind(obj: Any) -> str | None:
@@ -121,13 +151,16 @@ def _nonzero(X: NDArray | None) -> NDArray | None:
     return None if X is None or X.size == 0 or not np.any(X) else X
 
 
-def _dt_of(kind: str, dt: Any) -> float | None:
+#: the note of a system with ``dt=True``
+DT_TRUE_NOTE = ("discrete system with an unspecified sampling period (dt=True): designed with dt = 1 "
+                "(the gains do not depend on the period; give a number for time axes)")
+
+
+def _dt_of(dt: Any) -> float | None:
     """Sampling period from a python-control (0 / None: continuous) or scipy (None: continuous)
-    system; ``True`` (discrete, unspecified) is refused."""
+    system; ``True`` (discrete, unspecified period) is 1."""
     if dt is True:
-        hint = "control.ss(A, B, C, D, dt)" if kind == "control" else "scipy.signal.dlti(..., dt=dt)"
-        raise ValidationError(f"plant is discrete with an unspecified sampling time (dt=True); give the "
-                              f"sampling period as a number, e.g. {hint}")
+        return 1.0
     if dt is None or dt == 0:
         return None
     return float(dt)
@@ -140,32 +173,32 @@ def _state_space_arrays(sys: Any, kind: str) -> tuple[NDArray, NDArray, NDArray,
     if kind == "control":
         control = import_control("converting a python-control system")
         if isinstance(sys, control.TransferFunction):
-            raise ValidationError(
+            raise ArgumentTypeError(
                 "plant is a python-control TransferFunction: a state estimator needs a state-space model, "
                 "and the realization fixes what the states are (and so Q, P and kappa2); convert it "
                 "yourself, e.g. control.ss(sys), and pass the StateSpace")
         if not isinstance(sys, control.StateSpace):
-            raise ValidationError(f"plant must be {', '.join(SYSTEM_KINDS[:-1])} or {SYSTEM_KINDS[-1]}; "
+            raise ArgumentTypeError(f"plant must be {', '.join(SYSTEM_KINDS[:-1])} or {SYSTEM_KINDS[-1]}; "
                                   f"found the python-control {type(sys).__name__}, which is not a linear "
                                   f"state-space system")
         name = getattr(sys, "name", None)
         name = None if not name or _AUTO_NAME.match(str(name)) else str(name)
         return (np.asarray(sys.A, dtype=float), np.asarray(sys.B, dtype=float),
                 np.asarray(sys.C, dtype=float), np.asarray(sys.D, dtype=float),
-                _dt_of(kind, sys.dt), name, "python-control StateSpace")
+                _dt_of(sys.dt), name, "python-control StateSpace")
     import scipy.signal as signal
 
     if isinstance(sys, (signal.TransferFunction, signal.ZerosPolesGain)):
-        raise ValidationError(
+        raise ArgumentTypeError(
             f"plant is a scipy.signal {type(sys).__name__}: a state estimator needs a state-space model, "
             f"and the realization fixes what the states are (and so Q, P and kappa2); convert it "
             f"yourself, e.g. sys.to_ss() (or scipy.signal.tf2ss), and pass the StateSpace")
     if not isinstance(sys, signal.StateSpace):
-        raise ValidationError(f"plant must be {', '.join(SYSTEM_KINDS[:-1])} or {SYSTEM_KINDS[-1]}; found "
+        raise ArgumentTypeError(f"plant must be {', '.join(SYSTEM_KINDS[:-1])} or {SYSTEM_KINDS[-1]}; found "
                               f"the scipy object {type(sys).__name__}")
     return (np.atleast_2d(np.asarray(sys.A, dtype=float)), np.atleast_2d(np.asarray(sys.B, dtype=float)),
             np.atleast_2d(np.asarray(sys.C, dtype=float)), np.atleast_2d(np.asarray(sys.D, dtype=float)),
-            _dt_of(kind, sys.dt), None, "scipy StateSpace")
+            _dt_of(sys.dt), None, "scipy StateSpace")
 
 
 def _from_plant(plant: Plant, G: Any, Q: Any, R: Any, name: str | None, sensors: Any,
@@ -197,28 +230,44 @@ def _from_plant(plant: Plant, G: Any, Q: Any, R: Any, name: str | None, sensors:
     return SystemData(plant.replace(**changes) if changes else plant, sensors=sel)
 
 
-def _noise_inputs(A: NDArray, B: NDArray, G: Any, Q: Any, known: Any) -> tuple[NDArray | None, Any,
-                                                                                  tuple[int, ...] | None,
-                                                                                  list[int]]:
-    """(B of the known inputs, G, known indices, noise input indices) of a system."""
+def _noise_inputs(A: NDArray, B: NDArray, G: Any, Q: Any, known: Any
+                  ) -> tuple[NDArray | None, Any, tuple[int, ...] | None, list[int], str | None]:
+    """(B of the known inputs, G, known indices, noise input indices, the rule used in words) of a
+    system, by the rule of the module notes."""
     n, nin = A.shape[0], B.shape[1]
-    if known is None:
-        if G is None and Q is not None:
-            m = as_matrix("Q", Q).shape[0]
-            if m != n:
-                raise ValidationError(
-                    f"Q is {m} x {m} but the plant has n = {n} states: say how the noise enters -- G= "
-                    f"(n x {m}), or known=[...] to list the known inputs of sys (the other inputs are the "
-                    f"process noise, as in MATLAB's kalman(sys, Q, R, N, sensors, known))")
-        return (B if nin else None), G, None, []
-    kn = _indices("known", known, nin, "input", allow_empty=True)
-    rest = [j for j in range(nin) if j not in kn]
-    if rest and G is not None:
-        raise ValidationError(f"G given twice: with known={list(kn)} the other inputs {rest} of sys are the "
-                              f"process noise, so G is their columns of sys.B; drop G= or list every input "
-                              f"in known")
-    Bk = B[:, list(kn)] if kn else None
-    return Bk, (B[:, rest] if rest else G), kn, rest
+    if known is not None:
+        kn = _indices("known", known, nin, "input", allow_empty=True)
+        rest = [j for j in range(nin) if j not in kn]
+        if rest and G is not None:
+            raise ValidationError(f"G given twice: with known={list(kn)} the other inputs {rest} of sys are "
+                                  f"the process noise, so G is their columns of sys.B; drop G= or list every "
+                                  f"input in known")
+        Bk = B[:, list(kn)] if kn else None
+        note = (f"known={list(kn)}: inputs {rest} of sys are the process noise (G = their columns of sys.B)"
+                if rest else None)
+        return Bk, (B[:, rest] if rest else G), kn, rest, note
+    if G is not None or Q is None:
+        return (B if nin else None), G, None, [], None
+    m = as_matrix("Q", Q).shape[0]
+    if nin and m == nin:
+        note = (f"Q is {m} x {m} = the {nin} input(s) of sys: the noise enters through sys.B, added to the "
+                f"known inputs (python-control's lqe(sys, QN, RN); known=[] for MATLAB's all-noise reading)")
+        return B, B, None, list(range(nin)), note
+    if nin and m < nin:
+        rest = list(range(nin - m, nin))
+        kn = tuple(range(nin - m))
+        note = (f"Q is {m} x {m} and sys has {nin} inputs: the last {m} input(s) {rest} are the process "
+                f"noise, inputs {list(kn)} known (MATLAB's kalman(sys, Qn, Rn); known= to choose others)")
+        return B[:, list(kn)], B[:, rest], kn, rest, note
+    if m == n:
+        note = (f"Q is n x n = {n} x {n} and sys has {nin} input(s): the noise enters every state (G = I; "
+                f"G= or known= to say otherwise)")
+        return (B if nin else None), None, None, [], note
+    inputs = f"sys has {nin} input(s)" if nin else "sys has no inputs"
+    raise ValidationError(
+        f"Q is {m} x {m} but {inputs} and the plant has n = {n} states: say how the noise enters -- G= "
+        f"(n x {m}), or known=[...] to list the known inputs of sys (the other inputs are the process "
+        f"noise, as in MATLAB's kalman(sys, Q, R, N, sensors, known))")
 
 
 def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors: Any = None,
@@ -228,10 +277,12 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
     Parameters
     ----------
     sys : Plant, control.StateSpace or scipy.signal.StateSpace / lti / dlti
-        A python-control ``dt`` of 0 or None and a scipy ``dt`` of None mean continuous time.
+        A python-control ``dt`` of 0 or None and a scipy ``dt`` of None mean continuous time;
+        ``dt=True`` (discrete, unspecified period) is taken as 1 (said in ``notes``).
     G : (n, m) array_like, optional
-        Process-noise input matrix (default: the identity, or the noise columns of ``sys.B`` when
-        ``known`` is given).  Not with a Plant that has its own G and Q.
+        Process-noise input matrix.  Default for a system: by the rule of the module notes
+        (``known=``, else ``sys.B`` when Q matches the inputs, else MATLAB's last-inputs reading);
+        for a Plant its own G.  Not with a Plant that has its own G and Q.
     Q : (m, m) array_like, optional
         Process-noise covariance; only where ``sys`` does not carry one.
     R : (p, p) array_like, optional
@@ -241,8 +292,8 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
         0-based indices of the measured outputs (default: all).
     known : sequence of int, optional
         0-based indices of the known inputs of a system; the others are process noise (their
-        columns of ``sys.B`` become G, of ``sys.D`` the noise feedthrough H).  Default: every input
-        is known and the noise enters through G.  Not for a Plant.
+        columns of ``sys.B`` become G, of ``sys.D`` the noise feedthrough H).  Default: by the rule
+        of the module notes.  Not for a Plant.
     name : str, optional
         The plant's label (default: the system's own name, if it set one).
 
@@ -252,10 +303,14 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
 
     Raises
     ------
+    ArgumentTypeError
+        A transfer function (with how to convert it: ``control.ss(sys)``, ``sys.to_ss()``) or
+        another kind of object (the accepted kinds are listed); a ``TypeError`` and a
+        ``ValidationError``.
     ValidationError
-        A transfer function (with how to convert it), another kind of object (the accepted kinds
-        are listed), an unspecified sampling time (``dt=True``), Q not n x n with neither G nor
-        ``known``, data given twice (a Plant's own Q, R or G; G with noise inputs from ``known``),
+        Q with more rows than ``sys`` has inputs, not n x n, and neither G nor ``known``; data
+        given twice (a Plant's own Q, R or G; G with noise inputs
+        from ``known``),
         ``sensors`` / ``known`` not distinct 0-based indices in range (the bad entry is named).
     DimensionError, NotFiniteError, NotSymmetricError, NotPositiveSemidefiniteError, NotPositiveDefiniteError
         From the Plant constructor (names the matrix).
@@ -269,20 +324,23 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
         found = type(sys).__name__
         hint = " (a tuple of matrices? build optdesign.Plant(A, C, ...) or control.ss(A, B, C, D))" \
             if isinstance(sys, (tuple, list)) else ""
-        raise ValidationError(f"plant must be {', '.join(SYSTEM_KINDS[:-1])} or {SYSTEM_KINDS[-1]}; found "
-                              f"{found}{hint}")
+        raise ArgumentTypeError(f"plant must be {', '.join(SYSTEM_KINDS[:-1])} or {SYSTEM_KINDS[-1]}; found "
+                                f"{found}{hint}")
     A, B, C, D, dt, sys_name, source = _state_space_arrays(sys, kind)
     n = A.shape[0] if A.ndim == 2 else 0
     B = B.reshape(n, -1) if B.size else np.zeros((n, 0))
     D = D.reshape(C.shape[0], B.shape[1]) if D.size else np.zeros((C.shape[0], B.shape[1]))
     sel = None if sensors is None else _indices("sensors", sensors, C.shape[0], "output", allow_empty=False)
     rows = list(range(C.shape[0])) if sel is None else list(sel)
-    Bk, G_used, kn, rest = _noise_inputs(A, B, G, Q, known)
+    Bk, G_used, kn, rest, note = _noise_inputs(A, B, G, Q, known)
     Dk = D[np.ix_(rows, list(kn))] if kn is not None else D[rows]
     H = D[np.ix_(rows, rest)] if rest else None
     plant = Plant(A, C[rows], G=G_used, Q=Q, R=R, dt=dt, B=Bk,
                   name=name if name is not None else sys_name)
-    return SystemData(plant, D=_nonzero(Dk), H=_nonzero(H), sensors=sel, known=kn, source=source)
+    unspecified = getattr(sys, "dt", None) is True
+    notes = tuple(t for t in (note, DT_TRUE_NOTE if unspecified else None) if t)
+    return SystemData(plant, D=_nonzero(Dk), H=_nonzero(H), sensors=sel, known=kn, source=source,
+                      notes=notes, dt_unspecified=unspecified)
 
 
 def as_plant(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, name: str | None = None) -> Plant:

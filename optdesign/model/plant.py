@@ -345,14 +345,16 @@ class Plant:
     def from_control(cls, sys, *, G=None, Q=None, R=None, name: str | None = None) -> Plant:
         """Build a plant from a python-control ``StateSpace`` (python-control is optional).
 
-        ``sys.B`` becomes the control input B; ``sys.dt`` of 0 or None means continuous time.
+        ``sys.B`` becomes the control input B; ``sys.dt`` of 0 or None means continuous time,
+        ``dt=True`` (discrete, unspecified period: what ``control.drss`` returns) is taken as 1, as
+        in :func:`optdesign.model.coerce.as_system` (which also says so in its notes).
 
         Raises
         ------
         BackendUnavailableError
             python-control is not installed.
         ValidationError
-            ``sys`` is not a StateSpace, or it is discrete with an unspecified sampling time.
+            ``sys`` is not a StateSpace.
         """
         try:
             import control
@@ -363,9 +365,7 @@ class Plant:
         if not isinstance(sys, control.StateSpace):
             raise ValidationError(f"sys must be a control.StateSpace; found {type(sys).__name__}")
         dt = sys.dt
-        if dt is True:
-            raise ValidationError("sys is discrete with unspecified sampling time (dt=True); give a number")
-        dt = None if (dt is None or dt == 0) else float(dt)
+        dt = 1.0 if dt is True else None if (dt is None or dt == 0) else float(dt)
         return cls(np.asarray(sys.A), np.asarray(sys.C), G=G, Q=Q, R=R, dt=dt,
                    name=name if name is not None else (getattr(sys, "name", None) or None),
                    B=np.asarray(sys.B) if np.asarray(sys.B).size else None)
