@@ -106,6 +106,8 @@ __all__ = [
     "parse_region",
     "parse_poles",
     "plot_table",
+    "LABELS",
+    "SYMBOLS",
     "REGION_SHAPES",
     "require_matplotlib",
     "format_region",

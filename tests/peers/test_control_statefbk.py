@@ -7,7 +7,7 @@ and asserted properties are python-control's, the code is ours.  Where a case is
 
 Not ported (not functions of the drop-in): ctrb / obsv / gram tests, ``test_care`` / ``test_dare``
 (python-control's ``mateqn``), the gain-scheduling and ``create_statefbk_iosystem`` argument tests,
-``place_varga``'s partial placement (``alpha``), and the two ``xfail`` warning tests
+``place_varga``'s partial placement (``alpha``), and the two warning tests
 (``testLQR_warning``, ``testDLQR_warning``: python-control does not implement them).
 """
 
@@ -72,9 +72,6 @@ def test_place_varga_distinct_poles():
     _check_placed(P, oc.place(A, B, P), A, B)
 
 
-@pytest.mark.xfail(reason="issue 27 item 5 (the scipy helper's branch): a pole repeated with rank(B) = 1 "
-                          "is placed by Ackermann's gain; before it the native place returns no gain",
-                   strict=False)
 @pytest.mark.parametrize("A, P, dt", [
     ([[1.0, -2.0], [3.0, -4.0]], [-2.0, -2.0], None),      # testPlace_varga_continuous
     ([[1.0, 0.0], [0.0, 0.5]], [0.5, 0.5], 1.0),           # testPlace_varga_discrete
@@ -346,10 +343,7 @@ def test_lqr_for_poles_takes_a_system_with_feedthrough():
     sys_ = ct.rss(3, 1, 1)
     sys_.D = np.array([[0.7]])
     poles = [-1.0, -2.0, -3.0]
-    try:
-        res = od.lqr_for_poles(sys_, poles)
-    except od.ValidationError as exc:  # pragma: no cover - before the scipy helper's fix
-        pytest.xfail(f"lqr_for_poles refuses D != 0 on this branch: {exc}")
+    res = od.lqr_for_poles(sys_, poles)
     ref = od.lqr_for_poles(ct.ss(sys_.A, sys_.B, sys_.C, 0), poles)
     np.testing.assert_allclose(res.K, ref.K, rtol=1e-8)
 
