@@ -15,6 +15,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .errors import (
+    ArgumentTypeError,
     BackendUnavailableError,
     DimensionError,
     EmptyRegionError,
@@ -27,6 +28,8 @@ from .errors import (
     NotPositiveSemidefiniteError,
     NotSymmetricError,
     OptDesignError,
+    OutputExistsError,
+    OutputPathError,
     ProblemFileError,
     ProblemNotFoundError,
     RiccatiError,
@@ -98,7 +101,7 @@ _LAZY: dict[str, str] = {
 }
 
 _SUBMODULES = ("metrics", "regions", "riccati", "problems", "noise", "classical", "studies",
-               "analysis", "model", "formulate", "solvers", "design")
+               "analysis", "model", "formulate", "solvers", "design", "compat", "plot")
 
 __all__ = [
     "Plant",
@@ -110,6 +113,7 @@ __all__ = [
     "DesignResult",
     "OptDesignError",
     "ValidationError",
+    "ArgumentTypeError",
     "DimensionError",
     "NotFiniteError",
     "NotSymmetricError",
@@ -126,6 +130,8 @@ __all__ = [
     "RiccatiError",
     "ProblemNotFoundError",
     "ProblemFileError",
+    "OutputExistsError",
+    "OutputPathError",
     *_LAZY,
 ]
 
