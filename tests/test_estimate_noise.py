@@ -315,3 +315,53 @@ def test_time_limit_returns_the_estimate_so_far():
     est = estimate_noise(plant, y, lags=10, bootstrap=10_000, seed=0, time_limit=0.5)
     assert est.status is Status.TIME_LIMIT
     assert est.Q is not None and est.confidence["replicates"] < 10_000
+
+
+# ------------------------------------------------------------------ (b) the papers' / package's examples
+def _problem(name):
+    from pathlib import Path
+
+    from optdesign import problems
+    return problems.load(str(Path(__file__).resolve().parents[1] / "problems" / "als" / f"{name}.json"))
+
+
+def test_paper_motivating_example_estimates_scatter_around_the_truth():
+    """problems/als/als_motivating_example (1000 samples, 15 lags, start 100, the filter of the guesses):
+    the mean of the estimates over replications lies within 3 standard errors of the truth."""
+    p = _problem("als_motivating_example")
+    t = p.targets
+    Qs, Rs = [], []
+    for seed in range(12):
+        y = simulate_outputs(p.plant, int(t["samples"]), Q=t["Q_true"], R=t["R_true"], seed=seed)
+        est = estimate_noise(p.plant, y, lags=int(t["lags"]), burn_in=int(t["burn_in"]))
+        assert est.success
+        Qs.append(est.Q[0, 0])
+        Rs.append(est.R[0, 0])
+    for vals, truth in ((Qs, t["Q_true"][0, 0]), (Rs, t["R_true"][0, 0])):
+        se = np.std(vals, ddof=1) / np.sqrt(len(vals))
+        assert abs(np.mean(vals) - truth) < 3 * se + 1e-12, (np.mean(vals), truth, se)
+
+
+def test_paper_three_output_example_full_q_and_r():
+    p = _problem("als_simulate_data8")
+    t = p.targets
+    y = simulate_outputs(p.plant, int(t["samples"]), Q=t["Q_true"], R=t["R_true"], seed=100)
+    for weighting in ("identity", "optimal"):
+        est = estimate_noise(p.plant, y, lags=int(t["lags"]), burn_in=int(t["burn_in"]), weighting=weighting)
+        assert est.success and est.n_unknowns == 12
+        assert np.max(np.abs(est.Q - t["Q_true"])) < 0.2 and np.max(np.abs(est.R - t["R_true"])) < 0.2
+
+
+def test_paper_minimum_rank_example_trade_off():
+    p = _problem("als_minrank_ex")
+    t = p.targets
+    y = simulate_outputs(p.plant, int(t["samples"]), Q=t["Q_true"], R=t["R_true"], seed=200)
+    ranks, traces = [], []
+    for rho in np.logspace(-4, 0, 5):
+        est = estimate_noise(p.plant, y, lags=int(t["lags"]), burn_in=int(t["burn_in"]), trace_penalty=rho)
+        assert est.success
+        lam = np.linalg.eigvalsh(est.Q)
+        ranks.append(int(np.sum(lam > 1e-6 * max(lam[-1], 1e-300))))
+        traces.append(float(np.trace(est.Q)))
+    assert ranks[:3] == [p.references["rank_Q_at_knee"]] * 3
+    assert all(a >= b - 1e-9 for a, b in zip(traces, traces[1:], strict=False))   # tr(Q) falls with rho
