@@ -365,3 +365,32 @@ def test_paper_minimum_rank_example_trade_off():
         traces.append(float(np.trace(est.Q)))
     assert ranks[:3] == [p.references["rank_Q_at_knee"]] * 3
     assert all(a >= b - 1e-9 for a, b in zip(traces, traces[1:], strict=False))   # tr(Q) falls with rho
+
+
+# ------------------------------------------------------------------ CLI
+def test_cli_estimate_noise_npz_csv_and_errors(tmp_path, capsys):
+    import json
+
+    from optdesign.cli.main import main
+
+    path = str(_problem("als_motivating_example").path)
+    p = _problem("als_motivating_example")
+    y = simulate_outputs(p.plant, 3000, Q=p.targets["Q_true"], R=p.targets["R_true"], seed=0)
+    np.savez(tmp_path / "d.npz", y=y)
+    np.savetxt(tmp_path / "d.csv", y, delimiter=",", header="y1", comments="")
+    assert main(["estimate-noise", path, str(tmp_path / "d.npz"), "--bootstrap", "20", "--seed", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "NoiseEstimate: status=solved" in out and "bootstrap (20 replicates" in out
+    assert "Kalman filter of the estimate: poles" in out
+    assert main(["estimate-noise", path, str(tmp_path / "d.csv"), "--json"]) == 0
+    rec = json.loads(capsys.readouterr().out)
+    est = estimate_noise(p.plant, y)
+    np.testing.assert_allclose(rec["Q"], est.Q)
+    assert rec["success"] and rec["filter"]["L"]
+    assert main(["estimate-noise", path, str(tmp_path / "missing.csv")]) == 2
+    assert "data file" in capsys.readouterr().err
+    np.savetxt(tmp_path / "two.csv", np.hstack([y, y]), delimiter=",")
+    assert main(["estimate-noise", path, str(tmp_path / "two.csv")]) == 2
+    assert "expected 1 columns; found 2" in capsys.readouterr().err
+    assert main(["estimate-noise", path, str(tmp_path / "d.csv"), "--lags", "900"]) == 2
+    assert "lags = 900 is too large" in capsys.readouterr().err
