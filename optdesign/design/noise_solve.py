@@ -163,17 +163,10 @@ class _Solver:
         best, best_obj, best_rank = None, self._objective(fit.theta, z) + _EPS, 0
         tol = -10 * max(fit.Q.shape[0], fit.R.shape[0]) * _EPS
         for thr in (1e-8, 1e-6, 1e-4, 1e-3):
-            cols = []
-            if st.q_diagonal:
-                dq = np.diag(fit.Q)
-                for i in np.flatnonzero(dq > thr * max(float(np.max(dq)), _EPS)):
-                    cols.append(_coords(np.diag(np.eye(len(dq))[i]), np.zeros_like(fit.R), st))
-            else:
-                cols += [_coords(X, np.zeros_like(fit.R), st) for X in _face_basis(fit.Q, thr)]
-            cols += [_coords(np.zeros_like(fit.Q), X, st) for X in _face_basis(fit.R, thr)]
-            if not cols:
+            FQ, FR = _face(fit.Q, thr, st.q_diagonal), _face(fit.R, thr, False)
+            if FQ.shape[0] + FR.shape[0] == 0:
                 continue
-            F = np.array(cols).T                                       # theta = F s
+            F = scipy.linalg.block_diag(FQ.T, FR.T)                    # theta = F s
             M = self.Rr @ F
             s, *_ = np.linalg.lstsq(M, z - 0.5 * self.rho * np.linalg.pinv(M.T) @ (F.T @ self.c), rcond=None)
             th = F @ s
@@ -189,14 +182,22 @@ class _Solver:
         return _Fit(best, 0.5 * (Q + Q.T), 0.5 * (R + R.T), stage, fit.status, fit.native, fit.iterations)
 
 
-def _face_basis(X: NDArray, thr: float) -> list[NDArray]:
-    """Basis ``V E V'`` of the face of the PSD cone at X (V: eigenvectors of the eigenvalues above
-    ``thr`` times the largest; E the symmetric unit matrices)."""
+def _face(X: NDArray, thr: float, diagonal: bool) -> NDArray:
+    """Coordinates (rows) of a basis of the face of the cone at X: ``V E V'`` with V the eigenvectors
+    of the eigenvalues above ``thr`` times the largest and E the symmetric unit matrices (a diagonal
+    X: the unit vectors of its entries above it)."""
+    k = X.shape[0]
+    if diagonal:
+        d = np.diag(X)
+        return np.eye(k)[d > thr * max(float(np.max(d)), _EPS)]
     lam, U = np.linalg.eigh(0.5 * (X + X.T))
     big = float(lam[-1]) if lam.size else 0.0
     V = U[:, lam > thr * big] if big > 0 else U[:, :0]
-    r = V.shape[1]
-    return [V @ E @ V.T for E in als.symmetric_basis(r, "full")] if r else []
+    if V.shape[1] == 0:
+        return np.zeros((0, k * (k + 1) // 2))
+    B = np.einsum("ia,tab,jb->tij", V, als.symmetric_basis(V.shape[1], "full"), V)
+    iu = np.triu_indices(k)
+    return B[:, iu[0], iu[1]]
 
 
 def _whiten(S: NDArray) -> NDArray:

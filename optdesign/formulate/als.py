@@ -1,6 +1,6 @@
 r"""The autocovariance least-squares (ALS) stacking: innovations, their autocovariances, and the
 linear map from the noise covariances to them.  Builds, never solves
-(:func:`optdesign.estimate_noise` solves).
+(:func:`optdesign.design.noise_estimation.estimate_noise` solves).
 
 Model (discrete, predictor form).  A stable gain L runs the filter
 ``x_hat[k+1] = A x_hat[k] + B u[k] + L e[k]``, ``e[k] = y[k] - C x_hat[k]``; the estimation error
@@ -134,7 +134,7 @@ def unique_mask(p: int, lags: int) -> NDArray[np.bool_]:
 
 
 class AutocovAccumulator:
-    r"""Sums ``S_i = sum_k e[k+i] e[k]'`` and pair counts for lags ``0 .. lags-1``, streamed.
+    r"""Sums ``S_i = sum_k e[k+i] e[k]'`` and pair counts for lags ``0``, ..., ``lags - 1``, streamed.
 
     Each pair is counted when its later sample arrives; the last ``lags - 1`` samples are kept
     between pushes, so memory is bounded by the chunk.  Direct (one ``(p, T) @ (T, p)`` product
@@ -157,7 +157,7 @@ class AutocovAccumulator:
         self.counts = np.zeros(lags)
 
     def chunk_length(self) -> int:
-        """Samples per push that keep the FFT work arrays within :data:`CHUNK_BYTES`."""
+        """Samples per push that keep the FFT work arrays within ``CHUNK_BYTES``."""
         per = 16 * max(1, self.p) ** 2 + 64 * self.p
         return int(max(4 * self.lags, min(2**18, CHUNK_BYTES // per)))
 
@@ -257,7 +257,7 @@ def als_matrix(Abar: NDArray, C: NDArray, L: NDArray, W_basis: NDArray, R_basis:
 
 
 def model_autocov(Abar: NDArray, C: NDArray, L: NDArray, W: NDArray, R: NDArray, lags: int) -> NDArray:
-    """The model's innovation autocovariances ``C_0 .. C_(lags-1)``, shape (lags, p, p)."""
+    """The model's innovation autocovariances ``C_0``, ..., ``C_(lags-1)``, shape (lags, p, p)."""
     P = stein_solve(Abar, (W + L @ R @ L.T)[None])
     return _autocov_of(Abar, C, L, P, R[None], lags)[0]
 
