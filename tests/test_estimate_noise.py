@@ -394,3 +394,16 @@ def test_cli_estimate_noise_npz_csv_and_errors(tmp_path, capsys):
     assert "expected 1 columns; found 2" in capsys.readouterr().err
     assert main(["estimate-noise", path, str(tmp_path / "d.csv"), "--lags", "900"]) == 2
     assert "lags = 900 is too large" in capsys.readouterr().err
+
+
+def test_known_inputs_are_filtered_out():
+    """With u applied through B, the estimate from (y, u) matches the truth; a plant with B and no u
+    is read as zero input."""
+    plant, Q, R = _scalar()
+    pb = plant.replace(B=[[1.0]])
+    u = np.sin(0.05 * np.arange(20000))[:, None] * 3.0
+    y = simulate_outputs(pb, 20000, Q=Q, R=R, u=u, seed=12)
+    est = estimate_noise(pb, y, u, lags=10)
+    assert abs(est.Q[0, 0] - 0.2) < 0.05 and abs(est.R[0, 0] - 0.5) < 0.05
+    y0 = simulate_outputs(plant, 20000, Q=Q, R=R, seed=12)
+    np.testing.assert_allclose(estimate_noise(pb, y0, lags=10).Q, estimate_noise(plant, y0, lags=10).Q)

@@ -439,7 +439,7 @@ def estimate_noise(
 
     t0 = time.process_time()
     acc = als.AutocovAccumulator(p, N)
-    seg_sums, seg_counts = _stream(als.InnovationFilter(Abar, Lg, st.C, st.Bd), acc, Y, U, burn, segments)
+    seg_sums, seg_counts = _stream(als.InnovationFilter(Abar, Lg, st.C, st.Bd if U is not None else None), acc, Y, U, burn, segments)
     autocov = acc.autocov()
     mask = als.unique_mask(p, N)
     b = autocov.reshape(-1)[mask]
