@@ -407,3 +407,30 @@ def test_known_inputs_are_filtered_out():
     assert abs(est.Q[0, 0] - 0.2) < 0.05 and abs(est.R[0, 0] - 0.5) < 0.05
     y0 = simulate_outputs(plant, 20000, Q=Q, R=R, seed=12)
     np.testing.assert_allclose(estimate_noise(pb, y0, lags=10).Q, estimate_noise(plant, y0, lags=10).Q)
+
+
+def test_bartlett_covariance_matches_monte_carlo():
+    """The covariance of the autocovariance data that the optimal weighting inverts, against the
+    spread of the sample autocovariances over 200 independent records (innovations of the true model)."""
+    from optdesign.formulate.als import bartlett_covariance, unique_mask
+
+    plant, Q, R = _motivating()
+    L = estimate_noise(plant, simulate_outputs(plant, 2000, Q=Q, R=R, seed=0), lags=3).L
+    Abar = plant.A - L @ plant.C
+    lags, N = 3, 1000
+    samples = []
+    for seed in range(200):
+        y = simulate_outputs(plant, N + 50, Q=Q, R=R, seed=1000 + seed)
+        f = InnovationFilter(Abar, L, plant.C)
+        e = f.run(y)[50:]
+        acc = AutocovAccumulator(1, lags)
+        acc.push(e)
+        samples.append(acc.autocov().reshape(-1)[unique_mask(1, lags)])
+    emp = np.cov(np.array(samples).T)
+    W = plant.G @ Q @ plant.G.T
+    S = bartlett_covariance(Abar, plant.C, L, W, R, lags, acc.counts)
+    # 200 records: the sample variances are known to ~ sqrt(2/200) = 10 %, the correlations to ~0.07
+    np.testing.assert_allclose(np.diag(emp), np.diag(S), rtol=0.25)
+    corr_e = emp / np.sqrt(np.outer(np.diag(emp), np.diag(emp)))
+    corr_s = S / np.sqrt(np.outer(np.diag(S), np.diag(S)))
+    assert np.max(np.abs(corr_e - corr_s)) < 0.2
