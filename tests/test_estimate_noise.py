@@ -411,15 +411,17 @@ def test_known_inputs_are_filtered_out():
 
 def test_bartlett_covariance_matches_monte_carlo():
     """The covariance of the autocovariance data that the optimal weighting inverts, against the
-    spread of the sample autocovariances over 200 independent records (innovations of the true model)."""
+    spread of the sample autocovariances over 400 independent records (1500 records agree to 0.02 in
+    the correlations) (innovations of the true model)."""
     from optdesign.formulate.als import bartlett_covariance, unique_mask
 
     plant, Q, R = _motivating()
     L = estimate_noise(plant, simulate_outputs(plant, 2000, Q=Q, R=R, seed=0), lags=3).L
     Abar = plant.A - L @ plant.C
-    lags, N = 3, 1000
+    lags, N = 3, 500
     samples = []
-    for seed in range(200):
+    records = 400
+    for seed in range(records):
         y = simulate_outputs(plant, N + 50, Q=Q, R=R, seed=1000 + seed)
         f = InnovationFilter(Abar, L, plant.C)
         e = f.run(y)[50:]
@@ -429,8 +431,8 @@ def test_bartlett_covariance_matches_monte_carlo():
     emp = np.cov(np.array(samples).T)
     W = plant.G @ Q @ plant.G.T
     S = bartlett_covariance(Abar, plant.C, L, W, R, lags, acc.counts)
-    # 200 records: the sample variances are known to ~ sqrt(2/200) = 10 %, the correlations to ~0.07
-    np.testing.assert_allclose(np.diag(emp), np.diag(S), rtol=0.25)
+    # four standard errors of the Monte Carlo: variances sqrt(2 / records), correlations 1 / sqrt(records)
+    np.testing.assert_allclose(np.diag(emp), np.diag(S), rtol=4 * np.sqrt(2 / records))
     corr_e = emp / np.sqrt(np.outer(np.diag(emp), np.diag(emp)))
     corr_s = S / np.sqrt(np.outer(np.diag(S), np.diag(S)))
-    assert np.max(np.abs(corr_e - corr_s)) < 0.2
+    assert np.max(np.abs(corr_e - corr_s)) < 4 / np.sqrt(records)
