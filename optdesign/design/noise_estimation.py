@@ -449,7 +449,7 @@ def estimate_noise(
                     f"{acc.method}, {usable} innovations, {N} lags, {A.shape[0]} x {A.shape[1]} ALS matrix",
                     time.process_time() - t0)]
 
-    solver = _Solver(A, st, rho, method, sdp_solver, full)
+    solver = _Solver(A, st, rho, method, sdp_solver, full, reusable=B is not None and weighting == "identity")
     fit, rejected = solver.solve(b, deadline)
     stages += [s for s in (rejected,) if s is not None]
     Lc, report = None, {}
@@ -457,7 +457,8 @@ def estimate_noise(
         stages.append(fit.stage if fit.stage.outcome != "answered" else
                       Stage(f"identity/{fit.stage.name}", fit.stage.kind, "improved", "first iterate"))
         ctx = {"Abar": Abar, "L": Lg, "lags": N, "counts": acc.counts, "max_iter": max_iter, "tol": tol,
-               "rho": rho, "method": method, "sdp_solver": sdp_solver, "full_rank": full}
+               "rho": rho, "method": method, "sdp_solver": sdp_solver, "full_rank": full,
+               "reusable": B is not None}
         fit, wsolver, Lc, report, extra_stages = _optimal_weighting(A, b, fit, st, ctx, deadline)
         stages += extra_stages
         if wsolver is not None:

@@ -90,10 +90,11 @@ class _Solver:
     """The reduced problem of one weighting: ``min ||Rr theta - z||^2 + rho c' theta`` over
     ``Q, R >= 0`` -- closed form where that is PSD (``method="auto"``), else the SDP."""
 
-    def __init__(self, Aw: NDArray, st: _Setup, rho: float, method: str, sdp_solver: str, full_rank: bool):
+    def __init__(self, Aw: NDArray, st: _Setup, rho: float, method: str, sdp_solver: str, full_rank: bool,
+                 reusable: bool = False):
         self.Qr, self.Rr = np.linalg.qr(Aw)
         self.st, self.rho, self.method, self.sdp_solver = st, rho, method, sdp_solver
-        self.full_rank = full_rank
+        self.full_rank, self.reusable = full_rank, reusable
         kq = st.Q_basis.shape[0]
         self.c = np.concatenate([np.trace(st.Q_basis, axis1=1, axis2=2), np.zeros(st.R_basis.shape[0])])
         self.kq = kq
@@ -134,7 +135,7 @@ class _Solver:
                 sq = sr = 1.0
             so = max(float(z @ z), _EPS)
             self.program = als.ALSProgram(self.Rr, st.Q_basis.shape[1], st.R_basis.shape[1], st.q_diagonal,
-                                          self.rho, sq, sr, so)
+                                          self.rho, sq, sr, so, reusable=self.reusable)
         t0 = time.process_time()
         opts = dict(_SDP_ACCURACY.get(self.sdp_solver, {}), **deadline.sdp_options(self.sdp_solver))
         status, Q, R, info = self.program.solve(z, self.sdp_solver, opts)
@@ -298,7 +299,8 @@ def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[
         Lc = _whiten(S)
         Aw = scipy.linalg.solve_triangular(Lc, A, lower=True)
         bw = scipy.linalg.solve_triangular(Lc, b, lower=True)
-        solver = _Solver(Aw, st, ctx["rho"], ctx["method"], ctx["sdp_solver"], ctx["full_rank"])
+        solver = _Solver(Aw, st, ctx["rho"], ctx["method"], ctx["sdp_solver"], ctx["full_rank"],
+                         reusable=ctx["reusable"])
         new, rejected = solver.solve(bw, deadline)
         if not np.all(np.isfinite(new.theta)):
             stages.append(new.stage)

@@ -331,8 +331,8 @@ class ALSProgram:
     ``||A_w theta - b_w||^2 = ||R_r theta - z||^2 + const`` (``z = Q_r' b_w``) has ``k`` rows
     whatever the number of lags and outputs; ``theta`` are the coordinates of Q and R in their
     bases.  Q and R are cvxpy matrix variables (PSD), diagonal Q a nonnegative vector; the
-    coordinates are linear in their entries.  ``z`` is a Parameter (bootstrap re-solves change only
-    it).  Q and R are scaled by ``scale_q``, ``scale_r`` (their magnitudes) and the objective by
+    coordinates are linear in their entries.  ``reusable``: ``z`` is a Parameter (bootstrap
+    re-solves change only it); otherwise the problem is built with the constant ``z`` of each solve.  Q and R are scaled by ``scale_q``, ``scale_r`` (their magnitudes) and the objective by
     ``scale_obj`` so the solver sees numbers near one.
 
     Parameters
@@ -344,39 +344,51 @@ class ALSProgram:
     trace_penalty : float
         ``rho`` of ``+ rho tr(Q)``.
     scale_q, scale_r, scale_obj : float
+    reusable : bool
     """
 
     def __init__(self, Rr: NDArray, m: int, p: int, q_diagonal: bool, trace_penalty: float,
-                 scale_q: float, scale_r: float, scale_obj: float) -> None:
+                 scale_q: float, scale_r: float, scale_obj: float, reusable: bool = True) -> None:
         import cvxpy as cp
 
-        k = Rr.shape[0]
+        self.cp = cp
         kq = m if q_diagonal else m * (m + 1) // 2
         self.kq, self.m, self.p = kq, m, p
-        self.scale_q, self.scale_r = scale_q, scale_r
-        self.z = cp.Parameter(k)
+        self.scale_q, self.scale_r, self.scale_obj = scale_q, scale_r, scale_obj
+        self.rho, self.q_diagonal = trace_penalty, q_diagonal
+        self.MR = (Rr[:, kq:] * scale_r) @ _upper_selector(p)          # on vec(R) (F order)
+        self.MQ = Rr[:, :kq] * scale_q if q_diagonal else (Rr[:, :kq] * scale_q) @ _upper_selector(m)
+        self.reusable = reusable
+        self.z = cp.Parameter(Rr.shape[0]) if reusable else None
+        self.problem = self._build(self.z) if reusable else None
+
+    def _build(self, z):
+        """The cvxpy problem for ``z`` (a Parameter: built once, DPP; an array: built per solve, which
+        skips DPP's compilation for a single solve)."""
+        cp = self.cp
+        m, p = self.m, self.p
         self.Rv = cp.Variable((p, p), symmetric=True)
-        SR = _upper_selector(p)                                        # (kr, p^2) on vec (F order)
-        MR = (Rr[:, kq:] * scale_r) @ SR
-        if q_diagonal:
+        if self.q_diagonal:
             self.Qv = cp.Variable(m, nonneg=True)
-            lin = (Rr[:, :kq] * scale_q) @ self.Qv + MR @ cp.vec(self.Rv, order="F")
+            lin = self.MQ @ self.Qv + self.MR @ cp.vec(self.Rv, order="F")
             trq = cp.sum(self.Qv)
             cons = [self.Rv >> 0]
         else:
             self.Qv = cp.Variable((m, m), symmetric=True)
-            MQ = (Rr[:, :kq] * scale_q) @ _upper_selector(m)
-            lin = MQ @ cp.vec(self.Qv, order="F") + MR @ cp.vec(self.Rv, order="F")
+            lin = self.MQ @ cp.vec(self.Qv, order="F") + self.MR @ cp.vec(self.Rv, order="F")
             trq = cp.trace(self.Qv)
             cons = [self.Qv >> 0, self.Rv >> 0]
-        obj = cp.sum_squares(lin - self.z) / scale_obj
-        if trace_penalty > 0:
-            obj = obj + (trace_penalty * scale_q / scale_obj) * trq
-        self.problem = cp.Problem(cp.Minimize(obj), cons)
+        obj = cp.sum_squares(lin - z) / self.scale_obj
+        if self.rho > 0:
+            obj = obj + (self.rho * self.scale_q / self.scale_obj) * trq
+        return cp.Problem(cp.Minimize(obj), cons)
 
     def solve(self, z: NDArray, solver: str, options: dict) -> tuple[str, NDArray | None, NDArray | None, dict]:
         """``(cvxpy status, Q, R, info)``; Q and R None when no solution is present."""
-        self.z.value = z
+        if self.reusable:
+            self.z.value = z
+        else:
+            self.problem = self._build(z)
         self.problem.solve(solver=solver, **options)
         status = str(self.problem.status)
         info = {"iterations": getattr(self.problem.solver_stats, "num_iters", None),
