@@ -169,7 +169,7 @@ def _setup(plant: Plant, q_structure: Any, dt: Any) -> _Setup:
 
     G, Qb, diag = _q_basis(plant, q_structure)
     Rb = als.symmetric_basis(plant.p, "full")
-    if plant.is_discrete:
+    if plant.dt is not None:
         if dt is not None and not math.isclose(as_positive_float("dt", dt), float(plant.dt)):
             raise ValidationError(f"dt = {dt!r} differs from the discrete plant's own dt = {plant.dt:g}; "
                                   f"leave dt out for a discrete plant")
@@ -199,7 +199,8 @@ def _default_gain(plant: Plant, st: _Setup) -> tuple[NDArray, str]:
     weights (``W = I``, ``R = I``): stable whenever (A, C) is detectable."""
     n, p = plant.n, plant.p
     if plant.has_noise_model:
-        Rq = plant.R if not st.continuous else plant.R / st.dt
+        Rp = plant.noise_covariances()[1]
+        Rq = Rp if not st.continuous else Rp / st.dt
         W = plant.process_noise() if not st.continuous else _van_loan_W(plant, st.dt)
         source = "the plant's own Kalman gain (its Q and R)"
     else:
@@ -401,9 +402,9 @@ def estimate_noise(
     t_start = time.process_time()
     pl = as_plant(plant)
     st = _setup(pl, q_structure, dt)
-    weighting = as_str("weighting", weighting, ("identity", "optimal"))
-    method = as_str("method", method, ("auto", "sdp"))
-    sdp_solver = as_str("sdp_solver", sdp_solver, ("CLARABEL", "SCS"))
+    weighting_s = as_str("weighting", weighting, ("identity", "optimal"))
+    method_s = as_str("method", method, ("auto", "sdp"))
+    solver_s = as_str("sdp_solver", sdp_solver, ("CLARABEL", "SCS"))
     rho = as_positive_float("trace_penalty", trace_penalty, allow_zero=True)
     max_iter = as_int("max_iter", max_iter, 1)
     tol = as_positive_float("tol", tol)
@@ -449,15 +450,16 @@ def estimate_noise(
                     f"{acc.method}, {usable} innovations, {N} lags, {A.shape[0]} x {A.shape[1]} ALS matrix",
                     time.process_time() - t0)]
 
-    solver = _Solver(A, st, rho, method, sdp_solver, full, reusable=B is not None and weighting == "identity")
+    solver = _Solver(A, st, rho, method_s, solver_s, full, reusable=B is not None and weighting_s == "identity")
     fit, rejected = solver.solve(b, deadline)
     stages += [s for s in (rejected,) if s is not None]
-    Lc, report = None, {}
-    if weighting == "optimal" and np.all(np.isfinite(fit.theta)):
+    Lc: NDArray | None = None
+    report: dict[str, Any] = {}
+    if weighting_s == "optimal" and np.all(np.isfinite(fit.theta)):
         stages.append(fit.stage if fit.stage.outcome != "answered" else
                       Stage(f"identity/{fit.stage.name}", fit.stage.kind, "improved", "first iterate"))
         ctx = {"Abar": Abar, "L": Lg, "lags": N, "counts": acc.counts, "max_iter": max_iter, "tol": tol,
-               "rho": rho, "method": method, "sdp_solver": sdp_solver, "full_rank": full,
+               "rho": rho, "method": method_s, "sdp_solver": solver_s, "full_rank": full,
                "reusable": B is not None}
         fit, wsolver, Lc, report, extra_stages = _optimal_weighting(A, b, fit, st, ctx, deadline)
         stages += extra_stages
@@ -469,7 +471,7 @@ def estimate_noise(
     else:
         stages.append(fit.stage)
     return _package(pl, st, fit, A, b, Lc, solver, seg_sums, seg_counts, mask, B, level, rng, deadline, stages,
-                    dict(rank=rank, cond=cond, lags=N, usable=usable, L=Lg, weighting=weighting, report=report,
+                    dict(rank=rank, cond=cond, lags=N, usable=usable, L=Lg, weighting=weighting_s, report=report,
                          autocov=autocov, rho=rho, gain_source=gain_source, burn=burn, t_start=t_start))
 
 
@@ -493,6 +495,10 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
         status = Status.TIME_LIMIT if deadline.expired else Status.ITERATION_LIMIT
     if ok and (deadline.expired and (conf is not None and conf["replicates"] < (B or 0))):
         status = Status.TIME_LIMIT
+    Q: NDArray | None = None
+    R: NDArray | None = None
+    Qd: NDArray | None = None
+    Rd: NDArray | None = None
     if ok:
         verification = _checks(Aw, bw, fit, st, info["rho"], info["cond"])
         residual = float(np.linalg.norm(Aw @ fit.theta - bw) / max(float(np.linalg.norm(bw)), _EPS))
@@ -502,7 +508,6 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
     else:
         verification = Verification()
         residual = float("nan")
-        Q = R = Qd = Rd = None
     kind = "continuous (sampled at dt = %g)" % st.dt if st.continuous else "discrete"
     message = (f"ALS estimate of Q ({st.Q_basis.shape[1]} x {st.Q_basis.shape[1]}"
                f"{', diagonal' if st.q_diagonal else ''}) and R from {info['usable']} innovations of {kind} data, "

@@ -277,7 +277,7 @@ def _projected_gradient(Aw: NDArray, bw: NDArray, fit: _Fit, st: _Setup, rho: fl
 
 
 def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[str, Any],
-                       deadline: Deadline) -> tuple[_Fit, _Solver, NDArray | None, dict[str, Any], list[Stage]]:
+                       deadline: Deadline) -> tuple[_Fit, _Solver | None, NDArray | None, dict[str, Any], list[Stage]]:
     """Rajamani & Rawlings (2009) sec. 4: weight ``S(theta_k)^-1`` until the estimate settles."""
     rows = A.shape[0]
     if rows > OPTIMAL_MAX_ROWS:
@@ -311,7 +311,7 @@ def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[
         if change <= ctx["tol"]:
             converged = True
             break
-    report = {"iterations": len(changes), "converged": converged, "changes": changes}
+    report: dict[str, Any] = {"iterations": len(changes), "converged": converged, "changes": changes}
     return fit, solver, Lc, report, stages
 
 

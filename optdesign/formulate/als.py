@@ -34,6 +34,7 @@ time-series", J. R. Stat. Soc. Suppl. 8(1) (1946) 27-41 (the covariance of sampl
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import scipy.fft
@@ -177,8 +178,7 @@ class AutocovAccumulator:
             for i in range(N):
                 s[i] = z[t0:].T @ z[t0 - i:t0 - i + T]
         g0 = self.seen
-        i = np.arange(N)
-        cnt = np.maximum(0, g0 + T - np.maximum(g0, i)).astype(float)
+        cnt = np.maximum(0, g0 + T - np.maximum(g0, np.arange(N))).astype(float)
         self.sums += s
         self.counts += cnt
         self.seen += T
@@ -359,10 +359,10 @@ class ALSProgram:
         self.MR = (Rr[:, kq:] * scale_r) @ _upper_selector(p)          # on vec(R) (F order)
         self.MQ = Rr[:, :kq] * scale_q if q_diagonal else (Rr[:, :kq] * scale_q) @ _upper_selector(m)
         self.reusable = reusable
-        self.z = cp.Parameter(Rr.shape[0]) if reusable else None
-        self.problem = self._build(self.z) if reusable else None
+        self.z: Any = cp.Parameter(Rr.shape[0]) if reusable else None
+        self.problem: Any = self._build(self.z) if reusable else None
 
-    def _build(self, z):
+    def _build(self, z: Any) -> Any:
         """The cvxpy problem for ``z`` (a Parameter: built once, DPP; an array: built per solve, which
         skips DPP's compilation for a single solve)."""
         cp = self.cp
