@@ -49,7 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
 from .._validate import as_int, as_matrix, as_positive_float, as_rng, as_str
-from ..errors import ValidationError
+from ..errors import NotFiniteError, ValidationError
 from ..formulate import als
 from ..model.coerce import as_plant
 from ..model.plant import Plant
@@ -222,8 +222,18 @@ def _van_loan_W(plant: Plant, Ts: float) -> NDArray:
 
 
 def _as_data(name: str, X: ArrayLike, cols: int) -> NDArray:
-    arr = as_matrix(name, X, (None, cols))
-    return np.ascontiguousarray(arr, dtype=float)
+    """A data record (N, cols): a float64 array of that shape is used as is (no copy; finiteness
+    checked in blocks, so validating a long record allocates nothing record-sized), anything else
+    through :func:`~optdesign._validate.as_matrix`."""
+    if isinstance(X, np.ndarray) and X.dtype == np.float64 and X.ndim == 2 and X.shape[1] == cols:
+        step = 1 << 16
+        for k in range(0, X.shape[0], step):
+            blk = X[k:k + step]
+            if not np.all(np.isfinite(blk)):
+                i, j = (int(v) for v in np.argwhere(~np.isfinite(blk))[0])
+                raise NotFiniteError(f"{name} must be finite; found {blk[i, j]} at index ({k + i}, {j})")
+        return X
+    return np.ascontiguousarray(as_matrix(name, X, (None, cols)), dtype=float)
 
 
 def _check_gain(L: Any, st: _Setup, n: int, p: int) -> NDArray:
