@@ -42,7 +42,6 @@ from pathlib import Path  # noqa: E402
 
 import cvxpy as cp  # noqa: E402
 import numpy as np  # noqa: E402
-import scipy.linalg  # noqa: E402
 
 from optdesign import Plant  # noqa: E402
 from optdesign.design.noise_estimation import estimate_noise, simulate_outputs  # noqa: E402
@@ -146,11 +145,13 @@ def row(n: int, N: int, reps: int, seed: int) -> dict:
     est = estimate_noise(plant, y, lags=LAGS, L=L, method="sdp")
     auto = estimate_noise(plant, y, lags=LAGS, L=L)
     med = {k: statistics.median(v) for k, v in t.items()}
-    diff = max(np.linalg.norm(est.Q - Qr) / np.linalg.norm(Qr), np.linalg.norm(est.R - Rr) / np.linalg.norm(Rr))
+    diff = max(np.linalg.norm(est.Q - Qr) / np.linalg.norm(Qr),
+               np.linalg.norm(est.R - Rr) / np.linalg.norm(Rr))
     dobj = (f(est.Q, est.R) - f(Qr, Rr)) / f(Qr, Rr)       # < 0: ours fits better
     err = np.hypot(np.linalg.norm(auto.Q - Q), np.linalg.norm(auto.R - R)) / np.hypot(np.linalg.norm(Q),
                                                                                       np.linalg.norm(R))
-    return {"n": n, "p": plant.p, "N": N, **med, "diff": diff, "dobj": dobj, "err": err, "route": auto.route.answered.name,
+    return {"n": n, "p": plant.p, "N": N, **med, "diff": diff, "dobj": dobj, "err": err,
+            "route": auto.route.answered.name,
             "success": est.success and auto.success}
 
 
@@ -193,7 +194,8 @@ def big_record(n: int, N: int) -> dict:
     tracemalloc.stop()
     err = np.hypot(np.linalg.norm(est.Q - Q), np.linalg.norm(est.R - R)) / np.hypot(np.linalg.norm(Q),
                                                                                     np.linalg.norm(R))
-    return {"n": n, "p": plant.p, "N": N, "record_MB": y.nbytes / 2**20, "peak_MB": peak / 2**20, "cpu": t_est,
+    return {"n": n, "p": plant.p, "N": N, "record_MB": y.nbytes / 2**20, "peak_MB": peak / 2**20,
+            "cpu": t_est,
             "sim": t_sim, "err": err, "success": est.success, "route": str(est.route)}
 
 
@@ -210,8 +212,9 @@ def main() -> None:
             r = row(n, N, args.reps, seed=10 * n + len(str(N)))
             rows.append(r)
             print(f"n={n:3d} p={r['p']} N={N:>7d}  SDP ours {r['sdp_ours']:.3f} (auto {r['sdp_auto']:.3f}) "
-                  f"ref {r['sdp_ref']:.3f} ratio {r['sdp_ours'] / r['sdp_ref']:.2f}  |  all ours {r['all_ours']:.3f} "
-                  f"ref {r['all_ref']:.3f} ratio {r['all_ours'] / r['all_ref']:.2f}  diff {r['diff']:.1e} dobj {r['dobj']:.1e} "
+                  f"ref {r['sdp_ref']:.3f} ratio {r['sdp_ours'] / r['sdp_ref']:.2f}  |  "
+                  f"all ours {r['all_ours']:.3f} ref {r['all_ref']:.3f} "
+                  f"ratio {r['all_ours'] / r['all_ref']:.2f}  diff {r['diff']:.1e} dobj {r['dobj']:.1e} "
                   f"err {r['err']:.3f} {r['route']}", flush=True)
     cross = crossover(10**5 if not args.quick else 2 * 10**4, args.reps)
     for p, lags, td, tf in cross:
@@ -227,27 +230,34 @@ def write(rows, cross, big, reps) -> None:
         "# Autocovariance least squares: `estimate_noise` against a minimal cvxpy ALS-SDP",
         "",
         f"`python benchmarks/bench_als.py` (under `flock /tmp/bench.lock`, single-threaded BLAS), "
-        f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, cvxpy {cp.__version__}; "
+        f"{platform.processor() or platform.machine()}, Python {platform.python_version()}, "
+        f"cvxpy {cp.__version__}; "
         f"CPU seconds (`time.process_time`), median of {reps} interleaved runs.  Random stable plants, "
-        f"p = g = max(1, n/4), true Q, R random PSD, {LAGS} lags; the suboptimal filter of the guess Q = I, R = I.",
+        f"p = g = max(1, n/4), true Q, R random PSD, {LAGS} lags; the suboptimal filter of the guess "
+        f"Q = I, R = I.",
         "",
-        "* **SDP**: from the autocovariances to (Q, R). *ours sdp* = `method=\"sdp\"` (QR-reduced program, polish, "
-        "checks), *ours auto* = `method=\"auto\"` (the closed-form least squares where it is PSD, which then is the "
+        "* **SDP**: from the autocovariances to (Q, R). *ours sdp* = `method=\"sdp\"` (QR-reduced program, "
+        "polish, checks), *ours auto* = `method=\"auto\"` (the closed-form least squares where it is PSD, "
+        "which then is the "
         "SDP's optimum), *ref* = cvxpy `sum_squares` on the full Kronecker-form ALS matrix, Clarabel.",
-        "* **all**: the whole call from the data (innovations, autocovariances, ALS matrix, solve, checks); the "
+        "* **all**: the whole call from the data (innovations, autocovariances, ALS matrix, solve, checks); "
+        "the "
         "reference's innovations by a Python loop.",
-        "* *diff*: relative difference of our SDP's (Q, R) from the reference's; *dobj*: relative difference of "
-        "the least-squares objective at ours and at the reference's (negative: ours fits better); *err*: relative "
+        "* *diff*: relative difference of our SDP's (Q, R) from the reference's; *dobj*: relative "
+        "difference of the least-squares objective at ours and at the reference's (negative: ours fits "
+        "better); *err*: relative "
         "error of the estimate against the truth.",
         "",
-        "| n | p | N | SDP ours sdp | SDP ours auto | SDP ref | ratio sdp/ref | all ours | all ref | ratio all | "
+        "| n | p | N | SDP ours sdp | SDP ours auto | SDP ref | ratio sdp/ref | all ours | all ref | "
+        "ratio all | "
         "diff | dobj | err | route (auto) |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(f"| {r['n']} | {r['p']} | {r['N']:.0e} | {r['sdp_ours']:.3f} | {r['sdp_auto']:.4f} | "
                      f"{r['sdp_ref']:.3f} | {r['sdp_ours'] / r['sdp_ref']:.2f} | {r['all_ours']:.3f} | "
-                     f"{r['all_ref']:.3f} | {r['all_ours'] / r['all_ref']:.2f} | {r['diff']:.1e} | {r['dobj']:+.1e} | "
+                     f"{r['all_ref']:.3f} | {r['all_ours'] / r['all_ref']:.2f} | {r['diff']:.1e} | "
+                     f"{r['dobj']:+.1e} | "
                      f"{r['err']:.3f} | "
                      f"{r['route']} |")
     lines += ["", "## Autocovariances: direct products per lag vs FFT (10^5 samples, streamed chunks)", "",
@@ -255,7 +265,8 @@ def write(rows, cross, big, reps) -> None:
     lines += [f"| {p} | {lags} | {td:.3f} | {tf:.3f} |" for p, lags, td, tf in cross]
     lines += ["", "## A record of 10^6 samples", "",
               f"n = {big['n']}, p = {big['p']}, N = {big['N']:.0e}: the record is {big['record_MB']:.1f} MB "
-              f"(the caller's); `estimate_noise` allocated at most **{big['peak_MB']:.1f} MB** (tracemalloc peak) "
+              f"(the caller's); `estimate_noise` allocated at most **{big['peak_MB']:.1f} MB** "
+              f"(tracemalloc peak) "
               f"and took {big['cpu']:.2f} s CPU; relative error {big['err']:.4f}; success {big['success']}.  "
               f"Route: {big['route']}.", ""]
     OUT.write_text("\n".join(lines), encoding="utf-8")

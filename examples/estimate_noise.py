@@ -7,7 +7,8 @@ Run (headless; the figure goes to a build folder, not to the source tree)::
 1. The ALS package's motivating example (problems/als/als_motivating_example: 3 states, one output, one
    disturbance through G = [1; 2; 3], the filter of wrong guesses): estimates against the truth as the record
    grows, replicated -- the error falls like N^-1/2.
-2. Three outputs, full 3 x 3 Q and R (als_simulate_data8): identity and optimal weighting, bootstrap intervals.
+2. Three outputs, full 3 x 3 Q and R (als_simulate_data8): identity and optimal weighting, bootstrap
+   intervals.
 3. From data to a filter with poles you accept: the filter of the estimate, then ``kalman_for_poles(...,
    objective="nearest", Q_nominal=Q_est)`` -- the Q nearest the estimate whose filter has the required poles.
 4. The figure: estimated vs true covariances as N grows (``estimate_noise.png`` in ``--out``, default
@@ -76,7 +77,8 @@ def main() -> None:
           f"{reps} records per length")
     print("        N   Q mean +- sd        R mean +- sd       rms rel. error")
     for N, Qs, Rs, e in zip(conv["N"], conv["Q"], conv["R"], conv["err"], strict=True):
-        print(f"   {N:6d}   {Qs.mean():.4f} +- {Qs.std(ddof=1):.4f}   {Rs.mean():.4f} +- {Rs.std(ddof=1):.4f}   {e:.4f}")
+        print(f"   {N:6d}   {Qs.mean():.4f} +- {Qs.std(ddof=1):.4f}   "
+              f"{Rs.mean():.4f} +- {Rs.std(ddof=1):.4f}   {e:.4f}")
     slope = np.polyfit(np.log(conv["N"]), np.log(conv["err"]), 1)[0]
     print(f"   slope of log(error) against log(N): {slope:.2f} (N^-1/2: -0.5)")
 
@@ -91,8 +93,9 @@ def main() -> None:
         c = est.confidence
         print(f"   {weighting:8s} weighting: rel. error {rel_error(est, t['Q_true'], t['R_true']):.3f}, "
               f"route {est.route.answered.name}, {est.weighting_report or ''}")
-        print(f"     diag Q = {np.diag(est.Q)} (90 % interval {np.diag(c['Q_low'])} .. {np.diag(c['Q_high'])})")
-        print(f"     diag R = {np.diag(est.R)} (90 % interval {np.diag(c['R_low'])} .. {np.diag(c['R_high'])})")
+        for k in ("Q", "R"):
+            print(f"     diag {k} = {np.diag(getattr(est, k))} "
+                  f"(90 % interval {np.diag(c[k + '_low'])} .. {np.diag(c[k + '_high'])})")
     conv8 = convergence(d8, Ns, max(2, reps // 3))
 
     # 3. from data to a filter with poles you accept
@@ -115,7 +118,8 @@ def main() -> None:
         return
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
     N = np.array(conv["N"], dtype=float)
-    for key, truth, color in (("Q", mot.targets["Q_true"][0, 0], "C0"), ("R", mot.targets["R_true"][0, 0], "C1")):
+    for key, color in (("Q", "C0"), ("R", "C1")):
+        truth = mot.targets[key + "_true"][0, 0]
         vals = np.array([v.reshape(len(v), -1)[:, 0] for v in conv[key]])
         m, s = vals.mean(1), vals.std(1, ddof=1)
         a1.semilogx(N, m, "o-", color=color, label=f"{key} estimate (mean +- sd)")

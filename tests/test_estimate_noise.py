@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.linalg
 
 from optdesign import Plant
 from optdesign.design.noise_estimation import NoiseEstimate, estimate_noise, simulate_outputs
@@ -44,8 +43,8 @@ def _continuous():
     return plant, np.array([[1.0]]), np.array([[0.01]])
 
 
-PLANTS = {"scalar": (_scalar, None), "motivating": (_motivating, None), "three_outputs": (_three_outputs, None),
-          "continuous": (_continuous, 0.1)}
+PLANTS = {"scalar": (_scalar, None), "motivating": (_motivating, None),
+          "three_outputs": (_three_outputs, None), "continuous": (_continuous, 0.1)}
 
 
 def _error(est: NoiseEstimate, Q: np.ndarray, R: np.ndarray) -> float:

@@ -2,7 +2,8 @@
 autocovariance least squares (:func:`optdesign.design.noise_estimation.estimate_noise`).
 
     optdesign estimate-noise PROBLEM DATA.csv|DATA.npz [--dt DT] [--lags N] [--q-structure full|diagonal]
-                             [--weighting identity|optimal] [--trace-penalty RHO] [--bootstrap B] [--seed S] [--json]
+                             [--weighting identity|optimal] [--trace-penalty RHO] [--bootstrap B]
+                             [--seed S] [--json]
 
 Data files: ``.npz`` with an array ``y`` (samples x outputs) and optionally ``u`` (samples x inputs);
 ``.csv`` with one row per sample, the outputs in the first p columns and the known inputs (if the plant
@@ -122,8 +123,10 @@ def _cfg(sp: argparse.ArgumentParser) -> None:
                     help="Q full or diagonal (through the plant's G)")
     sp.add_argument("--weighting", choices=("identity", "optimal"), default="identity",
                     help="least-squares weighting (optimal: Rajamani & Rawlings 2009, iterated)")
-    sp.add_argument("--trace-penalty", type=float, default=0.0, help="rho of + rho tr(Q) (fewer disturbances)")
-    sp.add_argument("--bootstrap", type=int, default=None, help="bootstrap re-solves for confidence intervals")
+    sp.add_argument("--trace-penalty", type=float, default=0.0,
+                    help="rho of + rho tr(Q) (fewer disturbances)")
+    sp.add_argument("--bootstrap", type=int, default=None,
+                    help="bootstrap re-solves for confidence intervals")
     sp.add_argument("--seed", type=int, default=None, help="seed of the bootstrap")
     sp.add_argument("--time-limit", type=float, default=None, help="seconds")
     sp.add_argument("--json", action="store_true", help="machine-readable output")

@@ -54,8 +54,16 @@ from ..formulate import als
 from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import DesignResult, Route, SolverStats, Stage, Status, Verification
-from .noise_solve import (_bootstrap, _checks, _coords, _Fit, _identifiability, _optimal_weighting, _Setup,
-                          _Solver)
+from .noise_solve import (
+    _bootstrap,
+    _checks,
+    _coords,
+    _Fit,
+    _identifiability,
+    _optimal_weighting,
+    _Setup,
+    _Solver,
+)
 
 __all__ = ["NoiseEstimate", "estimate_noise", "simulate_outputs"]
 
@@ -176,8 +184,8 @@ def _setup(plant: Plant, q_structure: Any, dt: Any) -> _Setup:
         Wb = np.einsum("ia,kab,jb->kij", G, Qb, G)
         return _Setup(plant.A, plant.C, plant.B, G, Qb, Wb, Rb, Rb, float(plant.dt), False, diag)
     if dt is None:
-        raise ValidationError("the plant is continuous: give dt, the sampling period of the data (the plant is "
-                              "sampled as kalmd does: Qd by Van Loan's integral, Rd = R / dt)")
+        raise ValidationError("the plant is continuous: give dt, the sampling period of the data (the "
+                              "plant is sampled as kalmd does: Qd by Van Loan's integral, Rd = R / dt)")
     Ts = as_positive_float("dt", dt)
     Ad = scipy.linalg.expm(plant.A * Ts)
     Wb = np.stack([van_loan(plant.A, G @ E @ G.T, Ts)[1] for E in Qb])
@@ -210,7 +218,8 @@ def _default_gain(plant: Plant, st: _Setup) -> tuple[NDArray, str]:
         P = scipy.linalg.solve_discrete_are(st.Ad.T, st.C.T, W, Rq)
     except (np.linalg.LinAlgError, ValueError) as exc:
         raise ValidationError(f"no default stable gain: the discrete Riccati equation of {source} has no "
-                              f"stabilizing solution ({exc}); give L (an (n, p) gain with A - L C stable)") from None
+                              f"stabilizing solution ({exc}); give L (an (n, p) gain with A - L C stable)"
+                              ) from None
     L = st.Ad @ P @ st.C.T @ np.linalg.inv(st.C @ P @ st.C.T + Rq)
     return L, source
 
@@ -240,7 +249,8 @@ def _check_gain(L: Any, st: _Setup, n: int, p: int) -> NDArray:
     L = as_matrix("L", L, (n, p))
     rho = _spectral_radius(st.Ad - L @ st.C)
     if not rho < 1.0 - 10 * n * _EPS:
-        raise ValidationError(f"L must make the discrete error dynamics A - L C stable (spectral radius < 1); "
+        raise ValidationError(f"L must make the discrete error dynamics A - L C stable (spectral radius "
+                              f"< 1); "
                               f"found spectral radius {rho:.6g}")
     return L
 
@@ -426,10 +436,12 @@ def estimate_noise(
     U = None
     if u is not None:
         if st.Bd is None:
-            raise ValidationError("u is given but the plant has no input matrix B (give the plant's B, or leave u out)")
+            raise ValidationError("u is given but the plant has no input matrix B (give the plant's B, or "
+                                  "leave u out)")
         U = _as_data("u", u, st.Bd.shape[1])
         if U.shape[0] != Y.shape[0]:
-            raise ValidationError(f"u must have one row per sample of y ({Y.shape[0]}); found {U.shape[0]} rows")
+            raise ValidationError(f"u must have one row per sample of y ({Y.shape[0]}); found "
+                                  f"{U.shape[0]} rows")
     if L is None:
         Lg, gain_source = _default_gain(pl, st)
     else:
@@ -450,7 +462,8 @@ def estimate_noise(
 
     t0 = time.process_time()
     acc = als.AutocovAccumulator(p, N)
-    seg_sums, seg_counts = _stream(als.InnovationFilter(Abar, Lg, st.C, st.Bd if U is not None else None), acc, Y, U, burn, segments)
+    filt = als.InnovationFilter(Abar, Lg, st.C, st.Bd if U is not None else None)
+    seg_sums, seg_counts = _stream(filt, acc, Y, U, burn, segments)
     autocov = acc.autocov()
     mask = als.unique_mask(p, N)
     b = autocov.reshape(-1)[mask]
@@ -460,7 +473,8 @@ def estimate_noise(
                     f"{acc.method}, {usable} innovations, {N} lags, {A.shape[0]} x {A.shape[1]} ALS matrix",
                     time.process_time() - t0)]
 
-    solver = _Solver(A, st, rho, method_s, solver_s, full, reusable=B is not None and weighting_s == "identity")
+    solver = _Solver(A, st, rho, method_s, solver_s, full,
+                     reusable=B is not None and weighting_s == "identity")
     fit, rejected = solver.solve(b, deadline)
     stages += [s for s in (rejected,) if s is not None]
     Lc: NDArray | None = None
@@ -480,14 +494,16 @@ def estimate_noise(
                             + ("converged" if report["converged"] else "not converged"), fit.stage.time))
     else:
         stages.append(fit.stage)
-    return _package(pl, st, fit, A, b, Lc, solver, seg_sums, seg_counts, mask, B, level, rng, deadline, stages,
-                    dict(rank=rank, cond=cond, lags=N, usable=usable, L=Lg, weighting=weighting_s, report=report,
+    return _package(pl, st, fit, A, b, Lc, solver, seg_sums, seg_counts, mask, B, level, rng, deadline,
+                    stages, dict(rank=rank, cond=cond, lags=N, usable=usable, L=Lg, weighting=weighting_s,
+                                 report=report,
                          autocov=autocov, rho=rho, gain_source=gain_source, burn=burn, t_start=t_start))
 
 
 def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArray | None, solver: _Solver,
              seg_sums: NDArray, seg_counts: NDArray, mask: NDArray, B: int | None, level: float,
-             rng: np.random.Generator, deadline: Deadline, stages: list[Stage], info: dict[str, Any]) -> NoiseEstimate:
+             rng: np.random.Generator, deadline: Deadline, stages: list[Stage],
+             info: dict[str, Any]) -> NoiseEstimate:
     """Checks, bootstrap, status and message; the result."""
     ok = bool(np.all(np.isfinite(fit.theta)))
     Aw = A if Lc is None else scipy.linalg.solve_triangular(Lc, A, lower=True)
@@ -518,9 +534,10 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
     else:
         verification = Verification()
         residual = float("nan")
-    kind = "continuous (sampled at dt = %g)" % st.dt if st.continuous else "discrete"
+    kind = f"continuous (sampled at dt = {st.dt:g})" if st.continuous else "discrete"
     message = (f"ALS estimate of Q ({st.Q_basis.shape[1]} x {st.Q_basis.shape[1]}"
-               f"{', diagonal' if st.q_diagonal else ''}) and R from {info['usable']} innovations of {kind} data, "
+               f"{', diagonal' if st.q_diagonal else ''}) and R from {info['usable']} innovations of {kind} "
+               f"data, "
                f"{info['lags']} lags, {info['weighting']} weighting")
     if not ok:
         message += f"; the solver returned no estimate ({fit.native})"
@@ -528,9 +545,11 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
         message += "; all independent checks passed"
     else:
         message += "; failed checks: " + ", ".join(c.name for c in verification.failed)
-    stats = SolverStats(backend=fit.stage.name, native_status=fit.native, time=time.process_time() - info["t_start"],
+    stats = SolverStats(backend=fit.stage.name, native_status=fit.native,
+                        time=time.process_time() - info["t_start"],
                         iterations=fit.iterations,
-                        extra={"gain": info["gain_source"], "burn_in": info["burn"], "trace_penalty": info["rho"]})
+                        extra={"gain": info["gain_source"], "burn_in": info["burn"],
+                               "trace_penalty": info["rho"]})
     return NoiseEstimate(
         Q=Q, R=R, G=st.G, Qd=Qd, Rd=Rd, residual=residual, condition=info["cond"], rank=info["rank"],
         n_unknowns=A.shape[1], lags=info["lags"], n_samples=info["usable"], L=info["L"], plant=pl, dt=st.dt,
@@ -539,7 +558,8 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
         route=Route(stages), extra={"b": b, "A": A})
 
 
-def simulate_outputs(plant: Plant | Any, steps: int, *, Q: ArrayLike | None = None, R: ArrayLike | None = None,
+def simulate_outputs(plant: Plant | Any, steps: int, *, Q: ArrayLike | None = None,
+                     R: ArrayLike | None = None,
                      dt: float | None = None, u: ArrayLike | None = None, seed: int | None = None) -> NDArray:
     """Outputs ``y`` (steps, p) of the plant driven by Gaussian noise of covariances Q (through G) and R.
 
@@ -573,8 +593,9 @@ def simulate_outputs(plant: Plant | Any, steps: int, *, Q: ArrayLike | None = No
     Rd = Rm / st.dt if st.continuous else Rm
     rng = as_rng("seed", seed)
     rho = _spectral_radius(st.Ad)
-    warm = 0 if rho == 0 else (int(min(10**5, math.ceil(math.log(math.sqrt(_EPS)) / math.log(rho)))) if rho < 1
-                               else 0)
+    warm = 0
+    if 0 < rho < 1:
+        warm = int(min(10**5, math.ceil(math.log(math.sqrt(_EPS)) / math.log(rho))))
     n, p = pl.n, pl.p
     sw = _psd_root(W)
     sv = _psd_root(Rd)
@@ -582,7 +603,7 @@ def simulate_outputs(plant: Plant | Any, steps: int, *, Q: ArrayLike | None = No
     Y = np.empty((steps, p))
     x = np.zeros(n)
     Ad, C = st.Ad, st.C
-    for k in range(warm):
+    for _ in range(warm):
         x = Ad @ x + sw @ rng.standard_normal(n)
     chunk = 4096
     for k0 in range(0, steps, chunk):

@@ -103,7 +103,9 @@ class _Solver:
     def unconstrained(self, z: NDArray) -> NDArray | None:
         if not self.full_rank:
             return None
-        rhs = z - (0.5 * self.rho) * scipy.linalg.solve_triangular(self.Rr, self.c, trans="T") if self.rho else z
+        rhs = z
+        if self.rho:
+            rhs = z - (0.5 * self.rho) * scipy.linalg.solve_triangular(self.Rr, self.c, trans="T")
         return scipy.linalg.solve_triangular(self.Rr, rhs)
 
     def solve(self, bw: NDArray, deadline: Deadline) -> tuple[_Fit, Stage | None]:
@@ -143,7 +145,8 @@ class _Solver:
         if Q is None or R is None:
             nan = np.full(len(self.c), np.nan)
             return _Fit(nan, *_matrices(nan, self.st),
-                        Stage(self.sdp_solver.lower(), "backend", mapped.value, status, time.process_time() - t0),
+                        Stage(self.sdp_solver.lower(), "backend", mapped.value, status,
+                              time.process_time() - t0),
                         mapped, status, info["iterations"])
         fit = _Fit(_coords(Q, R, self.st), Q, R,
                    Stage(self.sdp_solver.lower(), "backend", "answered", status, time.process_time() - t0),
@@ -216,7 +219,8 @@ def _unknown_names(st: _Setup) -> list[str]:
     return qn + [f"R[{i},{j}]" for i, j in zip(*np.triu_indices(p), strict=True)]
 
 
-def _identifiability(A: NDArray, st: _Setup, rho: float, lags: int, q_structure: Any) -> tuple[int, float, bool]:
+def _identifiability(A: NDArray, st: _Setup, rho: float, lags: int,
+                     q_structure: Any) -> tuple[int, float, bool]:
     """``(rank, condition, full_rank)`` of the ALS matrix with unit-norm columns; raises
     ValidationError (naming ``q_structure``) when it is rank deficient and no trace penalty picks
     one of the fits."""
@@ -277,7 +281,8 @@ def _projected_gradient(Aw: NDArray, bw: NDArray, fit: _Fit, st: _Setup, rho: fl
 
 
 def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[str, Any],
-                       deadline: Deadline) -> tuple[_Fit, _Solver | None, NDArray | None, dict[str, Any], list[Stage]]:
+                       deadline: Deadline
+                       ) -> tuple[_Fit, _Solver | None, NDArray | None, dict[str, Any], list[Stage]]:
     """Rajamani & Rawlings (2009) sec. 4: weight ``S(theta_k)^-1`` until the estimate settles."""
     rows = A.shape[0]
     if rows > OPTIMAL_MAX_ROWS:

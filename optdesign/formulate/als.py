@@ -172,7 +172,7 @@ class AutocovAccumulator:
             X = np.conj(np.fft.rfft(e, nfft, axis=0))                # (F, p)
             Wf = np.fft.rfft(z, nfft, axis=0)
             r = np.fft.irfft(X[:, :, None] * Wf[:, None, :], nfft, axis=0)   # (nfft, p, p)
-            s = r[t0 - np.arange(N)]                                 # S_i[a, b] = sum_s e_a[s] z_b[s + t0 - i]
+            s = r[t0 - np.arange(N)]              # S_i[a, b] = sum_s e_a[s] z_b[s + t0 - i]
         else:
             s = np.empty((N, self.p, self.p))
             for i in range(N):
@@ -332,7 +332,8 @@ class ALSProgram:
     whatever the number of lags and outputs; ``theta`` are the coordinates of Q and R in their
     bases.  Q and R are cvxpy matrix variables (PSD), diagonal Q a nonnegative vector; the
     coordinates are linear in their entries.  ``reusable``: ``z`` is a Parameter (bootstrap
-    re-solves change only it); otherwise the problem is built with the constant ``z`` of each solve.  Q and R are scaled by ``scale_q``, ``scale_r`` (their magnitudes) and the objective by
+    re-solves change only it); otherwise the problem is built with the constant ``z`` of each solve.
+    Q and R are scaled by ``scale_q``, ``scale_r`` (their magnitudes) and the objective by
     ``scale_obj`` so the solver sees numbers near one.
 
     Parameters
@@ -383,7 +384,8 @@ class ALSProgram:
             obj = obj + (self.rho * self.scale_q / self.scale_obj) * trq
         return cp.Problem(cp.Minimize(obj), cons)
 
-    def solve(self, z: NDArray, solver: str, options: dict) -> tuple[str, NDArray | None, NDArray | None, dict]:
+    def solve(self, z: NDArray, solver: str,
+              options: dict) -> tuple[str, NDArray | None, NDArray | None, dict]:
         """``(cvxpy status, Q, R, info)``; Q and R None when no solution is present."""
         if self.reusable:
             self.z.value = z
