@@ -35,7 +35,7 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 REPO = Path(__file__).resolve().parents[1]
 SRC = problems._source_root()
 ALL = problems.names()
-GROUPS = ("seeds", "carex", "darex", "compleib", "poleplacement", "kf")
+GROUPS = ("seeds", "carex", "darex", "compleib", "poleplacement", "kf", "als")
 
 
 def _files() -> list[Path]:
@@ -216,6 +216,8 @@ def _expected_shape(key: str, kind: str, d: dict[str, int]):
             return (d["r"] + 1,)
         if key == "H_printed":
             return (n, p)
+    if kind == "noise_estimation" and key in ("Q", "R", "Q_true", "R_true"):
+        return (p, p) if key.startswith("R") else "any"      # Q is (m, m): tests/test_estimate_noise.py
     rules = [
         (r"(X|P)(0|_.*)?|Q_(prime|tilde|diag).*|S_after.*|(A_next|M|T|H_E)_printed", (n, n)),
         (r"(L|K)(_.*)?", (n, p)),

@@ -8,7 +8,7 @@ from collections.abc import Sequence
 
 from .. import __version__
 from ..errors import OptDesignError
-from . import basic, design
+from . import basic, design, noise
 from .common import CLIError, Parser, join_negative_values
 
 __all__ = ["build_parser", "main"]
@@ -22,6 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp = sub.add_parser(name, help=help_, description=help_)
         configure(sp)
         sp.set_defaults(_run=run)
+    noise.register(sub)
     return parser
 
 
