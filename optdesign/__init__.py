@@ -44,6 +44,10 @@ __version__ = "0.2.0"
 
 # public name -> module that defines it (imported on first access)
 _LAZY: dict[str, str] = {
+    # noise covariances from data (autocovariance least squares)
+    "estimate_noise": "optdesign.design.noise_estimation",
+    "NoiseEstimate": "optdesign.design.noise_estimation",
+    "simulate_outputs": "optdesign.design.noise_estimation",
     # foundation: the Kalman filter and its complete API
     "kalman": "optdesign.design.kalman",
     "KalmanFilter": "optdesign.design.kalman",
