@@ -460,6 +460,8 @@ def _poles(src: str, fieldname: str, value: Any, n: int) -> np.ndarray:
                                                       f"'-3+1j')") from None
             items.append(v)
         value = items
+    if not isinstance(value, (str, list)) and np.ndim(value) == 2 and 1 in np.shape(value):
+        value = np.ravel(value)  # a MATLAB vector (.mat files have no 1-D arrays): a row or a column
     try:
         return as_poles("poles", value, n)
     except ValidationError as exc:

@@ -117,7 +117,9 @@ def test_vector_shapes():
     """A (1, k) or (k, 1) array is an unambiguous vector; (2, 2) or (1, 1, k) is not."""
     np.testing.assert_array_equal(as_vector("x", [[1.0, 2.0, 3.0]]), [1.0, 2.0, 3.0])
     np.testing.assert_array_equal(as_vector("x", [[1.0], [2.0]]), [1.0, 2.0])
-    np.testing.assert_allclose(as_poles("poles", [[-1.0], [-2.0]], 2), [-2.0, -1.0])
+    # poles are stricter (issue 27 item 6, as scipy's place_poles): a row or a column is refused
+    with pytest.raises(DimensionError, match=r"poles must be a 1-D vector of shape \(k,\); found shape \(2, 1\)"):
+        as_poles("poles", [[-1.0], [-2.0]], 2)
     for bad in (np.ones((2, 2)), np.ones((1, 1, 3)), np.ones((2, 3))):
         with pytest.raises(DimensionError, match=r"poles must be a vector \(shape \(k,\), or \(1, k\) / "
                                                  r"\(k, 1\)\); found shape"):
