@@ -46,6 +46,7 @@ from .evaluation import (
 )
 from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
 from .results import ObserverDesign, StartRecord, n_converged, no_design
+from .route import ENGINE_FIXED, ENGINE_REGION, IPOPT, Phase, proof_route, route_of
 from .starts import fixed_starts, iter_region_starts
 
 __all__ = ["WellConditionedProblem", "LocalOptimum", "local_optima", "warm_start_origin", "Objective",
@@ -107,12 +108,21 @@ def _region_parts(region: Region) -> tuple[Region | None, dict[str, float]]:
 
 def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evaluated], *, objective: str,
                 target: NDArray | None, region: Region | None, deadline: Deadline, planned: int,
-                route: str, kalman: dict[str, Any] | None = None) -> ObserverDesign:
-    """The design of a multi-start run: the best verified start (:func:`~.evaluation.design_outcome`)."""
+                route: str, kalman: dict[str, Any] | None = None,
+                phases: list[Phase] | None = None) -> ObserverDesign:
+    """The design of a multi-start run: the best verified start (:func:`~.evaluation.design_outcome`).
+
+    ``route``: the short route name (``extra["route"]``); ``phases``: the phases that ran, for the
+    result's :class:`~optdesign.results.Route` (default: one phase over every start, IPOPT when
+    ``route`` is ``"nlp"``, else the engine)."""
+    if phases is None:
+        name = IPOPT if route == "nlp" else ENGINE_REGION if region is not None else ENGINE_FIXED
+        phases = [Phase(name, "backend" if route == "nlp" else "engine", 0, max(len(records), 1))]
     if not evaluated:  # the time ran out before any start could run
         reason = f"time limit of {deadline.limit:g} s reached before any of the {planned} starts could run"
         return no_design(plant, objective, Status.TIME_LIMIT, reason, None, target=target, region=region,
-                         backend="ipopt" if route == "nlp" else ENGINE, **(kalman or {}))
+                         backend="ipopt" if route == "nlp" else ENGINE, route=route_of(phases, [], None, False),
+                         **(kalman or {}))
     (obj, idx, m, v, cand), status, msg = design_outcome(records, evaluated, objective, deadline=deadline,
                                                          planned=planned)
     bound = objective_lower_bound(objective, plant.n)
@@ -131,7 +141,8 @@ def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evalua
         L=cand.L, poles=m["poles"], kappa2=m["kappa2"], eta=m["eta"], kappa_fro=m["kappa_fro"],
         gain_norm=m["gain_norm"], objective=objective, status=status, message=msg, solver_stats=stats,
         verification=v, starts=tuple(records), V=m["V"], target_poles=target, region=region, plant=plant,
-        extra={"local_optima": local_optima(evaluated, bound)}, **(kalman or {}),
+        extra={"local_optima": local_optima(evaluated, bound)},
+        route=route_of(phases, evaluated, idx, bool(v.passed)), **(kalman or {}),
     )
 
 
@@ -477,11 +488,13 @@ class WellConditionedProblem:
             )
             cert = Certificate("multiplicity_exceeds_rank", "multiplicity exceeds rank(C)",
                                pole=complex(vals[k]), multiplicity=int(counts[k]), rank_C=rank)
-            return no_design(plant, objective, Status.INFEASIBLE, reason, cert, target=target)
+            return no_design(plant, objective, Status.INFEASIBLE, reason, cert, target=target,
+                             route=proof_route("multiplicity exceeds rank(C)"))
         if objective == "eta" and counts[k] > 1:
             cert = Certificate("repeated_pole_eta", "repeated pole with objective eta", pole=complex(vals[k]))
             return no_design(plant, objective, Status.INFEASIBLE,
-                             "eta is infinite for repeated poles (zero eigenvalue gap)", cert, target=target)
+                             "eta is infinite for repeated poles (zero eigenvalue gap)", cert, target=target,
+                             route=proof_route("repeated pole with objective eta"))
         return None
 
     def _fixed(self, target: NDArray, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
@@ -500,6 +513,7 @@ class WellConditionedProblem:
         use_nlp = self._needs_nlp(bounds)
         planned = 0
         route = "nlp" if use_nlp else "engine"
+        phases: list[Phase] = []
         with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if not use_nlp:
@@ -508,6 +522,7 @@ class WellConditionedProblem:
                                                   evaluate=evaluate, warm_start=warm)
                 bar.update(len(records), note=_note(objective, evaluated))
                 planned = max(n_starts + (warm is not None), len(records))
+                phases.append(Phase(ENGINE_FIXED, "engine", 0, len(records)))
             if use_nlp or _needs_fallback(evaluated, deadline):
                 route = "nlp" if use_nlp else "engine+nlp"
                 sc = self._scaling(float(np.max(np.abs(target))))
@@ -521,9 +536,11 @@ class WellConditionedProblem:
                                           lambda c: bool(evaluate(c)[1].passed), deadline)
                 more_r, more_e = solve_starts(specs, runner, objective, evaluate, deadline,
                                               objective_lower_bound(objective, plant.n), bar, len(records))
+                phases.append(Phase(IPOPT, "backend" if use_nlp else "fallback", len(records),
+                                    len(records) + max(len(more_r), 1), _nlp_detail(use_nlp, self.mask, bounds)))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
-                           deadline=deadline, planned=planned, route=route)
+                           deadline=deadline, planned=planned, route=route, phases=phases)
 
     def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator) -> Iterator:
         """The starts of region mode, lazily (:func:`~.starts.iter_region_starts`: a start's placement is
@@ -543,7 +560,8 @@ class WellConditionedProblem:
                   f"and lies outside the region (distance {dist[k]:.3g})")
         cert = Certificate("unobservable_mode_outside_region", "unobservable mode outside the region",
                            modes=unobs, distance=dist)
-        return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region)
+        return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region,
+                         route=proof_route("unobservable mode outside the region"))
 
     def _free(self, region: Region, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
               deadline: Deadline, warms: list[NDArray], progress: bool | None) -> ObserverDesign:
@@ -568,6 +586,7 @@ class WellConditionedProblem:
         evaluated: list[Evaluated] = []
         planned = 0
         route = "nlp" if use_nlp else "engine"
+        phases: list[Phase] = []
         with Progress(n_starts + len(warm_specs), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if not use_nlp:
@@ -580,6 +599,7 @@ class WellConditionedProblem:
                                                    seed=_int_seed(seed),
                                                    deadline=deadline, evaluate=evaluate, lower_bound=bound,
                                                    progress=bar)
+                phases.append(Phase(ENGINE_REGION, "engine", 0, len(records)))
             if use_nlp or _needs_fallback(evaluated, deadline):
                 route = "nlp" if use_nlp else "engine+nlp"
                 planned += n_starts + len(warm_specs)
@@ -591,6 +611,9 @@ class WellConditionedProblem:
                                            mask=self.mask, lower_bound=bound, polish=self.region_polish)
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
+                phases.append(Phase(IPOPT, "backend" if use_nlp else "fallback", len(records),
+                                    len(records) + max(len(more_r), 1),
+                                    _nlp_detail(use_nlp, self.mask, bounds, objective == "eta")))
                 records, evaluated = records + more_r, evaluated + more_e
             if self.route == "auto" and engine_ok and use_nlp and not deadline.expired:
                 more_r, more_e = self._engine_polish(region, objective, evaluated, seed, deadline, bound,
@@ -598,9 +621,11 @@ class WellConditionedProblem:
                 if more_r:
                     planned += 1
                     route = "nlp+engine"
+                    phases.append(Phase(ENGINE_REGION, "polish", len(records), len(records) + len(more_r),
+                                        "engine from the best design"))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=None, region=region,
-                           deadline=deadline, planned=planned, route=route)
+                           deadline=deadline, planned=planned, route=route, phases=phases)
 
     def _engine_polish(self, region: Region, objective: str, evaluated: list[Evaluated], seed: Any,
                        deadline: Deadline, bound: float | None,
@@ -658,6 +683,15 @@ def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
     if any(e[3].passed for e in evaluated):
         return False
     return not deadline.expired or not any(np.all(np.isfinite(e[4].L)) for e in evaluated)
+
+
+def _nlp_detail(asked: bool, mask: NDArray | None, bounds: dict[str, float | None], eta: bool = False) -> str:
+    """Why the NLP ran: the constraints the engine does not take, or a fallback."""
+    if not asked:
+        return "fallback: no engine design verified"
+    why = [k for k, v in bounds.items() if v is not None] + (["gain_mask"] if mask is not None else [])
+    why += ["eta in a region"] if eta else []
+    return ("for " + ", ".join(why)) if why else "asked (route='nlp')"
 
 
 def _note(objective: str, evaluated: list[Evaluated]) -> str:

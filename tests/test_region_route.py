@@ -1,0 +1,102 @@
+"""Region designs of the well-conditioned observer: the default route's answers against IPOPT's, the
+route trace, and honest verification of nearly defective designs (issues 26 and 28)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optdesign import Plant, metrics, well_conditioned_observer
+from optdesign.design.well_conditioned import WellConditionedProblem
+from optdesign.design.well_conditioned.evaluation import Candidate, evaluate_candidate
+from optdesign.regions import Disk, HalfPlane, Sector
+from optdesign.results import Status
+
+DATA = Path(__file__).parent / "data"
+
+
+def _near_defective_case():
+    d = np.load(DATA / "region_design_near_defective_n8_p2.npz")
+    plant = Plant(d["A"], d["C"])
+    region = (HalfPlane(float(d["half_plane_alpha"])) & Sector.from_damping(float(d["sector_damping"]))
+              & Disk(0.0, float(d["disk_radius"])))
+    return plant, region, np.asarray(d["L"])
+
+
+def _random_plant(seed: int, n: int, p: int) -> Plant:
+    rng = np.random.default_rng(seed)
+    while True:
+        plant = Plant(rng.standard_normal((n, n)) / np.sqrt(n), rng.standard_normal((p, n)))
+        if plant.is_observable():
+            return plant
+
+
+# --------------------------------------------------------------------------- near-defective designs
+
+
+@pytest.mark.parametrize("with_basis", [False, True])
+def test_near_defective_stored_gain_fails_verification(with_basis):
+    """The gain of the issue-26 wrong success: two poles 3e-8 apart on the half-plane's edge.  Its
+    kappa2 cannot be stated (numpy's eigenbasis gives 40,802, the solver's 39,855, metrics.kappa2
+    inf): the design must not verify, with or without the solver's eigenbasis, and the kappa2
+    reported is the recomputed one (inf), not the solver's."""
+    plant, region, L = _near_defective_case()
+    X = plant.A - L @ plant.C
+    Z = zp = None
+    if with_basis:
+        zp, Z = np.linalg.eig(X)
+        Z = Z / np.linalg.norm(Z, axis=0)
+    cand = Candidate(L, Z, zp, Status.OPTIMAL, "converged", "", 0, 0.0, stage="free poles",
+                     backend="eigenstructure")
+    m, v = evaluate_candidate(plant, cand, target=None, region=region, mask=None, max_gain=None,
+                              kappa2_max=None, eta_max=None)
+    assert not v.passed
+    assert [c.name for c in v.failed] == ["kappa2_accuracy"]
+    assert m["kappa2"] == metrics.kappa2(X) == np.inf
+
+
+def test_well_conditioned_design_passes_accuracy_check():
+    """A well-separated design states its kappa2: the accuracy check passes and is reported."""
+    plant = _random_plant(1, 4, 2)
+    d = well_conditioned_observer(plant, poles=[-1, -2, -3, -4], starts=2)
+    assert d.success
+    (check,) = [c for c in d.verification.checks if c.name == "kappa2_accuracy"]
+    assert check.passed and check.value < 1e-9
+
+
+def test_near_defective_case_design_reports_its_own_kappa2():
+    """The regression plant and region, designed under a short budget: whatever the status, a
+    verified answer's kappa2 is the returned gain's (recomputed), and it is finite."""
+    plant, region, _ = _near_defective_case()
+    d = well_conditioned_observer(plant, region=region, time_limit=3.0)
+    if d.verification.passed:
+        k2 = metrics.kappa2(plant.A - d.L @ plant.C)
+        assert np.isfinite(k2)
+        assert d.kappa2 == pytest.approx(k2, rel=1e-6)
+    if d.success:
+        assert np.isfinite(d.kappa2)
+
+
+# --------------------------------------------------------------------------- the route trace
+
+
+def test_route_fixed_poles_engine():
+    plant = Plant([[0, 1], [2, -1]], [[1, 0]])
+    d = well_conditioned_observer(plant, poles=[-2, -3], starts=1)
+    assert d.route.answered.name == "eigenstructure_engine/fixed_poles"
+
+
+def test_route_fixed_poles_bounds_go_to_ipopt():
+    plant = _random_plant(2, 3, 2)
+    d = well_conditioned_observer(plant, poles=[-1, -2, -3], max_gain=100.0, starts=1)
+    assert d.route.names == ("ipopt",)
+    assert d.route[0].kind == "backend" and "max_gain" in d.route[0].detail
+
+
+def test_route_proof():
+    plant = Plant([[0, 1], [2, -1]], [[1, 0]])
+    d = well_conditioned_observer(plant, poles=[-2, -2])
+    assert d.status == Status.INFEASIBLE
+    assert d.route[0].kind == "certificate" and d.route.answered is None
