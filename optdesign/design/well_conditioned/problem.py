@@ -59,6 +59,16 @@ Objective = Literal["kappa2", "kappa_fro", "eta"]
 #: engine use :func:`~optdesign.solvers.eigenstructure_fixed.default_starts`
 DEFAULT_STARTS = 8
 
+#: route "auto" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
+#: of them IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches
+#: kappa2 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches
+#: 1.46204 where IPOPT's first two starts stop at 1.481)
+AUTO_REGION_STARTS = 3
+AUTO_NLP_STARTS = 2
+
+#: the routes of region mode (:meth:`WellConditionedProblem._region_plan`)
+ROUTES = ("auto", "multistart", "nlp", "engine")
+
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
 
@@ -279,7 +289,7 @@ class WellConditionedProblem:
                  nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
                  allow_unstable: bool = False, pole_scale: float | None = None,
-                 route: Literal["auto", "nlp", "engine"] = "auto", kalman_start: bool = True,
+                 route: Literal["auto", "multistart", "nlp", "engine"] = "auto", kalman_start: bool = True,
                  region_polish: Literal["full", "last"] = "full") -> None:
         plant = as_plant(plant)
         check_objective(objective)
@@ -302,8 +312,8 @@ class WellConditionedProblem:
         self.region = None if region is None else self._check_region_mode(region, self.bounds)
         self.engine = EigenstructureEngine(plant.A, plant.C)
         self.pole_scale = None if pole_scale is None else as_positive_float("pole_scale", pole_scale)
-        if not isinstance(route, str) or route not in ("auto", "nlp", "engine"):
-            raise ValidationError(f"route must be 'auto', 'nlp' or 'engine'; found {route!r}")
+        if not isinstance(route, str) or route not in ROUTES:
+            raise ValidationError(f"route must be one of {ROUTES}; found {route!r}")
         self.route = route
         self.kalman_start = as_bool("kalman_start", kalman_start)
         self.region_polish = as_str("region_polish", region_polish, REGION_POLISHES)
@@ -467,7 +477,12 @@ class WellConditionedProblem:
         if region is None:
             region = self.region if self.region is not None else stability_region(self.plant.is_discrete)
         region = self._check_region_mode(region, bounds)
-        n_starts = chosen if chosen is not None else DEFAULT_STARTS
+        if chosen is not None:
+            n_starts = chosen
+        elif self.route == "auto" and not self._needs_nlp(bounds) and self.objective != "eta":
+            n_starts = AUTO_REGION_STARTS
+        else:
+            n_starts = DEFAULT_STARTS
         return self._free(region, bounds, n_starts, seed, deadline, warms, progress)
 
     def _needs_nlp(self, bounds: dict[str, float | None]) -> bool:
@@ -580,52 +595,82 @@ class WellConditionedProblem:
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
             warm_specs.append((warm_start_origin(i), warm, PoleStructure.of(Pw, tol=1e-6), Pw, True))
         engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro")
-        use_nlp = self.route != "engine" or not engine_ok
+        use_eng, n_eng, use_nlp, n_nlp, polish, eng_polish = self._region_plan(engine_ok, n_starts)
         bound = objective_lower_bound(objective, plant.n)
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []
         planned = 0
-        route = "nlp" if use_nlp else "engine"
+        route = "engine" if use_eng else "nlp"
         phases: list[Phase] = []
-        with Progress(n_starts + len(warm_specs), "well-conditioned observer", enabled=progress,
+        if use_eng:  # the engine's starts are computed now, the NLP re-uses the first of them
+            specs = list(itertools.islice(specs, max(n_eng, n_nlp)))
+        with Progress(n_eng + n_nlp + len(warm_specs), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
-            if not use_nlp:
-                specs = list(specs)  # (every start runs on the engine; the fallback re-uses them)
+            if use_eng:
                 eng_specs: list[tuple[str, NDArray | None, NDArray, bool]] = [
                     (w[0], w[1], w[3], True) for w in warm_specs]
-                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in specs]
+                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in specs[:n_eng]]
                 planned = len(eng_specs)
                 records, evaluated = engine_region(self.engine, region, objective, eng_specs,
                                                    seed=_int_seed(seed),
                                                    deadline=deadline, evaluate=evaluate, lower_bound=bound,
                                                    progress=bar)
                 phases.append(Phase(ENGINE_REGION, "engine", 0, len(records)))
-            if use_nlp or _needs_fallback(evaluated, deadline):
-                route = "nlp" if use_nlp else "engine+nlp"
-                planned += n_starts + len(warm_specs)
+            fallback = use_eng and _needs_fallback(evaluated, deadline)
+            if fallback:  # no engine design verified: IPOPT from every start the engine ran
+                n_nlp = max(n_nlp, len(specs))
+            run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
+                attains(bound, e[0], e[3], e[4]) for e in evaluated)))
+            if run_nlp or fallback:
+                route = "nlp" if not use_eng else "engine+nlp"
+                planned += n_nlp + len(warm_specs)
                 sc = self._scaling(0.0 if self.pole_scale is not None else _interior_scale(region))
-                nlp_specs = itertools.chain(warm_specs, (s + (False,) for s in specs))
+                todo = specs[:n_nlp] if isinstance(specs, list) else specs
+                nlp_specs = itertools.chain(warm_specs, (s + (False,) for s in todo))
                 runner = nlp_region_runner(plant, region, objective, self.options,
                                            self._fixed_nlp_getter(bounds, sc),
                                            self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
-                                           mask=self.mask, lower_bound=bound, polish=self.region_polish)
+                                           mask=self.mask, lower_bound=bound, polish=polish)
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
-                phases.append(Phase(IPOPT, "backend" if use_nlp else "fallback", len(records),
-                                    len(records) + max(len(more_r), 1),
-                                    _nlp_detail(use_nlp, self.mask, bounds, objective == "eta")))
+                kind = "fallback" if fallback else "backend"
+                detail = _nlp_detail(not fallback, self.mask, bounds, objective == "eta")
+                if use_eng and not fallback:
+                    detail = f"{len(more_r)} starts, beside the engine's"
+                elif not use_eng and engine_ok:
+                    detail = f"asked (route={self.route!r})"
+                phases.append(Phase(IPOPT, kind, len(records), len(records) + max(len(more_r), 1), detail))
                 records, evaluated = records + more_r, evaluated + more_e
-            if self.route == "auto" and engine_ok and use_nlp and not deadline.expired:
+            if eng_polish and not deadline.expired:
                 more_r, more_e = self._engine_polish(region, objective, evaluated, seed, deadline, bound,
                                                      evaluate)
                 if more_r:
                     planned += 1
-                    route = "nlp+engine"
+                    route += "+engine polish" if use_eng else "+engine"
                     phases.append(Phase(ENGINE_REGION, "polish", len(records), len(records) + len(more_r),
                                         "engine from the best design"))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=None, region=region,
                            deadline=deadline, planned=planned, route=route, phases=phases)
+
+    def _region_plan(self, engine_ok: bool, n_starts: int) -> tuple[bool, int, bool, int, str, bool]:
+        """``(engine?, engine starts, IPOPT?, IPOPT starts, IPOPT polish, engine polish)`` of a region
+        solve (the warm starts run in every phase that runs).
+
+        ``"auto"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine from the
+        ``n_starts`` first starts, IPOPT (light polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``)
+        from the first :data:`AUTO_NLP_STARTS` of them, then the engine from IPOPT's best when it
+        is better than the engine's; IPOPT alone otherwise.  ``"multistart"``: IPOPT from every start,
+        then the engine from the best (the default before issue 28).  ``"nlp"``: IPOPT only.
+        ``"engine"``: the engine from every start (IPOPT as the fallback)."""
+        mode = self.route
+        if not engine_ok or mode == "nlp":
+            return False, 0, True, n_starts, self.region_polish, False
+        if mode == "engine":
+            return True, n_starts, False, 0, self.region_polish, False
+        if mode == "multistart":
+            return False, 0, True, n_starts, self.region_polish, True
+        return True, n_starts, True, min(AUTO_NLP_STARTS, n_starts), "last", True
 
     def _engine_polish(self, region: Region, objective: str, evaluated: list[Evaluated], seed: Any,
                        deadline: Deadline, bound: float | None,
@@ -636,7 +681,7 @@ class WellConditionedProblem:
         if not good:
             return [], []
         best = min(good, key=lambda e: e[0])
-        if attains(bound, best[0], best[3], best[4]):
+        if attains(bound, best[0], best[3], best[4]) or best[4].backend == ENGINE:
             return [], []
         L0 = np.asarray(best[4].L, dtype=float)
         P0 = np.linalg.eigvals(self.plant.A - L0 @ self.plant.C)
