@@ -227,7 +227,8 @@ class WellConditionedProblem:
     starts : int, optional
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
         structural zeros): :func:`~optdesign.solvers.eigenstructure_fixed.default_starts` (6 up to
-        n = 12, 2 up to 24, then 1 -- what the engine needs, measured).
+        n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the default
+        route ``"auto"`` (kappa2 / kappa_fro, no bounds or structural zeros): :data:`AUTO_REGION_STARTS`.
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -243,15 +244,22 @@ class WellConditionedProblem:
         part of an NLP's key); with it set, the decay / damping / radius of a region are NLP parameters
         (one NLP for every region of that shape), without it each region's constraints are built as
         they are.
-    route : {"auto", "nlp", "engine"}, default "auto"
-        Region mode.  ``"auto"``: IPOPT (the NLPs' continuation) from every start, then -- for kappa2
-        / kappa_fro without bounds or structural zeros -- one placement-engine start from IPOPT's best
-        design, the better of the two kept (never worse than IPOPT alone).  ``"nlp"``: IPOPT only (the
-        algorithm of the sweep designer, which warm-starts IPOPT along a sweep).  ``"engine"``: the
-        placement engine from every start, IPOPT only where it does not handle the question or as a
-        fallback -- several times faster, but measured worse on some plants (a random n = 3 plant:
-        kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646), better on others (AC7: 22.45 vs
-        22.81).  Fixed poles always use the engine (IPOPT for bounds and structural zeros).
+    route : {"auto", "multistart", "nlp", "engine"}, default "auto"
+        Region mode (:meth:`_region_plan`; the route that ran is ``result.route``).  ``"auto"``: for
+        kappa2 / kappa_fro without bounds or structural zeros, the placement engine from the starts
+        (default :data:`AUTO_REGION_STARTS` = 3: the naive poles with YT, the Kalman gain, a region
+        sample), IPOPT from the first :data:`AUTO_NLP_STARTS` (2) of them with the light polish
+        (``region_polish="last"``), then one engine start from IPOPT's best when it beats the
+        engine's; IPOPT from every start (default 8) for eta, bounds and gain masks, and as the
+        fallback when no engine design verifies.  Measured (issue 28, ``benchmarks/results/region.md``):
+        several times less CPU than ``"multistart"`` at n = 4-8, the same kappa2 on some plants and up to
+        about 1 % worse on others (a start IPOPT alone finds among 8).  ``"multistart"``: IPOPT from
+        every start (default 8), then one engine start from IPOPT's best -- the default before issue
+        28, the most thorough.  ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which
+        warm-starts IPOPT along a sweep).  ``"engine"``: the placement engine from every start, IPOPT
+        only where it does not handle the question or as a fallback (measured worse on some plants: a
+        random n = 3 plant: kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646).  Fixed poles
+        always use the engine (IPOPT for bounds and structural zeros).
     kalman_start : bool, default True
         Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
         first samples poles in the region (complex-pair patterns first).
