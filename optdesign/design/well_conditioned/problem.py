@@ -644,7 +644,7 @@ class WellConditionedProblem:
                 kind = "fallback" if fallback else "backend"
                 detail = _nlp_detail(not fallback, self.mask, bounds, objective == "eta")
                 if use_eng and not fallback:
-                    detail = f"{len(more_r)} starts, beside the engine's"
+                    detail = f"{len(more_r)} start{'s' if len(more_r) != 1 else ''}, beside the engine's"
                 elif not use_eng and engine_ok:
                     detail = f"asked (route={self.route!r})"
                 phases.append(Phase(IPOPT, kind, len(records), len(records) + max(len(more_r), 1), detail))
