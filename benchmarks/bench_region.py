@@ -2,9 +2,11 @@
 default route side by side (issue 28).
 
 Run:  python benchmarks/bench_region.py run {new,base} --set {subset,full} --objective {kappa2,eta} --json F
+          [--route fast|auto|nlp|engine|default]
       python benchmarks/bench_region.py report BASE.json NEW.json [...] --out benchmarks/results/region.md
 
-``run new`` imports the checkout this script lives in; ``run base`` re-runs this script in a subprocess
+``run new`` imports the checkout this script lives in and designs with ``WellConditionedProblem(route=
+"fast")`` (``--route``); ``run base`` re-runs this script in a subprocess
 with ``PYTHONPATH`` set to a checkout of the commit before issue 28 (``BASE_COMMIT``), made once with::
 
     git worktree add /tmp/region-base 130742f
@@ -71,15 +73,20 @@ def cases(which: str):
         yield name, plant, HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 5.0)
 
 
-def run(which: str, objective: str, out: str, only: str | None) -> None:
+def run(which: str, objective: str, out: str, only: str | None, route: str | None) -> None:
     from optdesign import metrics, well_conditioned_observer
+    from optdesign.design.well_conditioned import WellConditionedProblem
 
     rows = []
     for name, plant, region in cases(which):
         if only and name not in only.split(","):
             continue
         c0 = time.process_time()
-        d = well_conditioned_observer(plant, region=region, objective=objective, time_limit=TIME_LIMIT)
+        if route is None:  # the verb's default
+            d = well_conditioned_observer(plant, region=region, objective=objective, time_limit=TIME_LIMIT)
+        else:
+            d = WellConditionedProblem(plant, objective=objective, route=route).solve(region=region,
+                                                                                      time_limit=TIME_LIMIT)
         cpu = time.process_time() - c0
         k2 = float(metrics.kappa2(plant.A - d.L @ plant.C)) if np.all(np.isfinite(d.L)) else float("nan")
         route = getattr(d, "route", None)
@@ -95,9 +102,10 @@ def run(which: str, objective: str, out: str, only: str | None) -> None:
 def report(files: list[str], out: str) -> None:
     """Pairs (base, new) per objective, in the order given: one table each."""
     lines = ["# Region-mode designs: today's default (base) against the new default route", "",
-             f"Base: commit {BASE_COMMIT} (IPOPT from 8 starts, then one engine start).  New: this checkout "
-             "(`route='auto'`: the engine from 3 starts, IPOPT from the first 2 with the light polish, the "
-             "engine from IPOPT's best).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
+             f"Base: commit {BASE_COMMIT}, the verb's default (IPOPT from 8 starts, then one engine start; "
+             "unchanged in this checkout as `route='auto'`).  New: this checkout, `route='fast'` (the engine "
+             "from 3 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; eta: "
+             "IPOPT from 8 starts as before).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
              f"time limit {TIME_LIMIT:g} s per design.  `rel` = (new - base) / base of the objective "
              "(negative: new better).  Produced by `benchmarks/bench_region.py`.", ""]
     data = [json.loads(Path(f).read_text()) for f in files]
@@ -139,6 +147,8 @@ def main() -> None:
     r.add_argument("--objective", default="kappa2", choices=("kappa2", "eta"))
     r.add_argument("--only", default=None)
     r.add_argument("--json", required=True)
+    r.add_argument("--route", default=None, help="WellConditionedProblem(route=...) (new code only; "
+                   "default: 'fast' for new, the verb's default for base)")
     r.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     p = sub.add_parser("report")
     p.add_argument("files", nargs="+")
@@ -159,7 +169,8 @@ def main() -> None:
     expected = BASE_DIR if a.code == "base" else str(Path(__file__).resolve().parents[1])
     if not str(Path(optdesign.__file__).resolve()).startswith(expected):
         raise SystemExit(f"imported {optdesign.__file__}, expected a checkout under {expected}")
-    run(a.set, a.objective, a.json, a.only)
+    route = None if a.code == "base" else (a.route or "fast")
+    run(a.set, a.objective, a.json, a.only, None if route == "default" else route)
 
 
 if __name__ == "__main__":

@@ -59,7 +59,7 @@ Objective = Literal["kappa2", "kappa_fro", "eta"]
 #: engine use :func:`~optdesign.solvers.eigenstructure_fixed.default_starts`
 DEFAULT_STARTS = 8
 
-#: route "auto" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
+#: route "fast" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
 #: of them IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches
 #: kappa2 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches
 #: 1.46204 where IPOPT's first two starts stop at 1.481)
@@ -67,7 +67,7 @@ AUTO_REGION_STARTS = 3
 AUTO_NLP_STARTS = 2
 
 #: the routes of region mode (:meth:`WellConditionedProblem._region_plan`)
-ROUTES = ("auto", "multistart", "nlp", "engine")
+ROUTES = ("auto", "fast", "nlp", "engine")
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
@@ -227,8 +227,8 @@ class WellConditionedProblem:
     starts : int, optional
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
         structural zeros): :func:`~optdesign.solvers.eigenstructure_fixed.default_starts` (6 up to
-        n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the default
-        route ``"auto"`` (kappa2 / kappa_fro, no bounds or structural zeros): :data:`AUTO_REGION_STARTS`.
+        n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
+        ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros): :data:`AUTO_REGION_STARTS`.
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -244,22 +244,24 @@ class WellConditionedProblem:
         part of an NLP's key); with it set, the decay / damping / radius of a region are NLP parameters
         (one NLP for every region of that shape), without it each region's constraints are built as
         they are.
-    route : {"auto", "multistart", "nlp", "engine"}, default "auto"
-        Region mode (:meth:`_region_plan`; the route that ran is ``result.route``).  ``"auto"``: for
-        kappa2 / kappa_fro without bounds or structural zeros, the placement engine from the starts
-        (default :data:`AUTO_REGION_STARTS` = 3: the naive poles with YT, the Kalman gain, a region
-        sample), IPOPT from the first :data:`AUTO_NLP_STARTS` (2) of them with the light polish
-        (``region_polish="last"``), then one engine start from IPOPT's best when it beats the
-        engine's; IPOPT from every start (default 8) for eta, bounds and gain masks, and as the
-        fallback when no engine design verifies.  Measured (issue 28, ``benchmarks/results/region.md``):
-        several times less CPU than ``"multistart"`` at n = 4-8, the same kappa2 on some plants and up to
-        about 1 % worse on others (a start IPOPT alone finds among 8).  ``"multistart"``: IPOPT from
-        every start (default 8), then one engine start from IPOPT's best -- the default before issue
-        28, the most thorough.  ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which
-        warm-starts IPOPT along a sweep).  ``"engine"``: the placement engine from every start, IPOPT
-        only where it does not handle the question or as a fallback (measured worse on some plants: a
-        random n = 3 plant: kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646).  Fixed poles
-        always use the engine (IPOPT for bounds and structural zeros).
+    route : {"auto", "fast", "nlp", "engine"}, default "auto"
+        Region mode (:meth:`_region_plan`; what ran is ``result.route``).  ``"auto"``: IPOPT (the NLPs'
+        continuation) from every start, then -- for kappa2 / kappa_fro without bounds or structural
+        zeros -- one placement-engine start from IPOPT's best design, the better of the two kept (never
+        worse than IPOPT alone).  ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros):
+        the placement engine from the starts (default :data:`AUTO_REGION_STARTS` = 3: the naive poles
+        with YT, the Kalman gain, a region sample), IPOPT from the first :data:`AUTO_NLP_STARTS` (2)
+        of them with the light polish (``region_polish="last"``), then one engine start from IPOPT's
+        best when it beats the engine's; IPOPT alone for eta, bounds and gain masks.  Measured against
+        ``"auto"`` (issue 28, ``benchmarks/results/region.md``): 2-4x less CPU at n = 4-10 and the same
+        kappa2 on COMPleib REA2, DIS1, HE5, but worse where a later start of ``"auto"`` finds the best
+        basin (random n = 5, p = 1: 248.6 vs 149.0; n = 8, p = 2: 122.6 vs 114.2) -- hence not the
+        default.  ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which warm-starts IPOPT
+        along a sweep).  ``"engine"``: the placement engine from every start, IPOPT only where it does
+        not handle the question or as a fallback -- faster, but measured worse on some plants (a
+        random n = 3 plant: kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646), better on
+        others (AC7: 22.45 vs 22.81).  Fixed poles always use the engine (IPOPT for bounds and
+        structural zeros).
     kalman_start : bool, default True
         Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
         first samples poles in the region (complex-pair patterns first).
@@ -297,7 +299,7 @@ class WellConditionedProblem:
                  nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
                  allow_unstable: bool = False, pole_scale: float | None = None,
-                 route: Literal["auto", "multistart", "nlp", "engine"] = "auto", kalman_start: bool = True,
+                 route: Literal["auto", "fast", "nlp", "engine"] = "auto", kalman_start: bool = True,
                  region_polish: Literal["full", "last"] = "full") -> None:
         plant = as_plant(plant)
         check_objective(objective)
@@ -487,7 +489,7 @@ class WellConditionedProblem:
         region = self._check_region_mode(region, bounds)
         if chosen is not None:
             n_starts = chosen
-        elif self.route == "auto" and not self._needs_nlp(bounds) and self.objective != "eta":
+        elif self.route == "fast" and not self._needs_nlp(bounds) and self.objective != "eta":
             n_starts = AUTO_REGION_STARTS
         else:
             n_starts = DEFAULT_STARTS
@@ -665,18 +667,19 @@ class WellConditionedProblem:
         """``(engine?, engine starts, IPOPT?, IPOPT starts, IPOPT polish, engine polish)`` of a region
         solve (the warm starts run in every phase that runs).
 
-        ``"auto"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine from the
+        ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine from the
         ``n_starts`` first starts, IPOPT (light polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``)
         from the first :data:`AUTO_NLP_STARTS` of them, then the engine from IPOPT's best when it
-        is better than the engine's; IPOPT alone otherwise.  ``"multistart"``: IPOPT from every start,
-        then the engine from the best (the default before issue 28).  ``"nlp"``: IPOPT only.
-        ``"engine"``: the engine from every start (IPOPT as the fallback)."""
+        is better than the engine's; IPOPT alone otherwise.  ``"auto"``: IPOPT from every start,
+        then the engine from the best (the engine only for kappa2 / kappa_fro without bounds or
+        structural zeros).  ``"nlp"``: IPOPT only.  ``"engine"``: the engine from every start (IPOPT as
+        the fallback)."""
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
         if mode == "engine":
             return True, n_starts, False, 0, self.region_polish, False
-        if mode == "multistart":
+        if mode == "auto":
             return False, 0, True, n_starts, self.region_polish, True
         return True, n_starts, True, min(AUTO_NLP_STARTS, n_starts), "last", True
 

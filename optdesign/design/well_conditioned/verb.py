@@ -69,9 +69,7 @@ def well_conditioned_observer(
         Trade-off bounds on the metrics that are not minimized (e.g. minimize eta subject to
         ``kappa2 <= kappa2_max``): minimizing eta alone can make kappa2 much worse.
     starts : int, optional
-        Number of multi-start runs; default 8, except a region with objective kappa2 or kappa_fro and
-        no bounds or structural zeros (the engine's region route: 3 starts, IPOPT from the first 2,
-        :class:`WellConditionedProblem` ``route="auto"``), and fixed poles on the placement engine (no
+        Number of multi-start runs; default 8, except fixed poles on the placement engine (no
         bounds, no structural zeros): 6 up to n = 12, 2 up to 24, then 1
         (:func:`~optdesign.solvers.eigenstructure_fixed.default_starts`: measured enough for the
         engine, whose starts run in lockstep).  Fixed poles: scipy YT, KNV0 (real poles) and random
@@ -152,11 +150,10 @@ def well_conditioned_observer(
     the fixed-pole optimum at its poles and the free-pole optimum polished at its final poles --
     so the design is never worse than scipy YT at :func:`naive_poles` (start 0).
 
-    In a region (kappa2 / kappa_fro, no bounds or structural zeros) the engine runs from three
-    starts, IPOPT from the first two, and the engine again from IPOPT's best when that is better
-    (``WellConditionedProblem(route="auto")``; ``route="multistart"`` is the slower, more thorough
-    default before issue 28: IPOPT from 8 starts).  ``result.route`` lists what ran and which stage
-    answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the constraints the engine
+    In a region IPOPT runs from every start, then the engine from IPOPT's best (kappa2 / kappa_fro
+    without bounds or structural zeros); ``WellConditionedProblem(route="fast")`` is a faster,
+    less thorough alternative (the engine from three starts, IPOPT from two).  ``result.route``
+    lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the constraints the engine
     does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``, eta in a region, structural zeros
     in a region -- and is the fallback when no engine design verifies.  A kappa2 bound with another
     objective goes through its own continuation (the orders 64, 512, 4096 of the surrogate,
