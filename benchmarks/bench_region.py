@@ -113,13 +113,20 @@ def report(files: list[str], out: str) -> None:
         obj = base["objective"]
         b = {r["name"]: r for r in base["rows"]}
         nw = {r["name"]: r for r in new["rows"]}
-        names = [r["name"] for r in base["rows"] if r["name"] in nw]
+        names = [r["name"] for r in new["rows"]]  # a base run cut short leaves its later rows out
         lines += [f"## objective {obj}", "",
                   f"| plant | n, p | base {obj} | base status | base CPU | new {obj} | new status | new CPU | "
                   "rel | speed-up |", "|---|---|---|---|---|---|---|---|---|---|"]
         worse, speed, cb, cn = [], [], [], []
         for k in names:
-            rb, rn = b[k], nw[k]
+            rn = nw[k]
+            if k not in b:
+                lines.append(f"| {k} | {rn['n']}, {rn['p']} | – | – | – | {rn[obj]:.6g} | {rn['status']} | "
+                             f"{rn['cpu']:.2f} | | |")
+                if rn["n"] <= 10:
+                    cn.append(rn["cpu"])
+                continue
+            rb = b[k]
             vb, vn = rb[obj], rn[obj]
             rel = (vn - vb) / vb if np.isfinite(vb) and np.isfinite(vn) else float("nan")
             if (np.isfinite(rel) and rel > 1e-3) or (np.isfinite(vb) and not np.isfinite(vn)):
@@ -131,8 +138,9 @@ def report(files: list[str], out: str) -> None:
                 cn.append(rn["cpu"])
             lines.append(f"| {k} | {rn['n']}, {rn['p']} | {vb:.6g} | {rb['status']} | {rb['cpu']:.2f} | {vn:.6g} | "
                          f"{rn['status']} | {rn['cpu']:.2f} | {rel:+.1e} | {sp:.1f}x |")
-        lines += ["", f"- median CPU per design at n <= 10: base {np.median(cb):.2f} s, new {np.median(cn):.2f} s "
-                  f"(median speed-up {np.median(speed):.1f}x)",
+        lines += ["", f"- median CPU per design at n <= 10: base {np.median(cb):.2f} s ({len(cb)} plants), new "
+                  f"{np.median(cn):.2f} s ({len(cn)} plants); median speed-up on the plants both ran "
+                  f"{np.median(speed):.1f}x",
                   f"- plants more than 1e-3 (relative) worse than base: {len(worse)}"
                   + (f" ({', '.join(worse)})" if worse else ""), ""]
     Path(out).write_text("\n".join(lines) + "\n")
