@@ -191,3 +191,23 @@ def test_default_region_route_trace():
     assert d.route[0].kind == "backend" and d.route[1].kind == "polish"
     assert d.route.answered is not None
     assert d.solver_stats.extra["route"] == "nlp+engine"
+
+
+def test_accuracy_check_nearly_semisimple_pair_passes_nearly_defective_fails():
+    """Two poles 2e-8 apart: with eigenvectors far apart (a nearly semisimple double pole, possible when
+    rank C >= 2) the kappa2 is stated (the check passes although the first-order bound exceeds the
+    tolerance); with nearly parallel eigenvectors (a nearly defective pair) it is not."""
+    from optdesign.design.well_conditioned.evaluation import kappa2_accuracy_check
+
+    rng = np.random.default_rng(0)
+    lam = np.array([-0.5, -0.5 - 2e-8, -1.0, -2.0])
+    V = np.linalg.qr(rng.standard_normal((4, 4)))[0] + 0.3 * rng.standard_normal((4, 4))
+    X = V @ np.diag(lam) @ np.linalg.inv(V)
+    k2 = metrics.kappa2(X)
+    ok = kappa2_accuracy_check(X, np.linalg.eigvals(X), k2)
+    assert np.isfinite(k2) and ok.passed
+    W = V.copy()
+    W[:, 1] = V[:, 0] + 1e-5 * V[:, 1]  # the pair's eigenvectors nearly parallel
+    Y = W @ np.diag(lam) @ np.linalg.inv(W)
+    bad = kappa2_accuracy_check(Y, np.linalg.eigvals(Y), metrics.kappa2(Y))
+    assert not bad.passed
