@@ -104,7 +104,7 @@ def report(files: list[str], out: str) -> None:
     lines = ["# Region-mode designs: today's default (base) against the new default route", "",
              f"Base: commit {BASE_COMMIT}, the verb's default (IPOPT from 8 starts, then one engine start; "
              "unchanged in this checkout as `route='auto'`).  New: this checkout, `route='fast'` (the engine "
-             "from 3 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; eta: "
+             "from 8 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; eta: "
              "IPOPT from 8 starts as before).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
              f"time limit {TIME_LIMIT:g} s per design.  `rel` = (new - base) / base of the objective "
              "(negative: new better).  Produced by `benchmarks/bench_region.py`.", ""]

@@ -62,8 +62,9 @@ DEFAULT_STARTS = 8
 #: route "fast" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
 #: of them IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches
 #: kappa2 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches
-#: 1.46204 where IPOPT's first two starts stop at 1.481)
-AUTO_REGION_STARTS = 3
+#: 1.46204 where IPOPT's first two starts stop at 1.481; on random plants n = 5, p = 1 and n = 8, p = 2
+#: 8 engine starts reach 121.1 and 114.7 where 3 reach 248.6 and 122.6, at 1.1-1.8x their CPU)
+AUTO_REGION_STARTS = 8
 AUTO_NLP_STARTS = 2
 
 #: the routes of region mode (:meth:`WellConditionedProblem._region_plan`)
@@ -249,8 +250,8 @@ class WellConditionedProblem:
         continuation) from every start, then -- for kappa2 / kappa_fro without bounds or structural
         zeros -- one placement-engine start from IPOPT's best design, the better of the two kept (never
         worse than IPOPT alone).  ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros):
-        the placement engine from the starts (default :data:`AUTO_REGION_STARTS` = 3: the naive poles
-        with YT, the Kalman gain, a region sample), IPOPT from the first :data:`AUTO_NLP_STARTS` (2)
+        the placement engine from the starts (default :data:`AUTO_REGION_STARTS` = 8: the naive poles
+        with YT, the Kalman gain, region samples), IPOPT from the first :data:`AUTO_NLP_STARTS` (2)
         of them with the light polish (``region_polish="last"``), then one engine start from IPOPT's
         best when it beats the engine's; IPOPT alone for eta, bounds and gain masks.  Measured against
         ``"auto"`` (issue 28, ``benchmarks/results/region.md``): 2-4x less CPU at n = 4-10 and the same

@@ -152,7 +152,7 @@ def well_conditioned_observer(
 
     In a region IPOPT runs from every start, then the engine from IPOPT's best (kappa2 / kappa_fro
     without bounds or structural zeros); ``WellConditionedProblem(route="fast")`` is a faster,
-    less thorough alternative (the engine from three starts, IPOPT from two).  ``result.route``
+    less thorough alternative (the engine from eight starts, IPOPT from two).  ``result.route``
     lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the constraints the engine
     does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``, eta in a region, structural zeros
     in a region -- and is the fallback when no engine design verifies.  A kappa2 bound with another
