@@ -101,7 +101,7 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
 
 def report(files: list[str], out: str) -> None:
     """Pairs (base, new) per objective, in the order given: one table each."""
-    lines = ["# Region-mode designs: today's default (base) against the new default route", "",
+    lines = ["# Region-mode designs: today's default (base) against route 'fast' (new)", "",
              f"Base: commit {BASE_COMMIT}, the verb's default (IPOPT from 8 starts, then one engine start; "
              "unchanged in this checkout as `route='auto'`).  New: this checkout, `route='fast'` (the engine "
              "from 8 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; eta: "
