@@ -90,8 +90,8 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
         cpu = time.process_time() - c0
         k2 = float(metrics.kappa2(plant.A - d.L @ plant.C)) if np.all(np.isfinite(d.L)) else float("nan")
         trace = getattr(d, "route", None)
-        rows.append({"name": name, "n": plant.n, "p": plant.p, "status": d.status.value, "kappa2": float(d.kappa2),
-                     "eta": float(d.eta), "kappa2_recomputed": k2, "verified": bool(d.verification.passed),
+        rows.append({"name": name, "n": plant.n, "p": plant.p, "status": d.status.value,
+                     "kappa2": float(d.kappa2), "eta": float(d.eta), "kappa2_recomputed": k2, "verified": bool(d.verification.passed),
                      "cpu": cpu, "route": str(trace.answered.name) if trace and trace.answered else
                      d.solver_stats.extra.get("route", "")})
         print(f"{name} n={plant.n} p={plant.p} {objective} {d.status.value} {d.kappa2:.6g} eta {d.eta:.6g} "

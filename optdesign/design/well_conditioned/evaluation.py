@@ -28,11 +28,11 @@ from ...model.regions import Region
 from ...results import Check, Status, Verification
 from ..verification import (
     BOUND_RTOL,
+    KAPPA2_TOL_MAX,
     POLE_FLOOR_CAP,
     bound_check,
     eig_residual_check,
     eigen_spread,
-    KAPPA2_TOL_MAX,
     kappa2_agreement_check,
     kappa2_agreement_tol,
     observer_stability_check,

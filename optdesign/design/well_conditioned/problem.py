@@ -132,7 +132,8 @@ def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evalua
     if not evaluated:  # the time ran out before any start could run
         reason = f"time limit of {deadline.limit:g} s reached before any of the {planned} starts could run"
         return no_design(plant, objective, Status.TIME_LIMIT, reason, None, target=target, region=region,
-                         backend="ipopt" if route == "nlp" else ENGINE, route=route_of(phases, [], None, False),
+                         backend="ipopt" if route == "nlp" else ENGINE,
+                         route=route_of(phases, [], None, False),
                          **(kalman or {}))
     (obj, idx, m, v, cand), status, msg = design_outcome(records, evaluated, objective, deadline=deadline,
                                                          planned=planned)
@@ -563,7 +564,8 @@ class WellConditionedProblem:
                 more_r, more_e = solve_starts(specs, runner, objective, evaluate, deadline,
                                               objective_lower_bound(objective, plant.n), bar, len(records))
                 phases.append(Phase(IPOPT, "backend" if use_nlp else "fallback", len(records),
-                                    len(records) + max(len(more_r), 1), _nlp_detail(use_nlp, self.mask, bounds)))
+                                    len(records) + max(len(more_r), 1),
+                                    _nlp_detail(use_nlp, self.mask, bounds)))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
                            deadline=deadline, planned=planned, route=route, phases=phases)
