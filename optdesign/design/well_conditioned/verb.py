@@ -157,9 +157,9 @@ def well_conditioned_observer(
     takes the constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``,
     eta in a region, structural zeros in a region -- and is the fallback when no engine design
     verifies.  A kappa2 bound with another objective goes through its own continuation (the orders
-    64, 512, 4096 of the surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`): every order guarantees
-    ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.  The problem is
-    non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds every run.
+    64, 512, 4096 of the surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
+    every order guarantees ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.
+    The problem is non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds every run.
 
     References
     ----------
