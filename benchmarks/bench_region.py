@@ -91,7 +91,8 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
         k2 = float(metrics.kappa2(plant.A - d.L @ plant.C)) if np.all(np.isfinite(d.L)) else float("nan")
         trace = getattr(d, "route", None)
         rows.append({"name": name, "n": plant.n, "p": plant.p, "status": d.status.value,
-                     "kappa2": float(d.kappa2), "eta": float(d.eta), "kappa2_recomputed": k2, "verified": bool(d.verification.passed),
+                     "kappa2": float(d.kappa2), "eta": float(d.eta), "kappa2_recomputed": k2,
+                     "verified": bool(d.verification.passed),
                      "cpu": cpu, "route": str(trace.answered.name) if trace and trace.answered else
                      d.solver_stats.extra.get("route", "")})
         print(f"{name} n={plant.n} p={plant.p} {objective} {d.status.value} {d.kappa2:.6g} eta {d.eta:.6g} "
@@ -104,8 +105,9 @@ def report(files: list[str], out: str) -> None:
     lines = ["# Region-mode designs: today's default (base) against route 'fast' (new)", "",
              f"Base: commit {BASE_COMMIT}, the verb's default (IPOPT from 8 starts, then one engine start; "
              "unchanged in this checkout as `route='auto'`).  New: this checkout, `route='fast'` (the engine "
-             "from 8 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; eta: "
-             "IPOPT from 8 starts as before).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
+             "from 8 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; "
+             "eta: IPOPT from 8 starts as before).  CPU seconds per design (`time.process_time`, "
+             "single-threaded BLAS), "
              f"time limit {TIME_LIMIT:g} s per design.  `rel` = (new - base) / base of the objective "
              "(negative: new better).  Produced by `benchmarks/bench_region.py`.", ""]
     data = [json.loads(Path(f).read_text()) for f in files]
@@ -115,7 +117,8 @@ def report(files: list[str], out: str) -> None:
         nw = {r["name"]: r for r in new["rows"]}
         names = [r["name"] for r in new["rows"]]  # a base run cut short leaves its later rows out
         lines += [f"## objective {obj}", "",
-                  f"| plant | n, p | base {obj} | base status | base CPU | new {obj} | new status | new CPU | "
+                  f"| plant | n, p | base {obj} | base status | base CPU | new {obj} | new status | "
+                  "new CPU | "
                   "rel | speed-up |", "|---|---|---|---|---|---|---|---|---|---|"]
         worse, speed, cb, cn = [], [], [], []
         for k in names:
@@ -136,9 +139,11 @@ def report(files: list[str], out: str) -> None:
             if rn["n"] <= 10:
                 cb.append(rb["cpu"])
                 cn.append(rn["cpu"])
-            lines.append(f"| {k} | {rn['n']}, {rn['p']} | {vb:.6g} | {rb['status']} | {rb['cpu']:.2f} | {vn:.6g} | "
+            lines.append(f"| {k} | {rn['n']}, {rn['p']} | {vb:.6g} | {rb['status']} | {rb['cpu']:.2f} | "
+                         f"{vn:.6g} | "
                          f"{rn['status']} | {rn['cpu']:.2f} | {rel:+.1e} | {sp:.1f}x |")
-        lines += ["", f"- median CPU per design at n <= 10: base {np.median(cb):.2f} s ({len(cb)} plants), new "
+        lines += ["", f"- median CPU per design at n <= 10: base {np.median(cb):.2f} s ({len(cb)} plants), "
+                  "new "
                   f"{np.median(cn):.2f} s ({len(cn)} plants); median speed-up on the plants both ran "
                   f"{np.median(speed):.1f}x",
                   f"- plants more than 1e-3 (relative) worse than base: {len(worse)}"
