@@ -159,7 +159,8 @@ def well_conditioned_observer(
     verifies.  A kappa2 bound with another objective goes through its own continuation (the orders
     64, 512, 4096 of the surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
     every order guarantees ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.
-    The problem is non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds every run.
+    The problem is non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds
+    every run.
 
     References
     ----------
