@@ -155,7 +155,7 @@ CHECK_NAMES = frozenset({
     "circle_condition", "feedback_pole_error", "feedback_region_margin", "feedback_stability_margin",
     "nonfinite", "error_estimate",
     # observer designs (well-conditioned, generalized)
-    "eig_residual", "kappa2_agreement", "eta_bound", "finite_gain", "feasible", "finite_noise",
+    "eig_residual", "kappa2_agreement", "kappa2_accuracy", "eta_bound", "finite_gain", "feasible", "finite_noise",
     "gain_vs_riccati", "internal_model", "noise_rejection", "commutant_residual", "S_condition",
     # robust designs (several models)
     "region_margin", "gain_bound", "kappa2_bound", "h2_bound", "hinf_bound", "mask", "lmi_P_min_eig",

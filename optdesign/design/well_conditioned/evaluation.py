@@ -28,6 +28,7 @@ from ...model.regions import Region
 from ...results import Check, Status, Verification
 from ..verification import (
     BOUND_RTOL,
+    KAPPA2_TOL_MAX,
     POLE_FLOOR_CAP,
     bound_check,
     eig_residual_check,
@@ -45,6 +46,8 @@ __all__ = [
     "evaluate_candidate",
     "cached_evaluate",
     "kappa2_agreement_tol",
+    "kappa2_accuracy_check",
+    "KAPPA2_ACCURACY_TOL",
     "check_region_stable",
     "check_target_stable",
     "metric_of",
@@ -59,6 +62,10 @@ __all__ = [
 
 #: relative pole accuracy required of a fixed-pole design
 POLE_TOL = 1e-6
+#: the largest first-order relative error of a computed kappa2 accepted for a design
+#: (:func:`kappa2_accuracy_check`): kappa2 stated to about three digits
+KAPPA2_ACCURACY_TOL = 0.1 * KAPPA2_TOL_MAX
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass
@@ -142,6 +149,9 @@ def evaluate_candidate(
     if region is not None:
         checks.append(region_margin_check(region, poles, floor))
     k2, eta_v, kf = float(summ["kappa2"]), float(summ["eta"]), float(summ["kappa_fro"])
+    # a pole repeated on request (fixed poles): semisimple by construction, its eigenbasis not unique
+    repeated = target is not None and _has_repeats(target)
+    V: NDArray | None = None
     if cand.Z is not None and cand.Zpoles is not None:
         Z, zp = cand.Z, cand.Zpoles
         res_check = eig_residual_check(X, Z, zp)
@@ -150,13 +160,15 @@ def evaluate_candidate(
         kz = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
         if math.isfinite(k2):
             checks.append(kappa2_agreement_check(kz, k2, eigen_spread(X, poles)))
-        elif math.isfinite(kz) and res_check.passed:
+        elif repeated and math.isfinite(kz) and res_check.passed:
             # repeated pole: the basis is not unique; report the verified basis the solver found
             k2 = kz
             kf = float(np.linalg.norm(Z) * np.linalg.norm(np.linalg.inv(Z)))
-        V: NDArray | None = Z
-    else:
-        V = metrics.eigenvector_matrix(X) if math.isfinite(k2) else None
+        V = Z
+    elif math.isfinite(k2):
+        V = metrics.eigenvector_matrix(X)
+    if not repeated:
+        checks.append(kappa2_accuracy_check(X, poles, k2))
     gn = float(np.linalg.norm(L, 2))
     if mask is not None:
         off = float(np.max(np.abs(L[~mask]))) if (~mask).any() else 0.0
@@ -172,6 +184,48 @@ def evaluate_candidate(
         checks.append(Check.at_most("finite_gain", 0.0, 0.0))
     out = {"kappa2": k2, "eta": eta_v, "kappa_fro": kf, "gain_norm": gn, "poles": poles, "V": V}
     return out, Verification.of(checks)
+
+
+def _has_repeats(poles: NDArray) -> bool:
+    """Two of ``poles`` equal (to 1e-10 relative: a repeated pole asked for)."""
+    P = np.asarray(poles, dtype=complex).ravel()
+    return bool(np.unique(np.round(P / max(1.0, float(np.max(np.abs(P)))), 10)).size < P.size)
+
+
+def kappa2_accuracy_check(X: NDArray, poles: NDArray, kappa2: float) -> Check:
+    """``kappa2_accuracy``: can the kappa2 of ``X = A - L C`` be stated at all?
+
+    A computed unit-column eigenvector moves by about ``eps ||X||_F / gap`` under rounding
+    (first-order perturbation; ``gap`` the smallest distance between two poles), which kappa2
+    amplifies: ``10 eps kappa2 ||X||_F / gap`` bounds the relative error of a computed kappa2
+    (:func:`~optdesign.design.verification.kappa2_agreement_tol`).  When that bound exceeds
+    :data:`KAPPA2_ACCURACY_TOL` (about three digits) -- two poles close together -- the kappa2 is
+    recomputed for ``X + E``, ``E`` a rounding-size perturbation (``10 eps ||X||_F`` in a fixed
+    random direction), and the relative change is the value checked: a pair of nearly coincident
+    poles whose eigenvectors stay apart (a nearly semisimple double pole, possible when
+    ``rank C >= 2``) keeps its kappa2 (measured: 4e-5 for a random n = 8 design with two poles
+    2e-8 apart), a nearly defective pair does not (the regression case of
+    ``tests/data/region_design_near_defective_n8_p2.npz``, two poles 3e-8 apart on a region's edge:
+    ``metrics.kappa2`` is inf, numpy's eigenbasis gives 40,802, perturbed 49,000-50,000).  An
+    infinite ``kappa2`` (numerically coincident poles) fails: no such design is a verified optimum.
+    """
+    if not math.isfinite(kappa2):
+        value = math.inf
+    else:
+        value = 10.0 * _EPS * kappa2 * eigen_spread(X, poles)
+        if value > KAPPA2_ACCURACY_TOL:
+            g = np.random.default_rng(0).standard_normal(X.shape)
+            E = 10.0 * _EPS * float(np.linalg.norm(X)) * g / float(np.linalg.norm(g))
+            try:
+                value = abs(float(metrics.kappa2(X + E)) - kappa2) / kappa2
+            except (np.linalg.LinAlgError, ValueError):
+                value = math.inf
+            if not math.isfinite(value):
+                value = math.inf
+    return Check.at_most("kappa2_accuracy", value, KAPPA2_ACCURACY_TOL,
+                         "relative error of the computed kappa2: the first-order bound 10 eps kappa2 "
+                         "||A - LC||_F / gap, or where it exceeds the tolerance the change of kappa2 under a "
+                         "rounding-size perturbation (a nearly defective A - LC has no statable kappa2)")
 
 
 def cached_evaluate(evaluate: Callable[[Candidate], tuple[dict[str, Any], Verification]],

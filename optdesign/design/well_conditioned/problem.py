@@ -46,6 +46,7 @@ from .evaluation import (
 )
 from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
 from .results import ObserverDesign, StartRecord, n_converged, no_design
+from .route import ENGINE_FIXED, ENGINE_REGION, IPOPT, Phase, proof_route, route_of
 from .starts import fixed_starts, iter_region_starts
 
 __all__ = ["WellConditionedProblem", "LocalOptimum", "local_optima", "warm_start_origin", "Objective",
@@ -57,6 +58,17 @@ Objective = Literal["kappa2", "kappa_fro", "eta"]
 #: starts of a solve when none are given (region mode, the NLP route); fixed poles on the placement
 #: engine use :func:`~optdesign.solvers.eigenstructure_fixed.default_starts`
 DEFAULT_STARTS = 8
+
+#: route "fast" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
+#: of them IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches
+#: kappa2 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches
+#: 1.46204 where IPOPT's first two starts stop at 1.481; on random plants n = 5, p = 1 and n = 8, p = 2
+#: 8 engine starts reach 121.1 and 114.7 where 3 reach 248.6 and 122.6, at 1.1-1.8x their CPU)
+AUTO_REGION_STARTS = 8
+AUTO_NLP_STARTS = 2
+
+#: the routes of region mode (:meth:`WellConditionedProblem._region_plan`)
+ROUTES = ("auto", "fast", "nlp", "engine")
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
@@ -107,12 +119,22 @@ def _region_parts(region: Region) -> tuple[Region | None, dict[str, float]]:
 
 def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evaluated], *, objective: str,
                 target: NDArray | None, region: Region | None, deadline: Deadline, planned: int,
-                route: str, kalman: dict[str, Any] | None = None) -> ObserverDesign:
-    """The design of a multi-start run: the best verified start (:func:`~.evaluation.design_outcome`)."""
+                route: str, kalman: dict[str, Any] | None = None,
+                phases: list[Phase] | None = None) -> ObserverDesign:
+    """The design of a multi-start run: the best verified start (:func:`~.evaluation.design_outcome`).
+
+    ``route``: the short route name (``extra["route"]``); ``phases``: the phases that ran, for the
+    result's :class:`~optdesign.results.Route` (default: one phase over every start, IPOPT when
+    ``route`` is ``"nlp"``, else the engine)."""
+    if phases is None:
+        name = IPOPT if route == "nlp" else ENGINE_REGION if region is not None else ENGINE_FIXED
+        phases = [Phase(name, "backend" if route == "nlp" else "engine", 0, max(len(records), 1))]
     if not evaluated:  # the time ran out before any start could run
         reason = f"time limit of {deadline.limit:g} s reached before any of the {planned} starts could run"
         return no_design(plant, objective, Status.TIME_LIMIT, reason, None, target=target, region=region,
-                         backend="ipopt" if route == "nlp" else ENGINE, **(kalman or {}))
+                         backend="ipopt" if route == "nlp" else ENGINE,
+                         route=route_of(phases, [], None, False),
+                         **(kalman or {}))
     (obj, idx, m, v, cand), status, msg = design_outcome(records, evaluated, objective, deadline=deadline,
                                                          planned=planned)
     bound = objective_lower_bound(objective, plant.n)
@@ -131,7 +153,8 @@ def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evalua
         L=cand.L, poles=m["poles"], kappa2=m["kappa2"], eta=m["eta"], kappa_fro=m["kappa_fro"],
         gain_norm=m["gain_norm"], objective=objective, status=status, message=msg, solver_stats=stats,
         verification=v, starts=tuple(records), V=m["V"], target_poles=target, region=region, plant=plant,
-        extra={"local_optima": local_optima(evaluated, bound)}, **(kalman or {}),
+        extra={"local_optima": local_optima(evaluated, bound)},
+        route=route_of(phases, evaluated, idx, bool(v.passed)), **(kalman or {}),
     )
 
 
@@ -206,7 +229,8 @@ class WellConditionedProblem:
     starts : int, optional
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
         structural zeros): :func:`~optdesign.solvers.eigenstructure_fixed.default_starts` (6 up to
-        n = 12, 2 up to 24, then 1 -- what the engine needs, measured).
+        n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
+        ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros): :data:`AUTO_REGION_STARTS`.
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -222,15 +246,24 @@ class WellConditionedProblem:
         part of an NLP's key); with it set, the decay / damping / radius of a region are NLP parameters
         (one NLP for every region of that shape), without it each region's constraints are built as
         they are.
-    route : {"auto", "nlp", "engine"}, default "auto"
-        Region mode.  ``"auto"``: IPOPT (the NLPs' continuation) from every start, then -- for kappa2
-        / kappa_fro without bounds or structural zeros -- one placement-engine start from IPOPT's best
-        design, the better of the two kept (never worse than IPOPT alone).  ``"nlp"``: IPOPT only (the
-        algorithm of the sweep designer, which warm-starts IPOPT along a sweep).  ``"engine"``: the
-        placement engine from every start, IPOPT only where it does not handle the question or as a
-        fallback -- several times faster, but measured worse on some plants (a random n = 3 plant:
-        kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646), better on others (AC7: 22.45 vs
-        22.81).  Fixed poles always use the engine (IPOPT for bounds and structural zeros).
+    route : {"auto", "fast", "nlp", "engine"}, default "auto"
+        Region mode (:meth:`_region_plan`; what ran is ``result.route``).  ``"auto"``: IPOPT (the NLPs'
+        continuation) from every start, then -- for kappa2 / kappa_fro without bounds or structural
+        zeros -- one placement-engine start from IPOPT's best design, the better of the two kept (never
+        worse than IPOPT alone).  ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros):
+        the placement engine from the starts (default :data:`AUTO_REGION_STARTS` = 8: the naive poles
+        with YT, the Kalman gain, region samples), IPOPT from the first :data:`AUTO_NLP_STARTS` (2)
+        of them with the light polish (``region_polish="last"``), then one engine start from IPOPT's
+        best when it beats the engine's; IPOPT alone for eta, bounds and gain masks.  Measured against
+        ``"auto"`` (issue 28, ``benchmarks/results/region.md``): 2-4x less CPU at n = 4-10 and the same
+        kappa2 on COMPleib REA2, DIS1, HE5, but worse where a later start of ``"auto"`` finds the best
+        basin (random n = 5, p = 1: 248.6 vs 149.0; n = 8, p = 2: 122.6 vs 114.2) -- hence not the
+        default.  ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which warm-starts IPOPT
+        along a sweep).  ``"engine"``: the placement engine from every start, IPOPT only where it does
+        not handle the question or as a fallback -- faster, but measured worse on some plants (a
+        random n = 3 plant: kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646), better on
+        others (AC7: 22.45 vs 22.81).  Fixed poles always use the engine (IPOPT for bounds and
+        structural zeros).
     kalman_start : bool, default True
         Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
         first samples poles in the region (complex-pair patterns first).
@@ -268,7 +301,7 @@ class WellConditionedProblem:
                  nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
                  allow_unstable: bool = False, pole_scale: float | None = None,
-                 route: Literal["auto", "nlp", "engine"] = "auto", kalman_start: bool = True,
+                 route: Literal["auto", "fast", "nlp", "engine"] = "auto", kalman_start: bool = True,
                  region_polish: Literal["full", "last"] = "full") -> None:
         plant = as_plant(plant)
         check_objective(objective)
@@ -291,8 +324,8 @@ class WellConditionedProblem:
         self.region = None if region is None else self._check_region_mode(region, self.bounds)
         self.engine = EigenstructureEngine(plant.A, plant.C)
         self.pole_scale = None if pole_scale is None else as_positive_float("pole_scale", pole_scale)
-        if not isinstance(route, str) or route not in ("auto", "nlp", "engine"):
-            raise ValidationError(f"route must be 'auto', 'nlp' or 'engine'; found {route!r}")
+        if not isinstance(route, str) or route not in ROUTES:
+            raise ValidationError(f"route must be one of {ROUTES}; found {route!r}")
         self.route = route
         self.kalman_start = as_bool("kalman_start", kalman_start)
         self.region_polish = as_str("region_polish", region_polish, REGION_POLISHES)
@@ -456,7 +489,12 @@ class WellConditionedProblem:
         if region is None:
             region = self.region if self.region is not None else stability_region(self.plant.is_discrete)
         region = self._check_region_mode(region, bounds)
-        n_starts = chosen if chosen is not None else DEFAULT_STARTS
+        if chosen is not None:
+            n_starts = chosen
+        elif self.route == "fast" and not self._needs_nlp(bounds) and self.objective != "eta":
+            n_starts = AUTO_REGION_STARTS
+        else:
+            n_starts = DEFAULT_STARTS
         return self._free(region, bounds, n_starts, seed, deadline, warms, progress)
 
     def _needs_nlp(self, bounds: dict[str, float | None]) -> bool:
@@ -481,11 +519,13 @@ class WellConditionedProblem:
             )
             cert = Certificate("multiplicity_exceeds_rank", "multiplicity exceeds rank(C)",
                                pole=complex(vals[k]), multiplicity=int(counts[k]), rank_C=rank)
-            return no_design(plant, objective, Status.INFEASIBLE, reason, cert, target=target)
+            return no_design(plant, objective, Status.INFEASIBLE, reason, cert, target=target,
+                             route=proof_route("multiplicity exceeds rank(C)"))
         if objective == "eta" and counts[k] > 1:
             cert = Certificate("repeated_pole_eta", "repeated pole with objective eta", pole=complex(vals[k]))
             return no_design(plant, objective, Status.INFEASIBLE,
-                             "eta is infinite for repeated poles (zero eigenvalue gap)", cert, target=target)
+                             "eta is infinite for repeated poles (zero eigenvalue gap)", cert, target=target,
+                             route=proof_route("repeated pole with objective eta"))
         return None
 
     def _fixed(self, target: NDArray, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
@@ -504,6 +544,7 @@ class WellConditionedProblem:
         use_nlp = self._needs_nlp(bounds)
         planned = 0
         route = "nlp" if use_nlp else "engine"
+        phases: list[Phase] = []
         with Progress(n_starts + (warm is not None), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if not use_nlp:
@@ -512,6 +553,7 @@ class WellConditionedProblem:
                                                   evaluate=evaluate, warm_start=warm)
                 bar.update(len(records), note=_note(objective, evaluated))
                 planned = max(n_starts + (warm is not None), len(records))
+                phases.append(Phase(ENGINE_FIXED, "engine", 0, len(records)))
             if use_nlp or _needs_fallback(evaluated, deadline):
                 route = "nlp" if use_nlp else "engine+nlp"
                 sc = self._scaling(float(np.max(np.abs(target))))
@@ -525,9 +567,12 @@ class WellConditionedProblem:
                                           lambda c: bool(evaluate(c)[1].passed), deadline)
                 more_r, more_e = solve_starts(specs, runner, objective, evaluate, deadline,
                                               objective_lower_bound(objective, plant.n), bar, len(records))
+                phases.append(Phase(IPOPT, "backend" if use_nlp else "fallback", len(records),
+                                    len(records) + max(len(more_r), 1),
+                                    _nlp_detail(use_nlp, self.mask, bounds)))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
-                           deadline=deadline, planned=planned, route=route)
+                           deadline=deadline, planned=planned, route=route, phases=phases)
 
     def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator) -> Iterator:
         """The starts of region mode, lazily (:func:`~.starts.iter_region_starts`: a start's placement is
@@ -547,7 +592,8 @@ class WellConditionedProblem:
                   f"and lies outside the region (distance {dist[k]:.3g})")
         cert = Certificate("unobservable_mode_outside_region", "unobservable mode outside the region",
                            modes=unobs, distance=dist)
-        return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region)
+        return no_design(self.plant, self.objective, Status.INFEASIBLE, reason, cert, region=region,
+                         route=proof_route("unobservable mode outside the region"))
 
     def _free(self, region: Region, bounds: dict[str, float | None], n_starts: int, seed: int | list[int],
               deadline: Deadline, warms: list[NDArray], progress: bool | None) -> ObserverDesign:
@@ -566,45 +612,83 @@ class WellConditionedProblem:
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
             warm_specs.append((warm_start_origin(i), warm, PoleStructure.of(Pw, tol=1e-6), Pw, True))
         engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro")
-        use_nlp = self.route != "engine" or not engine_ok
+        use_eng, n_eng, use_nlp, n_nlp, polish, eng_polish = self._region_plan(engine_ok, n_starts)
         bound = objective_lower_bound(objective, plant.n)
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []
         planned = 0
-        route = "nlp" if use_nlp else "engine"
-        with Progress(n_starts + len(warm_specs), "well-conditioned observer", enabled=progress,
+        route = "engine" if use_eng else "nlp"
+        phases: list[Phase] = []
+        if use_eng:  # the engine's starts are computed now, the NLP re-uses the first of them
+            specs = list(itertools.islice(specs, max(n_eng, n_nlp)))
+        with Progress(n_eng + n_nlp + len(warm_specs), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
-            if not use_nlp:
-                specs = list(specs)  # (every start runs on the engine; the fallback re-uses them)
+            if use_eng:
                 eng_specs: list[tuple[str, NDArray | None, NDArray, bool]] = [
                     (w[0], w[1], w[3], True) for w in warm_specs]
-                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in specs]
+                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in specs[:n_eng]]
                 planned = len(eng_specs)
                 records, evaluated = engine_region(self.engine, region, objective, eng_specs,
                                                    seed=_int_seed(seed),
                                                    deadline=deadline, evaluate=evaluate, lower_bound=bound,
                                                    progress=bar)
-            if use_nlp or _needs_fallback(evaluated, deadline):
-                route = "nlp" if use_nlp else "engine+nlp"
-                planned += n_starts + len(warm_specs)
+                phases.append(Phase(ENGINE_REGION, "engine", 0, len(records)))
+            fallback = use_eng and _needs_fallback(evaluated, deadline)
+            if fallback:  # no engine design verified: IPOPT from every start the engine ran
+                n_nlp = max(n_nlp, len(specs))
+            run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
+                attains(bound, e[0], e[3], e[4]) for e in evaluated)))
+            if run_nlp or fallback:
+                route = "nlp" if not use_eng else "engine+nlp"
+                planned += n_nlp + len(warm_specs)
                 sc = self._scaling(0.0 if self.pole_scale is not None else _interior_scale(region))
-                nlp_specs = itertools.chain(warm_specs, (s + (False,) for s in specs))
+                todo = specs[:n_nlp] if isinstance(specs, list) else specs
+                nlp_specs = itertools.chain(warm_specs, (s + (False,) for s in todo))
                 runner = nlp_region_runner(plant, region, objective, self.options,
                                            self._fixed_nlp_getter(bounds, sc),
                                            self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
-                                           mask=self.mask, lower_bound=bound, polish=self.region_polish)
+                                           mask=self.mask, lower_bound=bound, polish=polish)
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
+                kind = "fallback" if fallback else "backend"
+                detail = _nlp_detail(not fallback, self.mask, bounds, objective == "eta")
+                if use_eng and not fallback:
+                    detail = f"{len(more_r)} start{'s' if len(more_r) != 1 else ''}, beside the engine's"
+                elif not use_eng and engine_ok:
+                    detail = f"asked (route={self.route!r})"
+                phases.append(Phase(IPOPT, kind, len(records), len(records) + max(len(more_r), 1), detail))
                 records, evaluated = records + more_r, evaluated + more_e
-            if self.route == "auto" and engine_ok and use_nlp and not deadline.expired:
+            if eng_polish and not deadline.expired:
                 more_r, more_e = self._engine_polish(region, objective, evaluated, seed, deadline, bound,
                                                      evaluate)
                 if more_r:
                     planned += 1
-                    route = "nlp+engine"
+                    route += "+engine polish" if use_eng else "+engine"
+                    phases.append(Phase(ENGINE_REGION, "polish", len(records), len(records) + len(more_r),
+                                        "engine from the best design"))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=None, region=region,
-                           deadline=deadline, planned=planned, route=route)
+                           deadline=deadline, planned=planned, route=route, phases=phases)
+
+    def _region_plan(self, engine_ok: bool, n_starts: int) -> tuple[bool, int, bool, int, str, bool]:
+        """``(engine?, engine starts, IPOPT?, IPOPT starts, IPOPT polish, engine polish)`` of a region
+        solve (the warm starts run in every phase that runs).
+
+        ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine from the
+        ``n_starts`` first starts, IPOPT (light polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``)
+        from the first :data:`AUTO_NLP_STARTS` of them, then the engine from IPOPT's best when it
+        is better than the engine's; IPOPT alone otherwise.  ``"auto"``: IPOPT from every start,
+        then the engine from the best (the engine only for kappa2 / kappa_fro without bounds or
+        structural zeros).  ``"nlp"``: IPOPT only.  ``"engine"``: the engine from every start (IPOPT as
+        the fallback)."""
+        mode = self.route
+        if not engine_ok or mode == "nlp":
+            return False, 0, True, n_starts, self.region_polish, False
+        if mode == "engine":
+            return True, n_starts, False, 0, self.region_polish, False
+        if mode == "auto":
+            return False, 0, True, n_starts, self.region_polish, True
+        return True, n_starts, True, min(AUTO_NLP_STARTS, n_starts), "last", True
 
     def _engine_polish(self, region: Region, objective: str, evaluated: list[Evaluated], seed: Any,
                        deadline: Deadline, bound: float | None,
@@ -615,7 +699,7 @@ class WellConditionedProblem:
         if not good:
             return [], []
         best = min(good, key=lambda e: e[0])
-        if attains(bound, best[0], best[3], best[4]):
+        if attains(bound, best[0], best[3], best[4]) or best[4].backend == ENGINE:
             return [], []
         L0 = np.asarray(best[4].L, dtype=float)
         P0 = np.linalg.eigvals(self.plant.A - L0 @ self.plant.C)
@@ -662,6 +746,15 @@ def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
     if any(e[3].passed for e in evaluated):
         return False
     return not deadline.expired or not any(np.all(np.isfinite(e[4].L)) for e in evaluated)
+
+
+def _nlp_detail(asked: bool, mask: NDArray | None, bounds: dict[str, float | None], eta: bool = False) -> str:
+    """Why the NLP ran: the constraints the engine does not take, or a fallback."""
+    if not asked:
+        return "fallback: no engine design verified"
+    why = [k for k, v in bounds.items() if v is not None] + (["gain_mask"] if mask is not None else [])
+    why += ["eta in a region"] if eta else []
+    return ("for " + ", ".join(why)) if why else "asked (route='nlp')"
 
 
 def _note(objective: str, evaluated: list[Evaluated]) -> str:

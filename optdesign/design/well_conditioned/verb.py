@@ -108,7 +108,9 @@ def well_conditioned_observer(
     ObserverDesign
         ``success`` is True only when the best start was solved *and* passed verification
         (stability and the poles recomputed with numpy against the target or the region, the
-        solver's eigenbasis against ``metrics.kappa2``, mask, gain and metric bounds).  A
+        solver's eigenbasis against ``metrics.kappa2``, ``kappa2_accuracy``: a kappa2 that can be
+        stated to about three digits -- a nearly defective ``A - LC`` is no verified design --, mask,
+        gain and metric bounds).  The reported kappa2 is the returned gain's, recomputed.  A
         verified design whose solver stopped early (IPOPT's ``iteration_limit``) is returned with
         that status (so ``success`` is False) only when no solved and verified candidate exists;
         the engine's iteration limit is ``optimal_inaccurate`` (a verified improvement on its
@@ -148,13 +150,17 @@ def well_conditioned_observer(
     the fixed-pole optimum at its poles and the free-pole optimum polished at its final poles --
     so the design is never worse than scipy YT at :func:`naive_poles` (start 0).
 
-    IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the constraints the engine does not
-    handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``, eta in a region, structural zeros in a
-    region -- and is the fallback when no engine design verifies.  A kappa2 bound with another
-    objective goes through its own continuation (the orders 64, 512, 4096 of the surrogate,
-    :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`): every order guarantees
-    ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.  The problem is
-    non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds every run.
+    In a region IPOPT runs from every start, then the engine from IPOPT's best (kappa2 / kappa_fro
+    without bounds or structural zeros); ``WellConditionedProblem(route="fast")`` is a faster,
+    less thorough alternative (the engine from eight starts, IPOPT from two).  ``result.route``
+    lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`)
+    takes the constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``,
+    eta in a region, structural zeros in a region -- and is the fallback when no engine design
+    verifies.  A kappa2 bound with another objective goes through its own continuation (the orders
+    64, 512, 4096 of the surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
+    every order guarantees ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.
+    The problem is non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds
+    every run.
 
     References
     ----------

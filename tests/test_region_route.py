@@ -1,0 +1,213 @@
+"""Region designs of the well-conditioned observer: the default route's answers against IPOPT's, the
+route trace, and honest verification of nearly defective designs (issues 26 and 28)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from optdesign import Plant, metrics, well_conditioned_observer
+from optdesign.design.well_conditioned import WellConditionedProblem
+from optdesign.design.well_conditioned.evaluation import Candidate, evaluate_candidate
+from optdesign.regions import Disk, HalfPlane, Sector
+from optdesign.results import Status
+
+DATA = Path(__file__).parent / "data"
+
+
+def _near_defective_case():
+    d = np.load(DATA / "region_design_near_defective_n8_p2.npz")
+    plant = Plant(d["A"], d["C"])
+    region = (HalfPlane(float(d["half_plane_alpha"])) & Sector.from_damping(float(d["sector_damping"]))
+              & Disk(0.0, float(d["disk_radius"])))
+    return plant, region, np.asarray(d["L"])
+
+
+def _random_plant(seed: int, n: int, p: int) -> Plant:
+    rng = np.random.default_rng(seed)
+    while True:
+        plant = Plant(rng.standard_normal((n, n)) / np.sqrt(n), rng.standard_normal((p, n)))
+        if plant.is_observable():
+            return plant
+
+
+# --------------------------------------------------------------------------- near-defective designs
+
+
+@pytest.mark.parametrize("with_basis", [False, True])
+def test_near_defective_stored_gain_fails_verification(with_basis):
+    """The gain of the issue-26 wrong success: two poles 3e-8 apart on the half-plane's edge.  Its
+    kappa2 cannot be stated (numpy's eigenbasis gives 40,802, the solver's 39,855, metrics.kappa2
+    inf): the design must not verify, with or without the solver's eigenbasis, and the kappa2
+    reported is the recomputed one (inf), not the solver's."""
+    plant, region, L = _near_defective_case()
+    X = plant.A - L @ plant.C
+    Z = zp = None
+    if with_basis:
+        zp, Z = np.linalg.eig(X)
+        Z = Z / np.linalg.norm(Z, axis=0)
+    cand = Candidate(L, Z, zp, Status.OPTIMAL, "converged", "", 0, 0.0, stage="free poles",
+                     backend="eigenstructure")
+    m, v = evaluate_candidate(plant, cand, target=None, region=region, mask=None, max_gain=None,
+                              kappa2_max=None, eta_max=None)
+    assert not v.passed
+    assert [c.name for c in v.failed] == ["kappa2_accuracy"]
+    assert m["kappa2"] == metrics.kappa2(X) == np.inf
+
+
+def test_well_conditioned_design_passes_accuracy_check():
+    """A well-separated design states its kappa2: the accuracy check passes and is reported."""
+    plant = _random_plant(1, 4, 2)
+    d = well_conditioned_observer(plant, poles=[-1, -2, -3, -4], starts=2)
+    assert d.success
+    (check,) = [c for c in d.verification.checks if c.name == "kappa2_accuracy"]
+    assert check.passed and check.value < 1e-9
+
+
+def test_near_defective_case_design_reports_its_own_kappa2():
+    """The regression plant and region, designed under a short budget: whatever the status, a
+    verified answer's kappa2 is the returned gain's (recomputed), and it is finite."""
+    plant, region, _ = _near_defective_case()
+    d = well_conditioned_observer(plant, region=region, time_limit=3.0)
+    if d.verification.passed:
+        k2 = metrics.kappa2(plant.A - d.L @ plant.C)
+        assert np.isfinite(k2)
+        assert d.kappa2 == pytest.approx(k2, rel=1e-6)
+    if d.success:
+        assert np.isfinite(d.kappa2)
+
+
+# --------------------------------------------------------------------------- the route trace
+
+
+def test_route_fixed_poles_engine():
+    plant = Plant([[0, 1], [2, -1]], [[1, 0]])
+    d = well_conditioned_observer(plant, poles=[-2, -3], starts=1)
+    assert d.route.answered.name == "eigenstructure_engine/fixed_poles"
+
+
+def test_route_fixed_poles_bounds_go_to_ipopt():
+    plant = _random_plant(2, 3, 2)
+    d = well_conditioned_observer(plant, poles=[-1, -2, -3], max_gain=100.0, starts=1)
+    assert d.route.names == ("ipopt",)
+    assert d.route[0].kind == "backend" and "max_gain" in d.route[0].detail
+
+
+def test_route_proof():
+    plant = Plant([[0, 1], [2, -1]], [[1, 0]])
+    d = well_conditioned_observer(plant, poles=[-2, -2])
+    assert d.status == Status.INFEASIBLE
+    assert d.route[0].kind == "certificate" and d.route.answered is None
+
+
+# --------------------------------------------------------------------------- the fast region route
+
+_REGION = HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 5.0)
+
+
+@pytest.mark.parametrize("seed,n", [(3, 3), (4, 3), (6, 4)])
+def test_fast_route_never_worse_than_ipopt_from_the_same_starts(seed, n):
+    """Property (seeded): route 'fast' runs the engine from its starts, IPOPT from the first two of
+    them (light polish) and the engine from IPOPT's best -- so it is never worse than IPOPT alone from
+    those two starts, and its answer is verified in the region."""
+    plant = _random_plant(seed, n, 2)
+    auto = WellConditionedProblem(plant, route="fast").solve(region=_REGION)
+    nlp = WellConditionedProblem(plant, starts=2, route="nlp", region_polish="last").solve(region=_REGION)
+    assert auto.success and nlp.success, (auto.message, nlp.message)
+    assert auto.kappa2 <= nlp.kappa2 * (1 + 1e-9)
+    assert _REGION.contains(auto.poles, tol=1e-7 * max(1.0, float(np.max(np.abs(auto.poles)))))
+    assert auto.kappa2 == pytest.approx(metrics.kappa2(plant.A - auto.L @ plant.C), rel=1e-6)
+    names = auto.route.names
+    assert names[0] == "eigenstructure_engine/region"
+    # IPOPT runs unless the engine attained kappa2's lower bound 1 (a global optimum)
+    assert "ipopt" in names or auto.kappa2 <= 1 + 1e-6
+    assert auto.route.answered is not None
+
+
+def test_fast_route_boundary_optimum():
+    """A random n = 3 plant whose optimum presses a pole onto the region's edge: the design sits on the
+    boundary (within the engine's barrier accuracy) and is still verified inside."""
+    plant = _random_plant(3, 3, 2)
+    d = WellConditionedProblem(plant, route="fast").solve(region=_REGION)
+    assert d.success
+    margin = _REGION.margin(d.poles)
+    assert -1e-3 < margin <= 1e-7 * max(1.0, float(np.max(np.abs(d.poles))))
+
+
+def test_fast_route_interior_optimum_at_the_lower_bound():
+    """C = I: any poles in the region take a unitary eigenbasis (kappa2 = 1, the lower bound) -- an
+    interior optimum; the design attains it and stops there (no IPOPT start is needed)."""
+    rng = np.random.default_rng(7)
+    plant = Plant(rng.standard_normal((3, 3)), np.eye(3))
+    d = WellConditionedProblem(plant, route="fast").solve(region=_REGION)
+    assert d.success and d.kappa2 == pytest.approx(1.0, abs=1e-6)
+    assert d.route.answered.name == "eigenstructure_engine/region"
+    assert "ipopt" not in d.route.names
+
+
+@pytest.mark.parametrize("route", ["auto", "fast"])
+def test_unreachable_region_is_a_certificate(route):
+    """An unobservable mode outside the region is an eigenvalue of every A - LC: no gain reaches the
+    region -- ``infeasible`` with its certificate, never a success."""
+    A = np.diag([-0.1, -1.0, -2.0])
+    A[1, 2] = 1.0
+    C = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    d = WellConditionedProblem(Plant(A, C), route=route).solve(region=_REGION)
+    assert d.status == Status.INFEASIBLE and not d.success
+    assert d.certificate.kind == "unobservable_mode_outside_region"
+    assert d.route[0].kind == "certificate"
+
+
+def test_fast_route_discrete_region():
+    """A discrete plant and a disk inside the unit circle: route 'fast' gives a design verified in the
+    disk and not worse than IPOPT from the same two starts."""
+    rng = np.random.default_rng(11)
+    plant = Plant(rng.standard_normal((4, 4)) / 2, rng.standard_normal((2, 4)), dt=0.1)
+    region = Disk(0.0, 0.6)
+    auto = WellConditionedProblem(plant, route="fast").solve(region=region)
+    nlp = WellConditionedProblem(plant, starts=2, route="nlp", region_polish="last").solve(region=region)
+    assert auto.success, auto.message
+    assert np.max(np.abs(auto.poles)) <= 0.6 * (1 + 1e-7)
+    assert auto.kappa2 <= nlp.kappa2 * (1 + 1e-9)
+
+
+def test_route_eta_in_a_region_goes_to_ipopt():
+    """eta in a region: the engine does not take it; IPOPT answers and the route says why."""
+    plant = _random_plant(3, 3, 2)
+    d = WellConditionedProblem(plant, objective="eta", starts=2, route="fast").solve(region=_REGION)
+    assert d.success and d.route.names == ("ipopt",)
+    assert "eta in a region" in d.route[0].detail
+
+
+def test_default_region_route_trace():
+    """The verb's default in a region: IPOPT from every start, then the engine from IPOPT's best; the
+    route names both and which answered."""
+    plant = _random_plant(3, 3, 2)
+    d = well_conditioned_observer(plant, region=_REGION, starts=2)
+    assert d.success
+    assert d.route.names == ("ipopt", "eigenstructure_engine/region")
+    assert d.route[0].kind == "backend" and d.route[1].kind == "polish"
+    assert d.route.answered is not None
+    assert d.solver_stats.extra["route"] == "nlp+engine"
+
+
+def test_accuracy_check_nearly_semisimple_pair_passes_nearly_defective_fails():
+    """Two poles 2e-8 apart: with eigenvectors far apart (a nearly semisimple double pole, possible when
+    rank C >= 2) the kappa2 is stated (the check passes although the first-order bound exceeds the
+    tolerance); with nearly parallel eigenvectors (a nearly defective pair) it is not."""
+    from optdesign.design.well_conditioned.evaluation import kappa2_accuracy_check
+
+    rng = np.random.default_rng(0)
+    lam = np.array([-0.5, -0.5 - 2e-8, -1.0, -2.0])
+    V = np.linalg.qr(rng.standard_normal((4, 4)))[0] + 0.3 * rng.standard_normal((4, 4))
+    X = V @ np.diag(lam) @ np.linalg.inv(V)
+    k2 = metrics.kappa2(X)
+    ok = kappa2_accuracy_check(X, np.linalg.eigvals(X), k2)
+    assert np.isfinite(k2) and ok.passed
+    W = V.copy()
+    W[:, 1] = V[:, 0] + 1e-5 * V[:, 1]  # the pair's eigenvectors nearly parallel
+    Y = W @ np.diag(lam) @ np.linalg.inv(W)
+    bad = kappa2_accuracy_check(Y, np.linalg.eigvals(Y), metrics.kappa2(Y))
+    assert not bad.passed
