@@ -96,10 +96,15 @@ def test_route_fixed_poles_bounds_go_to_ipopt():
 
 
 def test_route_proof():
+    """A repeated pole with one output: kappa2's design is the unique (Ackermann) gain, a direct stage
+    (issue 27 item 5); eta's answer is the multiplicity proof, a certificate stage and no answer."""
     plant = Plant([[0, 1], [2, -1]], [[1, 0]])
     d = well_conditioned_observer(plant, poles=[-2, -2])
-    assert d.status == Status.INFEASIBLE
-    assert d.route[0].kind == "certificate" and d.route.answered is None
+    assert d.status == Status.SOLVED and d.kappa2 == np.inf
+    assert d.route.answered is not None and d.route.answered.kind == "direct"
+    e = well_conditioned_observer(plant, poles=[-2, -2], objective="eta")
+    assert e.status == Status.INFEASIBLE
+    assert e.route[0].kind == "certificate" and e.route.answered is None
 
 
 # --------------------------------------------------------------------------- the fast region route

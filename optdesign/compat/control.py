@@ -150,9 +150,9 @@ def _split_args(args: tuple, fname: str, nsys: int) -> tuple[NDArray, NDArray, N
     ``f(sys, ...)`` / ``f(A, B[, C], ...)`` forms; ``nsys`` is the number of matrices the system
     replaces (2 for lqr: A, B; 3 for lqe: A, G, C)."""
     if len(args) < 3:
-        mats = "A, G, C" if nsys == 3 else "A, B"
+        names = "A, G, C" if nsys == 3 else "A, B"
         raise ControlArgumentError(f"{fname}: not enough input arguments (found {len(args)}; the forms are "
-                                   f"{fname}(sys, Q, R) and {fname}({mats}, Q, R))")
+                                   f"{fname}(sys, Q, R) and {fname}({names}, Q, R))")
     first = args[0]
     if _is_statespace(first):
         C = np.array(first.C, ndmin=2, dtype=float) if nsys == 3 else None

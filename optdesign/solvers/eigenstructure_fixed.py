@@ -84,7 +84,7 @@ class StartRecord:
         BFGS steps of the last continuation stage (the exact objective).
     last_decrease : float
         Relative decrease of the objective over the last iterations of that stage
-        (:attr:`~optdesign.solvers.quasi_newton.QNResult.decrease`).
+        (``QNResult.decrease`` of :mod:`optdesign.solvers.quasi_newton`).
     L : (n, p) ndarray or None
         The start's final gain (None when it has none), so that a caller can verify every start.
     V : (n, n) ndarray of complex or None

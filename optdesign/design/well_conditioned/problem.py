@@ -619,14 +619,15 @@ class WellConditionedProblem:
         planned = 0
         route = "engine" if use_eng else "nlp"
         phases: list[Phase] = []
+        spec_list: list = []
         if use_eng:  # the engine's starts are computed now, the NLP re-uses the first of them
-            specs = list(itertools.islice(specs, max(n_eng, n_nlp)))
+            specs = spec_list = list(itertools.islice(specs, max(n_eng, n_nlp)))
         with Progress(n_eng + n_nlp + len(warm_specs), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if use_eng:
                 eng_specs: list[tuple[str, NDArray | None, NDArray, bool]] = [
                     (w[0], w[1], w[3], True) for w in warm_specs]
-                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in specs[:n_eng]]
+                eng_specs += [(o, L0, P0, False) for o, L0, _, P0 in spec_list[:n_eng]]
                 planned = len(eng_specs)
                 records, evaluated = engine_region(self.engine, region, objective, eng_specs,
                                                    seed=_int_seed(seed),
@@ -635,7 +636,7 @@ class WellConditionedProblem:
                 phases.append(Phase(ENGINE_REGION, "engine", 0, len(records)))
             fallback = use_eng and _needs_fallback(evaluated, deadline)
             if fallback:  # no engine design verified: IPOPT from every start the engine ran
-                n_nlp = max(n_nlp, len(specs))
+                n_nlp = max(n_nlp, len(spec_list))
             run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
                 attains(bound, e[0], e[3], e[4]) for e in evaluated)))
             if run_nlp or fallback:
