@@ -81,7 +81,7 @@ from ..analysis.robustness import (
     worst_case_parts,
 )
 from ..errors import RiccatiError, ValidationError
-from ..results import Check, DesignResult, SolverStats, Status, Verification
+from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 
 __all__ = [
     "output_delay_kalman",
@@ -321,7 +321,7 @@ class OutputDelayKalman(DesignResult):
         return (f"output-delay Kalman filter ({self.method}, order {self.order}, sections {self.sections}, "
                 f"dim {self.dim}): p0 = {np.array2string(self.p0, precision=6)}, K0 = "
                 f"{np.array2string(self.K0.ravel(), precision=6)}, p0 change {self.p0_change:.2e}; "
-                f"status {self.status}\n" + self.verification.summary())
+                f"status {self.status}\n  route: {self.route}\n" + self.verification.summary())
 
 
 # --------------------------------------------------------------------------- solvers
@@ -582,7 +582,10 @@ def output_delay_kalman(
     ver = Verification.of(checks)
     msg = "; ".join(filter(None, [stopped, "; ".join(str(c) for c in ver.failed)]))
     status = Status.TIME_LIMIT if stopped else Status.SOLVED
-    return _replace(res, verification=ver, message=msg, status=status)
+    stage = ("pade_augmented_are" if method == "pade" else "sampled_shift_register_dare")
+    route = Route([Stage(stage, "direct", "answered" if status is Status.SOLVED else status.value,
+                         f"{res.solver_stats.native_status}, augmented dimension {sol['dim']}")])
+    return _replace(res, verification=ver, message=msg, status=status, route=route)
 
 
 def _options(

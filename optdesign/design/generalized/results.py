@@ -180,13 +180,16 @@ class GeneralizedObserver(DesignResult):
                                   message="given gains (analysed, not designed)",
                                   stats=SolverStats("analytic", "given"))
 
-    def summary(self) -> str:
+    def _headline(self) -> str:
         return (f"GeneralizedObserver({self.noise.label}, method={self.method}, status={self.status}, "
                 f"spectral radius {self.spectral_radius:.6g}, kappa2 {self.kappa2:.4g}, "
                 f"success={self.success})")
 
+    def summary(self) -> str:
+        return f"{self._headline()}\n  route: {self.route}\n{self.verification.summary()}"
+
     def __repr__(self) -> str:
-        return self.summary()
+        return self._headline()
 
 
 def build_generalized(plant, noise, H, K, N, M, *, method, status, message, stats, target=None,
@@ -295,13 +298,16 @@ class NoiseRejectingObserver(DesignResult):
             nxt[: self.plant.n] += self.plant.B @ np.atleast_1d(np.asarray(u, dtype=float))
         return nxt
 
-    def summary(self) -> str:
+    def _headline(self) -> str:
         return (f"NoiseRejectingObserver({self.noise.label}, method={self.method}, status={self.status}, "
                 f"spectral radius {self.spectral_radius:.6g}, PBH margin {self.pbh_margin:.3g}, "
                 f"success={self.success})")
 
+    def summary(self) -> str:
+        return f"{self._headline()}\n  route: {self.route}\n{self.verification.summary()}"
+
     def __repr__(self) -> str:
-        return self.summary()
+        return self._headline()
 
 
 @dataclass(frozen=True, eq=False)

@@ -141,6 +141,7 @@ class ObserverDesign(DesignResult):
             "converged": self.n_converged,
             "time": self.solver_stats.time,
             "iterations": self.solver_stats.iterations,
+            "route": None if self.route.answered is None else self.route.answered.name,
         }
 
     def estimator(self, *, form: str | None = None, output: str = "auto") -> Any:
