@@ -15,9 +15,9 @@ here); their modules are ``optdesign.studies.sweep`` / ``.pareto`` in ``sys.modu
 
 from .designers import (
     DESIGNERS,
+    BaselinePlacement,
     DesignPoint,
     KalmanNoiseDesigner,
-    PlacementResult,
     PoleTargetDesigner,
     RegionSweepDesigner,
     place_baseline,
@@ -37,7 +37,7 @@ __all__ = [
     "KalmanNoiseDesigner",
     "PoleTargetDesigner",
     "DesignPoint",
-    "PlacementResult",
+    "BaselinePlacement",
     "place_baseline",
     "DESIGNERS",
     "pareto",

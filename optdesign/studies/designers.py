@@ -55,8 +55,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import threading
-import time
-import warnings
 import zlib
 from collections import OrderedDict
 from collections.abc import Mapping
@@ -65,7 +63,7 @@ from functools import lru_cache
 from typing import Any, ClassVar, get_args
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
@@ -77,7 +75,8 @@ from ..design.well_conditioned.problem import Objective
 from ..errors import ValidationError
 from ..model.plant import Plant
 from ..model.regions import Disk, HalfPlane, Region, Sector, stability_region
-from ..results import Check, ResultMixin, SolverStats, Status, Verification
+from ..results import Route
+from .points import BaselinePlacement, DesignPoint, gain_values, place_baseline
 from .pool import merge_pool
 
 __all__ = [
@@ -85,7 +84,7 @@ __all__ = [
     "KalmanNoiseDesigner",
     "PoleTargetDesigner",
     "DesignPoint",
-    "PlacementResult",
+    "BaselinePlacement",
     "place_baseline",
     "DESIGNERS",
     "SWEEP_IPOPT_OPTIONS",
@@ -564,162 +563,6 @@ def _pool_rtol(options: Mapping[str, Any] | None) -> tuple[float, float]:
     return (math.sqrt(float(opts.get("ipopt.acceptable_tol", 1e-6))), float(opts.get("ipopt.tol", 1e-8)))
 
 
-# --------------------------------------------------------------------------- generic point result
-
-
-@dataclass(frozen=True, eq=False)
-class DesignPoint(ResultMixin):
-    """A design result with the scalar metrics a study tabulates.
-
-    Attributes
-    ----------
-    result : object
-        The verb's own result (``KalmanFilter``, ``InverseKalmanResult``, :class:`PlacementResult`, ...).
-    values : dict
-        Scalar metrics (``kappa2``, ``eta``, ``gain_norm``, ``max_real_pole``, ...).
-    status, message, verification
-        Those of ``result``.
-    """
-
-    result: Any
-    values: dict[str, Any]
-    status: Status
-    message: str
-    verification: Verification
-
-    def record(self) -> dict[str, Any]:
-        return {"status": Status(self.status).value, "success": self.success, **self.values}
-
-
-def gain_values(plant: Plant, L: NDArray | None) -> dict[str, float]:
-    """The scalar metrics of a gain that a study tabulates.
-
-    Parameters
-    ----------
-    plant : Plant
-    L : (n, p) ndarray or None
-        Observer gain (error dynamics ``A - L C``).
-
-    Returns
-    -------
-    dict
-        ``kappa2``, ``eta``, ``gain_norm`` (``||L||_2``), ``max_real_pole`` and ``max_abs_pole`` of
-        ``A - L C`` (NaN, without ``max_abs_pole``, for a missing or non-finite gain).
-    """
-    nan = float("nan")
-    if L is None or not np.all(np.isfinite(L)):
-        return {"kappa2": nan, "eta": nan, "gain_norm": nan, "max_real_pole": nan}
-    from ..analysis import metrics
-
-    X = plant.A - L @ plant.C
-    m = metrics.condition_summary(X)
-    ev = np.linalg.eigvals(X)
-    return {"kappa2": float(m["kappa2"]), "eta": float(m["eta"]), "gain_norm": float(np.linalg.norm(L, 2)),
-            "max_real_pole": float(np.max(ev.real)), "max_abs_pole": float(np.max(np.abs(ev)))}
-
-
-# --------------------------------------------------------------------------- placement baseline
-
-
-@dataclass(frozen=True, eq=False)
-class PlacementResult(ResultMixin):
-    """Observer gain by robust pole placement (scipy ``place_poles`` on the dual), verified.
-
-    Attributes
-    ----------
-    L : (n, p) ndarray
-    poles : (n,) ndarray of complex
-        ``eig(A - L C)`` recomputed with numpy, sorted.
-    target : (n,) ndarray of complex
-    kappa2, eta, kappa_fro, gain_norm : float
-        Of ``A - L C`` (``optdesign.metrics``).
-    method : str
-        ``"YT"`` or ``"KNV0"``.
-    status : Status
-        ``SOLVED``, or ``SOLVER_ERROR`` when placement raised (``message`` says why).
-    message : str
-    solver_stats : SolverStats
-    verification : Verification
-        ``pole_error`` (relative, <= 1e-6).
-    """
-
-    L: NDArray[np.float64] | None
-    poles: NDArray[np.complex128] | None
-    target: NDArray[np.complex128]
-    kappa2: float
-    eta: float
-    kappa_fro: float
-    gain_norm: float
-    method: str
-    status: Status
-    message: str
-    solver_stats: SolverStats
-    verification: Verification
-
-    def record(self) -> dict[str, Any]:
-        return {"status": Status(self.status).value, "success": self.success, "kappa2": self.kappa2,
-                "eta": self.eta, "kappa_fro": self.kappa_fro, "gain_norm": self.gain_norm,
-                "pole_error": self.verification["pole_error"].value if "pole_error" in self.verification
-                else float("nan"),
-                "max_real_pole": float(np.max(self.poles.real)) if self.poles is not None else float("nan")}
-
-
-def place_baseline(plant: Plant, poles: ArrayLike, *, method: str = "YT") -> PlacementResult:
-    """Robust pole placement (the baseline of seed 001-style designs), as a verified result.
-
-    Parameters
-    ----------
-    plant : Plant
-    poles : (n,) array_like of complex
-        Conjugate-closed target poles.
-    method : {"YT", "KNV0"}
-
-    Returns
-    -------
-    PlacementResult
-        A placement that scipy cannot perform (e.g. a pole repeated more than ``rank(C)``
-        times) gives ``status`` solver_error with the reason in ``message``.
-
-    Raises
-    ------
-    ValidationError
-        Bad method; ``plant`` not a Plant.
-    DimensionError, NotConjugateClosedError
-        Bad pole set.
-    NotObservableError
-        ``(C, A)`` not observable.
-    """
-    if not isinstance(plant, Plant):
-        raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")
-    if not isinstance(method, str) or method not in ("YT", "KNV0"):
-        raise ValidationError(f"method must be 'YT' or 'KNV0'; found {method!r}")
-    from ..classical.placement import place_observer
-    from ..design.well_conditioned import POLE_TOL, Candidate, evaluate_candidate
-
-    target = as_poles("poles", poles, plant.n)
-    plant.require_observable(what="pole placement")
-    t0 = time.perf_counter()
-    nan = float("nan")
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            L = place_observer(plant, target, method=method)
-    except ValidationError as exc:
-        stats = SolverStats(backend="scipy", native_status="error", time=time.perf_counter() - t0)
-        return PlacementResult(None, None, target, nan, nan, nan, nan, method, Status.SOLVER_ERROR, str(exc),
-                               stats,
-                               Verification.of([Check.at_most("pole_error", math.inf, POLE_TOL, str(exc))]))
-    stats = SolverStats(backend="scipy", native_status="placed", time=time.perf_counter() - t0)
-    # the verb's checks of a fixed-pole design (pole error, numpy); no stability requirement: a
-    # placement baseline may be asked for any pole set
-    cand = Candidate(L, None, None, Status.SOLVED, "placed", "", 0, stats.time)
-    m, v = evaluate_candidate(plant, cand, target=target, region=None, mask=None, max_gain=None,
-                              kappa2_max=None, eta_max=None, stable=False)
-    return PlacementResult(L, m["poles"], target, m["kappa2"], m["eta"], m["kappa_fro"], m["gain_norm"],
-                           method,
-                           Status.SOLVED, f"scipy.signal.place_poles ({method}) on the dual pair", stats, v)
-
-
 # --------------------------------------------------------------------------- noise-ratio designer
 
 
@@ -768,7 +611,8 @@ class KalmanNoiseDesigner:
         vals = gain_values(plant, kf.L)
         vals["residual"] = float(kf.residual)
         vals["solver_time"] = float(kf.solver_stats.time)
-        return DesignPoint(kf, vals, kf.status, kf.message, kf.verification)
+        return DesignPoint(result=kf, values=vals, status=kf.status, message=kf.message,
+                           verification=kf.verification, route=kf.route)
 
 
 # --------------------------------------------------------------------------- pole-target designer
@@ -882,7 +726,8 @@ class PoleTargetDesigner:
             res = well_conditioned_observer(plant, poles=target, starts=self.starts, seed=self.seed, **kw)
             vals = gain_values(plant, res.L)
             vals["solver_time"] = float(res.solver_stats.time)
-        return DesignPoint(res, vals, res.status, res.message, res.verification)
+        return DesignPoint(result=res, values=vals, status=res.status, message=res.message,
+                           verification=res.verification, route=getattr(res, "route", Route()))
 
 
 #: study verbs (``design`` in a study spec) -> designer class and fixed keyword for it
