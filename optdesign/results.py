@@ -356,13 +356,13 @@ class Certificate:
         return (Certificate, (self.kind, self.reason, self.data))
 
 
-def _html_value(value: Any) -> str:
+def html_value(value: Any) -> str:
     """One cell of an HTML report: numbers to 4-6 digits, poles as ``a +- bj``, small matrices in a
     ``<pre>`` block, large arrays by their shape (escaped)."""
     import html
 
     if isinstance(value, tuple) and value and all(isinstance(v, np.ndarray) for v in value):
-        return "<br>".join(f"[{k}] {_html_value(v)}" for k, v in enumerate(value))  # per model
+        return "<br>".join(f"[{k}] {html_value(v)}" for k, v in enumerate(value))  # per model
     if isinstance(value, np.ndarray) or (isinstance(value, (list, tuple)) and value
                                          and all(isinstance(v, (int, float, complex, np.number)) for v in value)):
         a = np.asarray(value)
@@ -378,7 +378,7 @@ def _html_value(value: Any) -> str:
     return html.escape(str(value))
 
 
-def _html_table(title: str, rows: Iterable[tuple[str, str]]) -> str:
+def html_table(title: str, rows: Iterable[tuple[str, str]]) -> str:
     """A two-column HTML table (``rows`` of already-escaped ``(name, value)`` cells) under a title."""
     import html
 
@@ -538,7 +538,7 @@ class DesignResult(ResultMixin):
             value = getattr(self, name, None)
             if value is not None:
                 per_model = isinstance(value, tuple) and name == "poles"
-                rows.append((html.escape(name + (" (per model)" if per_model else "")), _html_value(value)))
+                rows.append((html.escape(name + (" (per model)" if per_model else "")), html_value(value)))
         if self.certificate is not None:
             rows.append(("certificate", html.escape(str(self.certificate))))
         if self.route:
@@ -548,4 +548,4 @@ class DesignResult(ResultMixin):
             f"<td>{c.value:.3e} {html.escape(c.sense)} {c.tolerance:.3e}</td></tr>" for c in self.verification)
         if checks:
             rows.append(("checks", f"<table>{checks}</table>"))
-        return _html_table(type(self).__name__, rows)
+        return html_table(type(self).__name__, rows)

@@ -55,14 +55,14 @@ from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import DesignResult, Route, SolverStats, Stage, Status, Verification
 from .noise_solve import (
-    _bootstrap,
-    _checks,
-    _coords,
-    _Fit,
-    _identifiability,
-    _optimal_weighting,
-    _Setup,
-    _Solver,
+    run_bootstrap,
+    estimate_checks,
+    als_coords,
+    AlsFit,
+    identifiability_check,
+    weight_optimally,
+    AlsSetup,
+    AlsSolver,
 )
 
 __all__ = ["NoiseEstimate", "estimate_noise", "simulate_outputs"]
@@ -172,7 +172,7 @@ def _q_basis(plant: Plant, q_structure: Any) -> tuple[NDArray, NDArray, bool]:
     return G, als.symmetric_basis(G.shape[1], "full"), False
 
 
-def _setup(plant: Plant, q_structure: Any, dt: Any) -> _Setup:
+def _setup(plant: Plant, q_structure: Any, dt: Any) -> AlsSetup:
     from .kalman import van_loan
 
     G, Qb, diag = _q_basis(plant, q_structure)
@@ -182,7 +182,7 @@ def _setup(plant: Plant, q_structure: Any, dt: Any) -> _Setup:
             raise ValidationError(f"dt = {dt!r} differs from the discrete plant's own dt = {plant.dt:g}; "
                                   f"leave dt out for a discrete plant")
         Wb = np.einsum("ia,kab,jb->kij", G, Qb, G)
-        return _Setup(plant.A, plant.C, plant.B, G, Qb, Wb, Rb, Rb, float(plant.dt), False, diag)
+        return AlsSetup(plant.A, plant.C, plant.B, G, Qb, Wb, Rb, Rb, float(plant.dt), False, diag)
     if dt is None:
         raise ValidationError("the plant is continuous: give dt, the sampling period of the data (the "
                               "plant is sampled as kalmd does: Qd by Van Loan's integral, Rd = R / dt)")
@@ -195,14 +195,14 @@ def _setup(plant: Plant, q_structure: Any, dt: Any) -> _Setup:
         Z = np.zeros((n + nu, n + nu))
         Z[:n, :n], Z[:n, n:] = plant.A, plant.B
         Bd = scipy.linalg.expm(Z * Ts)[:n, n:]
-    return _Setup(Ad, plant.C, Bd, G, Qb, Wb, Rb, Rb / Ts, Ts, True, diag)
+    return AlsSetup(Ad, plant.C, Bd, G, Qb, Wb, Rb, Rb / Ts, Ts, True, diag)
 
 
 def _spectral_radius(F: NDArray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(F))))
 
 
-def _default_gain(plant: Plant, st: _Setup) -> tuple[NDArray, str]:
+def _default_gain(plant: Plant, st: AlsSetup) -> tuple[NDArray, str]:
     """The plant's own discrete Kalman gain when it has Q and R, else the DARE gain of unit
     weights (``W = I``, ``R = I``): stable whenever (A, C) is detectable."""
     n, p = plant.n, plant.p
@@ -245,7 +245,7 @@ def _as_data(name: str, X: ArrayLike, cols: int) -> NDArray:
     return np.ascontiguousarray(as_matrix(name, X, (None, cols)), dtype=float)
 
 
-def _check_gain(L: Any, st: _Setup, n: int, p: int) -> NDArray:
+def _check_gain(L: Any, st: AlsSetup, n: int, p: int) -> NDArray:
     L = as_matrix("L", L, (n, p))
     rho = _spectral_radius(st.Ad - L @ st.C)
     if not rho < 1.0 - 10 * n * _EPS:
@@ -468,12 +468,12 @@ def estimate_noise(
     mask = als.unique_mask(p, N)
     b = autocov.reshape(-1)[mask]
     A = als.als_matrix(Abar, st.C, Lg, st.W_basis, st.Rd_basis, N)
-    rank, cond, full = _identifiability(A, st, rho, N, q_structure)
+    rank, cond, full = identifiability_check(A, st, rho, N, q_structure)
     stages = [Stage("autocovariances", "direct", "unchanged",
                     f"{acc.method}, {usable} innovations, {N} lags, {A.shape[0]} x {A.shape[1]} ALS matrix",
                     time.process_time() - t0)]
 
-    solver = _Solver(A, st, rho, method_s, solver_s, full,
+    solver = AlsSolver(A, st, rho, method_s, solver_s, full,
                      reusable=B is not None and weighting_s == "identity")
     fit, rejected = solver.solve(b, deadline)
     stages += [s for s in (rejected,) if s is not None]
@@ -485,7 +485,7 @@ def estimate_noise(
         ctx = {"Abar": Abar, "L": Lg, "lags": N, "counts": acc.counts, "max_iter": max_iter, "tol": tol,
                "rho": rho, "method": method_s, "sdp_solver": solver_s, "full_rank": full,
                "reusable": B is not None}
-        fit, wsolver, Lc, report, extra_stages = _optimal_weighting(A, b, fit, st, ctx, deadline)
+        fit, wsolver, Lc, report, extra_stages = weight_optimally(A, b, fit, st, ctx, deadline)
         stages += extra_stages
         if wsolver is not None:
             solver = wsolver
@@ -500,7 +500,7 @@ def estimate_noise(
                          autocov=autocov, rho=rho, gain_source=gain_source, burn=burn, t_start=t_start))
 
 
-def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArray | None, solver: _Solver,
+def _package(pl: Plant, st: AlsSetup, fit: AlsFit, A: NDArray, b: NDArray, Lc: NDArray | None, solver: AlsSolver,
              seg_sums: NDArray, seg_counts: NDArray, mask: NDArray, B: int | None, level: float,
              rng: np.random.Generator, deadline: Deadline, stages: list[Stage],
              info: dict[str, Any]) -> NoiseEstimate:
@@ -511,7 +511,7 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
     conf = None
     if ok and B is not None:
         t0 = time.process_time()
-        conf = _bootstrap(solver, Lc, seg_sums, seg_counts, mask, B, level, rng, deadline)
+        conf = run_bootstrap(solver, Lc, seg_sums, seg_counts, mask, B, level, rng, deadline)
         stages.append(Stage("bootstrap", "check", "unchanged",
                             f"{conf['replicates']} of {B} replicates over {conf['segments']} segments",
                             time.process_time() - t0))
@@ -526,7 +526,7 @@ def _package(pl: Plant, st: _Setup, fit: _Fit, A: NDArray, b: NDArray, Lc: NDArr
     Qd: NDArray | None = None
     Rd: NDArray | None = None
     if ok:
-        verification = _checks(Aw, bw, fit, st, info["rho"], info["cond"])
+        verification = estimate_checks(Aw, bw, fit, st, info["rho"], info["cond"])
         residual = float(np.linalg.norm(Aw @ fit.theta - bw) / max(float(np.linalg.norm(bw)), _EPS))
         Q, R = fit.Q, fit.R
         Qd = np.tensordot(fit.theta[:st.Q_basis.shape[0]], st.W_basis, 1)
@@ -589,7 +589,7 @@ def simulate_outputs(plant: Plant | Any, steps: int, *, Q: ArrayLike | None = No
     Qm, Rm = pl.noise_covariances()
     steps = as_int("steps", steps, 1)
     st = _setup(pl, "full", dt)
-    W = np.tensordot(_coords(Qm, Rm, st)[:st.Q_basis.shape[0]], st.W_basis, 1)
+    W = np.tensordot(als_coords(Qm, Rm, st)[:st.Q_basis.shape[0]], st.W_basis, 1)
     Rd = Rm / st.dt if st.continuous else Rm
     rng = as_rng("seed", seed)
     rho = _spectral_radius(st.Ad)

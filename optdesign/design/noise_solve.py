@@ -38,7 +38,7 @@ _SDP_ACCURACY = {"CLARABEL": {"tol_gap_rel": 1e-10, "tol_gap_abs": 1e-10, "tol_f
 
 
 @dataclass(frozen=True)
-class _Setup:
+class AlsSetup:
     """The discrete model the data follow and the unknowns' bases."""
 
     Ad: NDArray
@@ -56,7 +56,7 @@ class _Setup:
 
 # ------------------------------------------------------------------ solve
 @dataclass
-class _Fit:
+class AlsFit:
     theta: NDArray
     Q: NDArray
     R: NDArray
@@ -66,14 +66,14 @@ class _Fit:
     iterations: int | None
 
 
-def _matrices(theta: NDArray, st: _Setup) -> tuple[NDArray, NDArray]:
+def _matrices(theta: NDArray, st: AlsSetup) -> tuple[NDArray, NDArray]:
     kq = st.Q_basis.shape[0]
     Q = np.tensordot(theta[:kq], st.Q_basis, 1)
     R = np.tensordot(theta[kq:], st.R_basis, 1)
     return Q, R
 
 
-def _coords(Q: NDArray, R: NDArray, st: _Setup) -> NDArray:
+def als_coords(Q: NDArray, R: NDArray, st: AlsSetup) -> NDArray:
     """Coordinates of (Q, R) in the bases (upper-triangle entries; the diagonal for diagonal Q)."""
     tq = np.diag(Q) if st.q_diagonal else Q[np.triu_indices(Q.shape[0])]
     return np.concatenate([tq, R[np.triu_indices(R.shape[0])]])
@@ -86,11 +86,11 @@ def _psd_margin(X: NDArray) -> float:
     return float(lam[0]) / big if big > 0 else 0.0
 
 
-class _Solver:
+class AlsSolver:
     """The reduced problem of one weighting: ``min ||Rr theta - z||^2 + rho c' theta`` over
     ``Q, R >= 0`` -- closed form where that is PSD (``method="auto"``), else the SDP."""
 
-    def __init__(self, Aw: NDArray, st: _Setup, rho: float, method: str, sdp_solver: str, full_rank: bool,
+    def __init__(self, Aw: NDArray, st: AlsSetup, rho: float, method: str, sdp_solver: str, full_rank: bool,
                  reusable: bool = False):
         self.Qr, self.Rr = np.linalg.qr(Aw)
         self.st, self.rho, self.method, self.sdp_solver = st, rho, method, sdp_solver
@@ -108,7 +108,7 @@ class _Solver:
             rhs = z - (0.5 * self.rho) * scipy.linalg.solve_triangular(self.Rr, self.c, trans="T")
         return scipy.linalg.solve_triangular(self.Rr, rhs)
 
-    def solve(self, bw: NDArray, deadline: Deadline) -> tuple[_Fit, Stage | None]:
+    def solve(self, bw: NDArray, deadline: Deadline) -> tuple[AlsFit, Stage | None]:
         """The fit for the weighted data ``bw`` and the closed-form stage it rejected (or None)."""
         z = self.Qr.T @ bw
         th = self.unconstrained(z)
@@ -118,7 +118,7 @@ class _Solver:
             mq, mr = _psd_margin(Q), _psd_margin(R)
             tol = -10 * max(Q.shape[0], R.shape[0]) * _EPS
             if self.method == "auto" and mq >= tol and mr >= tol:
-                return _Fit(th, Q, R, Stage("unconstrained_ls", "direct", "answered",
+                return AlsFit(th, Q, R, Stage("unconstrained_ls", "direct", "answered",
                                             "the least-squares solution is PSD: it is the SDP's optimum"),
                             Status.SOLVED, "solved", None), None
             rejected = Stage("unconstrained_ls", "direct", "rejected" if self.method == "auto" else "skipped",
@@ -126,7 +126,7 @@ class _Solver:
                              else "method='sdp'")
         return self._sdp(z, th, deadline), rejected
 
-    def _sdp(self, z: NDArray, th: NDArray | None, deadline: Deadline) -> _Fit:
+    def _sdp(self, z: NDArray, th: NDArray | None, deadline: Deadline) -> AlsFit:
         if self.program is None:
             st = self.st
             if th is not None:
@@ -144,11 +144,11 @@ class _Solver:
         mapped = CVXPY_STATUS.get(status, Status.SOLVER_ERROR)
         if Q is None or R is None:
             nan = np.full(len(self.c), np.nan)
-            return _Fit(nan, *_matrices(nan, self.st),
+            return AlsFit(nan, *_matrices(nan, self.st),
                         Stage(self.sdp_solver.lower(), "backend", mapped.value, status,
                               time.process_time() - t0),
                         mapped, status, info["iterations"])
-        fit = _Fit(_coords(Q, R, self.st), Q, R,
+        fit = AlsFit(als_coords(Q, R, self.st), Q, R,
                    Stage(self.sdp_solver.lower(), "backend", "answered", status, time.process_time() - t0),
                    mapped, status, info["iterations"])
         return self._polish(fit, z)
@@ -157,7 +157,7 @@ class _Solver:
         r = self.Rr @ th - z
         return float(r @ r) + self.rho * float(self.c @ th)
 
-    def _polish(self, fit: _Fit, z: NDArray) -> _Fit:
+    def _polish(self, fit: AlsFit, z: NDArray) -> AlsFit:
         """Solve the least squares on the face of the cone the SDP found (Q = V S V', R = U T U' with
         the eigenvectors of the eigenvalues above a threshold times the largest; diagonal Q: its
         entries above it) in closed form, for thresholds ``1e-8 .. 1e-3`` (an interior-point iterate
@@ -183,7 +183,7 @@ class _Solver:
         Q, R = _matrices(best, st)
         stage = Stage(fit.stage.name + "+polish", fit.stage.kind, "answered",
                       f"{fit.stage.detail}; polished on a face of dimension {best_rank}", fit.stage.time)
-        return _Fit(best, 0.5 * (Q + Q.T), 0.5 * (R + R.T), stage, fit.status, fit.native, fit.iterations)
+        return AlsFit(best, 0.5 * (Q + Q.T), 0.5 * (R + R.T), stage, fit.status, fit.native, fit.iterations)
 
 
 def _face(X: NDArray, thr: float, diagonal: bool) -> NDArray:
@@ -212,14 +212,14 @@ def _whiten(S: NDArray) -> NDArray:
     return np.linalg.cholesky(0.5 * (Sreg + Sreg.T))
 
 
-def _unknown_names(st: _Setup) -> list[str]:
+def _unknown_names(st: AlsSetup) -> list[str]:
     m, p = st.Q_basis.shape[1], st.R_basis.shape[1]
     qn = [f"Q[{i},{i}]" for i in range(m)] if st.q_diagonal else \
         [f"Q[{i},{j}]" for i, j in zip(*np.triu_indices(m), strict=True)]
     return qn + [f"R[{i},{j}]" for i, j in zip(*np.triu_indices(p), strict=True)]
 
 
-def _identifiability(A: NDArray, st: _Setup, rho: float, lags: int,
+def identifiability_check(A: NDArray, st: AlsSetup, rho: float, lags: int,
                      q_structure: Any) -> tuple[int, float, bool]:
     """``(rank, condition, full_rank)`` of the ALS matrix with unit-norm columns; raises
     ValidationError (naming ``q_structure``) when it is rank deficient and no trace penalty picks
@@ -252,7 +252,7 @@ def _identifiability(A: NDArray, st: _Setup, rho: float, lags: int,
     return rank, cond, full
 
 
-def _projected_gradient(Aw: NDArray, bw: NDArray, fit: _Fit, st: _Setup, rho: float) -> float:
+def _projected_gradient(Aw: NDArray, bw: NDArray, fit: AlsFit, st: AlsSetup, rho: float) -> float:
     """Relative fixed-point residual of the projected gradient step on ``Q, R >= 0`` (zero at the
     optimum of the convex problem): ``||X - Proj(X - t grad)|| / max(||X||, t ||grad(0)||)``,
     ``t = 1 / (2 ||A_w||^2)``; computed from the full weighted data, independently of the solver."""
@@ -280,9 +280,9 @@ def _projected_gradient(Aw: NDArray, bw: NDArray, fit: _Fit, st: _Setup, rho: fl
     return float(np.hypot(np.linalg.norm(dq), np.linalg.norm(dr))) / scale
 
 
-def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[str, Any],
+def weight_optimally(A: NDArray, b: NDArray, fit: AlsFit, st: AlsSetup, ctx: dict[str, Any],
                        deadline: Deadline
-                       ) -> tuple[_Fit, _Solver | None, NDArray | None, dict[str, Any], list[Stage]]:
+                       ) -> tuple[AlsFit, AlsSolver | None, NDArray | None, dict[str, Any], list[Stage]]:
     """Rajamani & Rawlings (2009) sec. 4: weight ``S(theta_k)^-1`` until the estimate settles."""
     rows = A.shape[0]
     if rows > OPTIMAL_MAX_ROWS:
@@ -304,7 +304,7 @@ def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[
         Lc = _whiten(S)
         Aw = scipy.linalg.solve_triangular(Lc, A, lower=True)
         bw = scipy.linalg.solve_triangular(Lc, b, lower=True)
-        solver = _Solver(Aw, st, ctx["rho"], ctx["method"], ctx["sdp_solver"], ctx["full_rank"],
+        solver = AlsSolver(Aw, st, ctx["rho"], ctx["method"], ctx["sdp_solver"], ctx["full_rank"],
                          reusable=ctx["reusable"])
         new, rejected = solver.solve(bw, deadline)
         if not np.all(np.isfinite(new.theta)):
@@ -320,7 +320,7 @@ def _optimal_weighting(A: NDArray, b: NDArray, fit: _Fit, st: _Setup, ctx: dict[
     return fit, solver, Lc, report, stages
 
 
-def _bootstrap(solver: _Solver, Lc: NDArray | None, seg_sums: NDArray, seg_counts: NDArray, mask: NDArray,
+def run_bootstrap(solver: AlsSolver, Lc: NDArray | None, seg_sums: NDArray, seg_counts: NDArray, mask: NDArray,
                B: int, level: float, rng: np.random.Generator, deadline: Deadline) -> dict[str, Any]:
     """Percentile intervals of (Q, R) from ``B`` re-solves on resampled segments of the record."""
     nseg = seg_sums.shape[0]
@@ -347,7 +347,7 @@ def _bootstrap(solver: _Solver, Lc: NDArray | None, seg_sums: NDArray, seg_count
             "R_std": Ra.std(0, ddof=1) if len(Rs) > 1 else np.zeros_like(Ra[0])}
 
 
-def _checks(Aw: NDArray, bw: NDArray, fit: _Fit, st: _Setup, rho: float, cond: float) -> Verification:
+def estimate_checks(Aw: NDArray, bw: NDArray, fit: AlsFit, st: AlsSetup, rho: float, cond: float) -> Verification:
     """Independent checks: Q and R PSD, and the projected-gradient optimality residual."""
     direct = fit.stage.kind == "direct"
     err = 0.0 if direct else 1e-7             # Clarabel's default relative gap tolerance 1e-8, x10

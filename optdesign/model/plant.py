@@ -388,7 +388,7 @@ class Plant:
         """Jupyter's view: sizes, time domain and the matrices (A, B, C, G, Q, R) in a table."""
         import html
 
-        from ..results import _html_table, _html_value
+        from ..results import html_table, html_value
 
         time = f"discrete, dt = {self.dt:g}" if self.is_discrete else "continuous"
         rows = [("sizes", html.escape(f"n = {self.n} states, p = {self.p} outputs, m = {self.m} noise inputs")),
@@ -396,5 +396,5 @@ class Plant:
         for k in ("A", "B", "C", "G", "Q", "R"):
             v = getattr(self, k)
             if v is not None:
-                rows.append((k, _html_value(v)))
-        return _html_table(f"Plant {self.name}" if self.name else "Plant", rows)
+                rows.append((k, html_value(v)))
+        return html_table(f"Plant {self.name}" if self.name else "Plant", rows)

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._validate import as_vector
 from ..errors import ValidationError
 from .figures import new_axes
-from .regions import Box, _check_region, draw_region, region_extent
+from .regions import Box, region_of, draw_region, region_extent
 
 __all__ = ["pole_map", "robust_pole_map", "plot_result", "view_box"]
 
@@ -183,7 +183,7 @@ def pole_map(result_or_poles: Any, region: Any = None, ax: Any = None, open_loop
     poles = poles[np.isfinite(poles)]
     region = region if region is not None else info["region"]
     if region is not None:
-        _check_region(region)
+        region_of(region)
     plant = info["plant"]
     if open_loop is None and plant is not None and hasattr(plant, "A"):
         open_loop = np.linalg.eigvals(np.asarray(plant.A, dtype=float))
@@ -229,7 +229,7 @@ def _robust_inputs(model_set_or_result: Any, gain: Any, region: Any) -> tuple[An
         raise ValidationError("gain has non-finite entries (the design found no gain): nothing to draw")
     for r in regions:
         if r is not None:
-            _check_region(r)
+            region_of(r)
     return models, L, regions
 
 

@@ -25,7 +25,7 @@ __all__ = ["region_outline", "draw_region", "region_extent", "region_label"]
 Box = tuple[float, float, float, float]
 
 
-def _check_region(region: Any) -> Any:
+def region_of(region: Any) -> Any:
     from ..model.regions import Region
 
     if not isinstance(region, Region):
@@ -46,7 +46,7 @@ def region_extent(region: Any) -> Box:
     (x0, x1, y0, y1) : tuple of float
         Finite, with ``x0 < x1`` and ``y0 = -y1 < 0``.
     """
-    region = _check_region(region)
+    region = region_of(region)
     xa, xb, Y, _ = region._window()
     Y = Y if math.isfinite(Y) and Y > 0 else max(xb - xa, 1.0)
     return (float(xa), float(xb), -float(Y), float(Y))
@@ -65,7 +65,7 @@ def region_label(region: Any) -> str:
 
     Shapes it does not know (user subclasses) are described by their repr.
     """
-    region = _check_region(region)
+    region = region_of(region)
     members = getattr(region, "members", None)
     if members is not None:
         return " and ".join(region_label(m) for m in members)
@@ -119,7 +119,7 @@ def region_outline(region: Any, box: Box, n_rays: int = 720) -> tuple[NDArray[np
     bisection steps); between vertices the polygon is a chord, so curved edges are inscribed
     (error about ``r (pi / n_rays)^2 / 2`` for a circle of radius ``r``).
     """
-    region = _check_region(region)
+    region = region_of(region)
     x0, x1, y0, y1 = (float(v) for v in box)
     if not (x0 < x1 and y0 < 0.0 < y1):
         raise ValidationError(f"box must be (x0, x1, y0, y1) with x0 < x1 and y0 < 0 < y1; found {box!r}")
@@ -170,7 +170,7 @@ def draw_region(region: Any, ax: Any = None, *, box: Box | None = None, color: s
     -------
     matplotlib Axes
     """
-    region = _check_region(region)
+    region = region_of(region)
     fresh = ax is None or not (ax.has_data() or ax.patches)
     ax = new_axes(ax)
     if box is None:
