@@ -29,7 +29,7 @@ np.set_printoptions(precision=5, suppress=True)
 prob = problems.load("ahn_bpf_harmonic_oscillator")
 plant = prob.plant                                 # A = [[0, 1], [-0.64, -0.32]], C = [0, 1], G = [0, 1]'
 P0 = np.zeros((2, 2))
-exact = riccati_de(plant, P0, 10.0, steps=50)                   # method="transition" (exact)
+exact = riccati_de(plant, P0, 10.0, steps=50, estimate_error=True, steady_state=True)  # "transition"
 bpf = riccati_de(plant, P0, 10.0, method="bpf", steps=50)       # the paper: m = 50 blocks
 ode = riccati_de(plant, P0, 10.0, method="ode", steps=50)       # scipy solve_ivp reference
 for tr in (exact, bpf, ode):
@@ -55,7 +55,7 @@ print("observed order:", conv["order_midpoint"], "(midpoints),", conv["order_pie
 # --------------------------------------------------------------- 3. long horizon, unstable plant
 carex = problems.load("carex_1.2").plant                        # filter form of CAREX 1.2: eig(A) = 1, -0.5
 t = np.linspace(0.0, 1000.0, 201)
-fast = riccati_de(carex, np.eye(2), 1000.0, t_eval=t)
+fast = riccati_de(carex, np.eye(2), 1000.0, t_eval=t, steady_state=True)
 ref = riccati_de(carex, np.eye(2), 1000.0, method="ode", t_eval=t)
 diff = np.max(np.linalg.norm(fast.P - ref.P, axis=(1, 2))) / np.max(np.linalg.norm(ref.P, axis=(1, 2)))
 print(f"CAREX 1.2, 0..1000 s: transition {fast.solver_stats.time * 1e3:.1f} ms, ODE "
@@ -67,7 +67,7 @@ dt = 0.1
 Ad = scipy.linalg.expm(plant.A * dt)
 # first-order sampling of the noise: Q_d ~ G Q G' dt (G scaled by sqrt(dt))
 dplant = Plant(Ad, plant.C, G=plant.G * np.sqrt(dt), Q=plant.Q, R=plant.R, dt=dt, name="oscillator, dt = 0.1")
-dtr = riccati_de(dplant, P0, 30.0)                              # t = k dt, k = 0..300
+dtr = riccati_de(dplant, P0, 30.0, steady_state=True)           # t = k dt, k = 0..300
 print(f"discrete: L_0 = {dtr.L[0].ravel()}, L_10 = {dtr.L[10].ravel()}, L_300 = {dtr.L_final.ravel()}, "
       f"steady L = {dtr.L_steady.ravel()} (distance {dtr.steady_distance:.1e})\n")
 

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 import optdesign
 from optdesign import Plant, RiccatiTrajectory, Status, problems, riccati_de
+from optdesign.design.riccati_de import DEFAULT_TOL
 from optdesign.classical.bpf import bpf_riccati, davison_maki, filter_hamiltonian
 from optdesign.classical.riccati import filter_are
 from optdesign.errors import (
@@ -27,6 +28,10 @@ from optdesign.errors import (
     RiccatiError,
     ValidationError,
 )
+
+
+#: the post-processing that runs only when asked (issue 26): the error estimate and the ARE
+POST = dict(estimate_error=True, steady_state=True)
 
 
 def _rel(P, Pref) -> float:
@@ -54,7 +59,7 @@ def test_lazy_export():
 
 def test_paper_example_all_methods(paper):
     plant, P0, tf, m = paper
-    exact = riccati_de(plant, P0, tf, steps=m)
+    exact = riccati_de(plant, P0, tf, steps=m, estimate_error=True)
     assert exact.success and exact.method == "transition" and len(exact) == m + 1
     assert exact.error_estimate < 1e-13
     assert np.array_equal(exact.P[0], P0) and exact.t[-1] == tf
@@ -75,10 +80,10 @@ def test_paper_example_all_methods(paper):
 def test_paper_example_converges_to_steady_state_gain(paper):
     plant, P0, _, _ = paper
     are = filter_are(plant)
-    traj = riccati_de(plant, P0, 10.0)
+    traj = riccati_de(plant, P0, 10.0, steady_state=True)
     assert np.allclose(traj.P_steady, are.P) and np.allclose(traj.L_steady, are.L)
     assert 1e-6 < traj.steady_distance < 1e-4                     # 4.2e-5 at t = 10
-    long = riccati_de(plant, P0, 40.0)
+    long = riccati_de(plant, P0, 40.0, steady_state=True)
     assert long.steady_distance < 1e-10
     assert np.allclose(long.L_final, are.L, atol=1e-10)
     # monotone approach: the distance to P_ss shrinks after the transient, down to rounding
@@ -91,7 +96,7 @@ def test_paper_example_long_horizon_matches_ode(paper):
     """tf = 1000: the restarted exact transition matrix against a tight DOP853 solve."""
     plant, P0, _, _ = paper
     t = np.r_[np.linspace(0, 20, 81), np.linspace(25, 1000, 40)]
-    ex = riccati_de(plant, P0, 1000.0, t_eval=t)
+    ex = riccati_de(plant, P0, 1000.0, t_eval=t, steady_state=True)
     ode = riccati_de(plant, P0, 1000.0, method="ode", t_eval=t)
     assert ex.success and ode.success
     assert _rel(ode.P, ex.P) < 1e-8
@@ -118,7 +123,7 @@ def test_carex_filter_plants_match_ode_and_davison_maki(name):
 def test_unstable_plant_long_horizon():
     plant = problems.load("carex_1.2").plant                     # eigenvalue +1
     t = np.linspace(0, 1000, 101)
-    ex = riccati_de(plant, np.eye(2), 1000.0, t_eval=t)
+    ex = riccati_de(plant, np.eye(2), 1000.0, t_eval=t, steady_state=True)
     assert ex.success and ex.steady_distance < 1e-13
     ode = riccati_de(plant, np.eye(2), 1000.0, method="ode", t_eval=t)
     assert _rel(ode.P, ex.P) < 1e-8
@@ -210,28 +215,30 @@ def test_tolerance_check_fails_honestly(paper):
 def test_no_steady_state_is_reported():
     """An unstable unobservable mode: no stabilizing filter, P grows without bound."""
     plant = Plant([[0.5, 0.0], [0.0, -1.0]], [[0.0, 1.0]], Q=np.eye(2), R=[[1.0]])
-    tr = riccati_de(plant, np.eye(2), 10.0)
+    tr = riccati_de(plant, np.eye(2), 10.0, steady_state=True)
     assert tr.success and tr.P_steady is None and tr.L_steady is None
     assert np.isnan(tr.steady_distance) and "no steady state" in tr.message
     assert tr.P[-1, 0, 0] == pytest.approx(np.exp(10.0) + 1.0 / 1.0 * (np.exp(10.0) - 1.0), rel=1e-10)
 
 
 def test_ode_failure_is_a_status(monkeypatch, paper):
-    import scipy.integrate
+    from scipy.integrate import DOP853
 
     plant, P0, tf, _ = paper
-    real = scipy.integrate.solve_ivp
+    real = DOP853.step
 
-    def broken(fun, t_span, y0, **kw):
-        kw["t_eval"] = kw["t_eval"][kw["t_eval"] <= 3.0]
-        sol = real(fun, (t_span[0], 3.0), y0, **kw)
-        sol.success, sol.message = False, "step size became too small"
-        return sol
+    def broken(self):
+        if self.t >= 3.0:                         # as scipy reports a step size that became too small
+            self.status = "failed"
+            return "Required step size is less than spacing between numbers."
+        return real(self)
 
-    monkeypatch.setattr(scipy.integrate, "solve_ivp", broken)
+    monkeypatch.setattr(DOP853, "step", broken)
     tr = riccati_de(plant, P0, tf, method="ode", steps=10)
     assert tr.status is Status.NUMERICAL_ERROR and not tr.success
-    assert "stopped at t = 3" in tr.message and tr.t[-1] == 3.0 and len(tr) == 4
+    assert "DOP853 stopped at t = 3" in tr.message and "step size" in tr.message
+    assert 3.0 <= tr.t[-1] < 4.0 and len(tr) == 4
+    assert tr.route.answered is None and tr.route[0].outcome == "numerical_error"
 
 
 def test_bpf_fails_on_long_horizons_and_says_so():
@@ -254,7 +261,7 @@ def test_bpf_fails_on_long_horizons_and_says_so():
     assert 15.0 < errors[0] / errors[1] < 17.0                    # 4x the blocks: 16x less error
     assert riccati_de(plant, np.eye(2), 20.0).success
     # same block width h = 0.05 over 1000 s: the error is the transient's, restarts cost nothing
-    long = riccati_de(plant, np.eye(2), 1000.0, method="bpf", steps=20_000)
+    long = riccati_de(plant, np.eye(2), 1000.0, method="bpf", steps=20_000, steady_state=True)
     assert long.success and long.solver_stats.extra["restarts"] > 1000
     assert 0.9 < long.error_estimate / errors[0] < 1.1
     assert _rel(long.P[-1:], long.P_steady[None]) < long.error_estimate
@@ -298,7 +305,7 @@ def test_hopeless_stiff_plant_raises():
 def test_discrete_difference_equation(rng):
     plant = random_observable_plant(rng, 3, 1, dt=0.1, stable=False)
     P0 = np.eye(3)
-    tr = riccati_de(plant, P0, 6.0)
+    tr = riccati_de(plant, P0, 6.0, estimate_error=True)
     assert tr.success and len(tr) == 61 and np.allclose(tr.t, 0.1 * np.arange(61))
     A, C, R, W = plant.A, plant.C, plant.R, plant.process_noise()
     P = P0.copy()
@@ -309,7 +316,7 @@ def test_discrete_difference_equation(rng):
         P = A @ P @ A.T + W - Lk @ (C @ P @ C.T + R) @ Lk.T
         P = 0.5 * (P + P.T)      # else the antisymmetric rounding part grows like |eig A|^2k
     are = filter_are(plant)
-    long = riccati_de(plant, P0, 30.0, t_eval=[0.0, 30.0])
+    long = riccati_de(plant, P0, 30.0, t_eval=[0.0, 30.0], steady_state=True)
     assert long.steady_distance < 1e-10 and np.allclose(long.L_final, are.L, atol=1e-9)
     assert tr.error_estimate < 1e-12
     assert np.min(np.linalg.eigvalsh(tr.P)) > 0
@@ -437,8 +444,12 @@ def test_post_processing_only_when_asked(monkeypatch, paper):
     assert np.isnan(lean.steady_distance) and np.isnan(lean.error_estimate)
     assert [c.name for c in lean.verification] == ["nonfinite", "P_min_eig"]
     assert "steady" not in lean.message
-    full = riccati_de(plant, P0, tf)
-    assert calls == {"are": 1, "flow": 3}                # + the trajectory and its recomputation
+    default = riccati_de(plant, P0, tf)                  # issue 26: the defaults are lean
+    assert calls == {"are": 0, "flow": 2}
+    assert np.array_equal(default.P, lean.P) and default.P_steady is None
+    assert [c.name for c in default.verification] == ["nonfinite", "P_min_eig"]
+    full = riccati_de(plant, P0, tf, **POST)
+    assert calls == {"are": 1, "flow": 4}                # + the trajectory and its recomputation
     assert np.array_equal(full.P, lean.P) and full.P_steady is not None
     assert [c.name for c in full.verification] == ["nonfinite", "P_min_eig", "error_estimate"]
 
@@ -467,7 +478,7 @@ def test_error_estimate_recomputes_by_doubling_not_by_the_direct_map(monkeypatch
     n = 6
     plant = random_observable_plant(rng, n, 2, stable=bool(seed % 2))
     F = rng.standard_normal((n, n))
-    tr = riccati_de(plant, F @ F.T / n, 2.0, steps=100, steady_state=False)
+    tr = riccati_de(plant, F @ F.T / n, 2.0, steps=100, estimate_error=True)
     (direct_main, main), (direct_est, est) = infos
     assert direct_main and main["direct"] == 1 and tr.solver_stats.extra["direct"] == 1
     assert not direct_est and est["direct"] == 0 and est["doublings"] >= 2
@@ -581,7 +592,7 @@ def _assert_partial(part, full, limit):
 def test_time_limit_returns_what_was_computed(ticking, paper, method):
     plant, P0, tf, _ = paper
     full = riccati_de(plant, P0, tf, method=method, steps=40)
-    part = riccati_de(plant, P0, tf, method=method, steps=40, time_limit=12.5)
+    part = riccati_de(plant, P0, tf, method=method, steps=40, time_limit=12.5, **POST)
     _assert_partial(part, full, 12.5)
     ample = riccati_de(plant, P0, tf, method=method, steps=40, time_limit=1e9)
     assert ample.status is Status.SOLVED and np.allclose(ample.P, full.P, rtol=1e-13, atol=0)
@@ -590,11 +601,11 @@ def test_time_limit_returns_what_was_computed(ticking, paper, method):
 def test_time_limit_discrete_and_with_t_eval(ticking, paper, rng):
     dplant = random_observable_plant(rng, 3, 1, dt=0.1)
     full = riccati_de(dplant, np.eye(3), 20.0)
-    _assert_partial(riccati_de(dplant, np.eye(3), 20.0, time_limit=40.5), full, 40.5)
+    _assert_partial(riccati_de(dplant, np.eye(3), 20.0, time_limit=40.5, **POST), full, 40.5)
     plant, P0, tf, _ = paper
     t = np.linspace(0.5, tf, 30)
     full = riccati_de(plant, P0, tf, method="bpf", steps=60, t_eval=t)
-    part = riccati_de(plant, P0, tf, method="bpf", steps=60, t_eval=t, time_limit=20.5)
+    part = riccati_de(plant, P0, tf, method="bpf", steps=60, t_eval=t, time_limit=20.5, **POST)
     _assert_partial(part, full, 20.5)
 
 
@@ -646,3 +657,108 @@ def test_psd_check_finds_an_indefinite_matrix_in_a_later_chunk(rng, monkeypatch,
     bad = verb._psd_check(P, 1e-10)
     true = np.min(np.linalg.eigvalsh(P)) / np.max(np.linalg.norm(P, axis=(1, 2)))
     assert bad.value == pytest.approx(true, rel=1e-8) and not bad.passed
+
+
+# ------------------------------------------------------------------ issue 26
+def _issue26_plant(n: int, seed: int, shift: float = 0.0, p: int = 3) -> Plant:
+    """Issue 26's family: ``A = randn(n, n)/sqrt(n) + shift I``, ``C = randn(p, n)``, W = I, R = I."""
+    rng = np.random.default_rng(seed)
+    A = rng.standard_normal((n, n)) / np.sqrt(n) + shift * np.eye(n)
+    return Plant(A, rng.standard_normal((p, n)), Q=np.eye(n), R=np.eye(p))
+
+
+def _exact(plant, P0, t):
+    from optdesign.classical.transition import riccati_flow
+
+    M = filter_hamiltonian(plant.A, plant.C, plant.process_noise(), plant.R)
+    return riccati_flow(M, P0, t, max_norm=1.0 / 64, direct=False)[0]
+
+
+def test_ode_absolute_tolerance_follows_the_size_of_P():
+    """Issue 26: P grows from I to 1e7 (unstable plant, one output).  The former fixed absolute
+    tolerance (1e-3 rtol max|P0| = 1e-15) lay below the rounding floor of the right-hand side for the
+    small entries of the grown P: 251,261 evaluations (new: 1,634, the same accuracy)."""
+    plant = _issue26_plant(12, 12, shift=0.5, p=1)
+    P0 = np.eye(12)
+    tr = riccati_de(plant, P0, 10.0, method="ode")
+    x = tr.solver_stats.extra
+    assert tr.success and np.max(np.abs(tr.P)) > 1e6
+    assert x["nfev"] < 5000 and x["atol"] > 1e-3 * x["rtol"] * 1e6      # atol followed max |P_ij|
+    assert _rel(tr.P, _exact(plant, P0, tr.t)) <= DEFAULT_TOL["ode"]
+
+
+@pytest.mark.parametrize("n, seed, shift, tf", [(10, 0, 0.0, 10.0), (16, 1, 0.0, 10.0), (12, 2, 0.3, 10.0),
+                                                (20, 3, 0.0, 1.0), (12, 4, -2.0, 30.0)])
+def test_ode_defaults_meet_the_documented_accuracy(n, seed, shift, tf):
+    """The default ``tol`` (1e-8) is the relative error delivered, measured independently against the
+    exact flow (a 32x finer doubling), on seeded plants: stable, unstable, short and stiff horizons."""
+    plant = _issue26_plant(n, seed, shift)
+    P0 = np.eye(n)
+    tr = riccati_de(plant, P0, tf, method="ode")
+    err = _rel(tr.P, _exact(plant, P0, tr.t))
+    assert tr.success and err <= DEFAULT_TOL["ode"], err
+    assert tr.error_estimate <= DEFAULT_TOL["ode"] and "error_estimate" in tr.verification
+    assert tr.solver_stats.extra["rtol"] == pytest.approx(1e-3 * DEFAULT_TOL["ode"])
+    loose = riccati_de(plant, P0, tf, method="ode", tol=1e-5)          # a looser ask, a looser answer
+    assert _rel(loose.P, _exact(plant, P0, tr.t)) <= 1e-5
+    assert loose.solver_stats.extra["nfev"] < tr.solver_stats.extra["nfev"]
+
+
+def test_ode_tolerance_arguments(paper):
+    plant, P0, tf, _ = paper
+    fixed = riccati_de(plant, P0, tf, method="ode", rtol=1e-9, atol=1e-12)
+    x = fixed.solver_stats.extra
+    assert fixed.success and x["rtol"] == 1e-9 and x["atol"] == 1e-12 and np.isnan(x["atol_rel"])
+    cases = [
+        (dict(rtol="1e-8"), "rtol must be a real number"),
+        (dict(rtol=True), "rtol must be a real number"),
+        (dict(rtol=0.0), "rtol must be"),
+        (dict(rtol=float("nan")), "rtol must be"),
+        (dict(rtol=1e-17), r"rtol must lie in \[2.2e-14, 1\).*found rtol=1e-17"),
+        (dict(rtol=2.0), r"rtol must lie in \[2.2e-14, 1\)"),
+        (dict(atol=-1.0), "atol must be"),
+        (dict(atol=float("inf")), "atol must be"),
+        (dict(tol=0.0), "tol must be"),
+    ]
+    for kw, match in cases:
+        with pytest.raises(ValidationError, match=match):
+            riccati_de(plant, P0, tf, method="ode", **kw)
+    for method in ("transition", "bpf"):
+        with pytest.raises(ValidationError, match=f"rtol applies to method='ode'.*method='{method}'"):
+            riccati_de(plant, P0, tf, method=method, rtol=1e-8)
+        with pytest.raises(ValidationError, match="atol applies to method='ode'"):
+            riccati_de(plant, P0, tf, method=method, atol=1e-8)
+
+
+def test_sizes_that_cannot_run_are_refused_up_front(paper, rng):
+    """Issue 26: ``steps=10**8`` ran unbounded; now refused before any work, naming the argument."""
+    from optdesign.errors import OptDesignError
+
+    plant, P0, tf, _ = paper
+    for method in ("transition", "ode", "bpf"):
+        with pytest.raises(ValidationError, match=r"steps asks to store (100,000,001|200,000,000) matrices .*GiB, more than the 2 GiB") as ex:
+            riccati_de(plant, P0, tf, method=method, steps=10**8)
+        assert isinstance(ex.value, OptDesignError) and isinstance(ex.value, ValueError)
+    big = _issue26_plant(200, 0)
+    with pytest.raises(ValidationError, match=r"t_eval asks to store 20,001 matrices of 200 x 200"):
+        riccati_de(big, np.eye(200), 1.0, t_eval=np.linspace(0.0, 1.0, 20_001))
+    # run time: 10^10 recursion steps with two outputs store little but would run for days
+    dplant = random_observable_plant(rng, 3, 1, dt=0.1)
+    with pytest.raises(ValidationError, match=r"t_final asks for 10,000,000,000 steps of n = 3.*time_limit="):
+        riccati_de(dplant, np.eye(3), 1e9, t_eval=[0.0, 1e9])
+    part = riccati_de(dplant, np.eye(3), 1e9, t_eval=[0.0, 1e9], time_limit=0.05)   # bounded: accepted
+    assert part.status is Status.TIME_LIMIT and len(part) == 1
+
+
+def test_route_names_what_ran(paper):
+    plant, P0, tf, _ = paper
+    want = {"transition": ("riccati_flow", "engine"), "bpf": ("bpf_riccati", "engine"),
+            "ode": ("scipy.integrate.DOP853", "backend")}
+    for method, (name, kind) in want.items():
+        tr = riccati_de(plant, P0, tf, method=method)
+        assert len(tr.route) == 1 and tr.route.answered is tr.route[0]
+        assert (tr.route[0].name, tr.route[0].kind) == (name, kind) and tr.method == method
+    stiff = riccati_de(problems.load("carex_2.3").plant, np.eye(2), 10.0, method="ode", steps=40)
+    assert stiff.route[0].name == "scipy.integrate.Radau"
+    dplant = Plant(plant.A * 0.1 + np.eye(2), plant.C, G=plant.G, Q=plant.Q, R=plant.R, dt=0.1)
+    assert riccati_de(dplant, P0, 1.0).route[0].name == "riccati_recursion"

@@ -41,17 +41,27 @@ Methods
     on fast or unstable plants (:func:`~optdesign.classical.bpf.bpf_riccati` without
     ``restart_every``).
 ``"ode"``
-    :func:`scipy.integrate.solve_ivp` on the ``n^2`` entries of P (the right-hand side
-    ``H + H' + W`` is exactly symmetric, so P stays exactly symmetric), DOP853, ``rtol = tol /
-    10^4``; Radau with the analytic Jacobian only when the horizon spans more than
+    scipy's DOP853 on the ``n^2`` entries of P (the right-hand side ``H + H' + W - B B'``,
+    ``B = P C' R^-1/2``, is exactly symmetric, so P stays exactly symmetric), stepped directly;
+    tolerances from the accuracy asked, ``rtol = 1e-3 tol`` and an absolute tolerance that follows
+    the size of P (:func:`~optdesign.design._riccati_ode.ode_tolerances`: a fixed absolute
+    tolerance below the right-hand side's rounding floor made the step collapse, issue 26);
+    Radau with the analytic Jacobian only when the horizon spans more than
     ``STIFF_RHO_T`` time constants of the Hamiltonian *and* Radau's ``n^2 x n^2`` linear algebra
-    costs no more than a right-hand side (:func:`ode_integrator`).  Error estimate: the measured
-    difference from the exact transition solution.
+    costs no more than a right-hand side (:func:`ode_integrator`).  Error estimate (computed by
+    default): the measured difference from the exact transition solution.
 
 Cost and time limits
 --------------------
-Post-processing is done only when asked: ``estimate_error`` (one more exact solve) and
-``steady_state`` (one algebraic Riccati solve, as costly as the whole trajectory at n = 100).
+Post-processing is done only when asked (issue 26): ``steady_state=True`` (one algebraic Riccati
+solve, as costly as the whole trajectory at n = 100) and, for ``"transition"`` and discrete plants,
+``estimate_error=True`` (a second exact solve: it doubles the cost).  ``"bpf"`` and ``"ode"``
+measure their error by default (``estimate_error=None``): one exact solve, a small part of their
+own cost.  Requests that cannot run are refused up front (:class:`ValidationError` naming
+``steps``, ``t_eval`` or ``t_final``): more than ``MAX_TRAJECTORY_BYTES`` (2 GiB) for the
+trajectory, ``8 k (3 n^2 + n p)`` bytes for k output times, or, without a ``time_limit``, an
+estimated run time over ``MAX_SECONDS_UNLIMITED`` (1 h; ``10 n^3`` flops and a call overhead
+per interval, block or recursion step).
 The verification that stays is cheap: a count of non-finite entries and a PSD certificate, a
 Cholesky factor of every ``P_k`` shifted by a rounding-level multiple of I (exact eigenvalues
 only where one fails).  ``time_limit``
@@ -79,14 +89,25 @@ from scipy.linalg.lapack import dpotrf as _potrf
 from .._deadline import Deadline
 from .._validate import as_bool, as_positive_float, as_square, as_vector, check_psd
 from ..classical.bpf import bpf_evaluate, bpf_restart_blocks, bpf_riccati, filter_hamiltonian_trusted
-from ..classical.transition import as_hamiltonian, riccati_flow
+from ..classical.transition import riccati_flow
 from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.coerce import as_plant
 from ..model.plant import Plant
-from ..results import Check, DesignResult, SolverStats, Status, Verification
+from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
+from ._riccati_ode import (
+    _RHS_OVERHEAD_FLOPS,
+    ATOL_PER_RTOL,
+    RTOL_PER_TOL,
+    STIFF_RHO_T,
+    gain_factor,
+    integrate,
+    ode_integrator,
+    ode_tolerances,
+)
 
-__all__ = ["RiccatiTrajectory", "riccati_de", "ode_integrator", "DEFAULT_TOL", "DEFAULT_STEPS",
-           "PSD_RTOL", "STIFF_RHO_T"]
+__all__ = ["RiccatiTrajectory", "riccati_de", "ode_integrator", "ode_tolerances", "DEFAULT_TOL",
+           "DEFAULT_STEPS", "PSD_RTOL", "STIFF_RHO_T", "RTOL_PER_TOL", "ATOL_PER_RTOL",
+           "MAX_TRAJECTORY_BYTES", "MAX_SECONDS_UNLIMITED"]
 
 _METHODS = ("transition", "bpf", "ode")
 
@@ -99,13 +120,19 @@ DEFAULT_STEPS = 100
 #: smallest eigenvalue accepted as PSD: >= -(PSD_RTOL + method error) * max_k ||P_k||_F
 PSD_RTOL = 1e-10
 
-#: the ODE method considers Radau when rho(M) t_final exceeds this (see :func:`ode_integrator`)
-STIFF_RHO_T = 3e3
-
-#: Python overhead of one right-hand-side call, in flops (~20 us at a few Gflop/s; measured)
-_RHS_OVERHEAD_FLOPS = 1e5
 
 _EPS = float(np.finfo(float).eps)
+
+#: largest memory the trajectory may need (P, gains, the ODE's output and the error estimate's
+#: reference: ``8 k (3 n^2 + n p)`` bytes for k output times); larger requests are refused up front
+MAX_TRAJECTORY_BYTES = 2 * 1024**3
+
+#: largest estimated run time (seconds) accepted without a ``time_limit``: ``steps`` intervals,
+#: blocks or recursion steps of ``10 n^3`` flops plus ``_RHS_OVERHEAD_FLOPS`` each, at ``_FLOPS``
+MAX_SECONDS_UNLIMITED = 3600.0
+
+#: sustained flop rate assumed by the run-time estimate (one core, n^3 BLAS-3 work; conservative)
+_FLOPS = 2e9
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -156,6 +183,11 @@ class RiccatiTrajectory(DesignResult):
         certified lower bound, ``-11 n eps``), ``error_estimate`` (``<= tol``).
     dt : float or None
         The plant's sampling period.
+    route : Route
+        One stage, what ran: ``riccati_flow`` [engine] (transition), ``bpf_riccati`` [engine],
+        ``scipy.integrate.DOP853`` or ``scipy.integrate.Radau`` [backend] (ode),
+        ``riccati_recursion`` [direct] (discrete); outcome ``answered``, or the status when the
+        run stopped early.
     """
 
     t: NDArray[np.float64]
@@ -251,8 +283,10 @@ def riccati_de(
     steps: int | None = None,
     t_eval: ArrayLike | None = None,
     tol: float | None = None,
-    estimate_error: bool = True,
-    steady_state: bool = True,
+    rtol: float | None = None,
+    atol: float | None = None,
+    estimate_error: bool | None = None,
+    steady_state: bool = False,
     time_limit: float | None = None,
 ) -> RiccatiTrajectory:
     r"""Time-varying Kalman filter: solve the filter Riccati differential (difference) equation.
@@ -276,14 +310,24 @@ def riccati_de(
         ``"bpf"`` both may be given: m blocks, evaluated at ``t_eval``).  Discrete: multiples
         of ``dt``.
     tol : float, optional
-        Accuracy the ``error_estimate`` check demands (default 1e-8; bpf 1e-2).  For
-        ``"ode"`` it also sets the integrator's ``rtol = tol / 10^4`` (at least ``100 eps``).
-    estimate_error : bool
-        Compute ``error_estimate`` (costs one extra exact solve); if False it is nan and the
-        ``error_estimate`` check is left out.
+        Relative error asked of P, ``max_k ||P_k - P(t_k)||_F / max_k ||P(t_k)||_F`` (default
+        1e-8; bpf 1e-2): the ``error_estimate`` check demands it, and for ``"ode"`` it sets the
+        integrator's tolerances (``rtol = 1e-3 tol``: measured to meet ``tol``, see
+        :func:`~optdesign.design._riccati_ode.ode_tolerances`).
+    rtol : float, optional
+        ``"ode"`` only: relative error allowed per integrator step on each entry of P, in
+        ``[100 eps, 1)`` (overrides the default ``1e-3 tol``).  The error delivered is a
+        multiple of it: 0.02-500x measured, the large factors on stiff horizons.
+    atol : float, optional
+        ``"ode"`` only: absolute error allowed per step on each entry of P, in the units of P
+        (> 0, fixed).  Default: ``1e-3 rtol max_ij |P_ij|``, following the largest entry met.
+    estimate_error : bool, optional
+        Compute ``error_estimate`` (one extra exact solve); if False it is nan and the
+        ``error_estimate`` check is left out.  Default (None): True for ``"bpf"`` and ``"ode"``,
+        False for ``"transition"`` (where it would double the cost).
     steady_state : bool
         Solve the algebraic Riccati equation for ``P_steady``, ``L_steady`` and
-        ``steady_distance`` (one ARE solve); if False they are None / nan.
+        ``steady_distance`` (one ARE solve); default False: they are None / nan.
     time_limit : float, optional
         Seconds (None: unlimited).  When it runs out the trajectory computed so far is returned
         with status ``time_limit``; the error estimate and the steady state are then skipped.
@@ -300,7 +344,10 @@ def riccati_de(
         t_final: not a multiple of dt), steps not a positive integer (discrete: not
         ``t_final/dt``), t_eval not numeric / empty / not increasing / outside ``[0, t_final]``
         (discrete: not multiples of dt), steps and t_eval both given for transition/ode,
-        estimate_error or steady_state not a bool, time_limit not a number of seconds > 0.
+        estimate_error or steady_state not a bool, time_limit not a number of seconds > 0,
+        rtol / atol not a number > 0 (rtol in ``[100 eps, 1)``) or given with another method
+        than "ode"; a trajectory too large to store or (without time_limit) to compute in an
+        hour: the message names steps, t_eval or t_final and the estimate.
     DimensionError, NotFiniteError, NotSymmetricError, NotPositiveSemidefiniteError
         Bad P0 or t_eval (the message names the argument).
     RiccatiError
@@ -313,7 +360,7 @@ def riccati_de(
     >>> import numpy as np
     >>> from optdesign import Plant, riccati_de
     >>> plant = Plant([[0, 1], [-0.64, -0.32]], [[0, 1]], G=[[0], [1]], Q=[[1]], R=[[1]])
-    >>> traj = riccati_de(plant, np.zeros((2, 2)), 10.0)
+    >>> traj = riccati_de(plant, np.zeros((2, 2)), 10.0, steady_state=True)
     >>> traj.success, traj.steady_distance < 1e-3
     (True, True)
 
@@ -332,6 +379,13 @@ def riccati_de(
     t_final = as_positive_float("t_final", t_final)
     steps = _as_steps(steps)
     tol_v = DEFAULT_TOL[method] if tol is None else as_positive_float("tol", tol)
+    if method != "ode" and (rtol is not None or atol is not None):
+        name = "rtol" if rtol is not None else "atol"
+        raise ValidationError(f"{name} applies to method='ode' (the integrator's tolerance); found "
+                              f"{name}={rtol if rtol is not None else atol!r} with method={method!r}")
+    ode_tols = ode_tolerances(tol_v, rtol=rtol, atol=atol) if method == "ode" else {}
+    if estimate_error is None:                  # the approximate methods measure their error
+        estimate_error = method in ("bpf", "ode")
     post = {"estimate_error": as_bool("estimate_error", estimate_error),
             "steady_state": as_bool("steady_state", steady_state)}
     if plant.dt is not None:
@@ -343,11 +397,17 @@ def riccati_de(
     t_eval = _as_t_eval(t_eval, t_final)
     if method != "bpf" and steps is not None and t_eval is not None:
         raise ValidationError(f"give steps or t_eval, not both (method={method!r} returns P at t_eval)")
-    return _continuous(plant, P0, t_final, method, steps, t_eval, tol_v, post, clock)
+    nout = t_eval.size if t_eval is not None else (steps or DEFAULT_STEPS) + (method != "bpf")
+    work = (steps or DEFAULT_STEPS) if method == "bpf" else nout if method == "transition" else 0
+    name = "t_eval" if t_eval is not None and (method != "bpf" or steps is None) else "steps"
+    _check_size(n, plant.p, nout + (steps or DEFAULT_STEPS if method == "bpf" else 0), work, name,
+                clock.limit)
+    return _continuous(plant, P0, t_final, method, steps, t_eval, tol_v, ode_tols, post, clock)
 
 
 def _continuous(plant: Plant, P0: NDArray, t_final: float, method: str, steps: int | None,
-                t_eval: NDArray | None, tol: float, post: dict, clock: Deadline) -> RiccatiTrajectory:
+                t_eval: NDArray | None, tol: float, ode_tols: dict, post: dict,
+                clock: Deadline) -> RiccatiTrajectory:
     M = filter_hamiltonian_trusted(plant.A, plant.C, plant.process_noise(), plant.noise_covariances()[1])
     status, message = Status.SOLVED, ""
     asym = 0.0
@@ -388,7 +448,7 @@ def _continuous(plant: Plant, P0: NDArray, t_final: float, method: str, steps: i
             stats = SolverStats(backend="numpy", native_status="riccati_flow", time=elapsed,
                                 iterations=info["substeps"], extra=dict(info))
         else:
-            P, stats, status, message, scheme = _ode(M, P0, t, tol, clock)
+            P, stats, status, message, scheme = integrate(M, gain_factor(plant), P0, t, ode_tols, clock)
         t = t[:P.shape[0]]
     if P.shape[0] < requested and status is Status.SOLVED:
         status = Status.TIME_LIMIT
@@ -397,6 +457,26 @@ def _continuous(plant: Plant, P0: NDArray, t_final: float, method: str, steps: i
     err, kind = _error_estimate(M, P0, t, P, method, post["estimate_error"], clock)
     return _finish(plant, t, P, method, scheme, nsteps, err, kind, asym, status, message, stats,
                    tol, post, clock)
+
+
+def _check_size(n: int, p: int, outputs: int, work_steps: int, name: str, time_limit,
+                work_name: str | None = None) -> None:
+    """Refuse up front a trajectory that cannot be stored or would run for hours (see
+    ``MAX_TRAJECTORY_BYTES`` and ``MAX_SECONDS_UNLIMITED``); ``name`` (``work_name`` for the run
+    time, default ``name``) is the argument to blame."""
+    need = 8.0 * outputs * (3.0 * n * n + n * p)
+    if need > MAX_TRAJECTORY_BYTES:
+        raise ValidationError(
+            f"{name} asks to store {outputs:,} matrices of {n} x {n} (output times, blocks): about "
+            f"{need / 2**30:.3g} GiB, "
+            f"more than the {MAX_TRAJECTORY_BYTES / 2**30:g} GiB allowed (MAX_TRAJECTORY_BYTES); ask for fewer "
+            f"output times (steps or t_eval)")
+    seconds = work_steps * (10.0 * n**3 + _RHS_OVERHEAD_FLOPS) / _FLOPS
+    if time_limit is None and seconds > MAX_SECONDS_UNLIMITED:
+        raise ValidationError(
+            f"{work_name or name} asks for {work_steps:,} steps of n = {n}: about {seconds:.3g} s, more than the "
+            f"{MAX_SECONDS_UNLIMITED:g} s accepted without a time limit (MAX_SECONDS_UNLIMITED); ask for "
+            f"fewer or pass time_limit=")
 
 
 def _time_limit_message(clock: Deadline, t: NDArray, requested: int, t_final: float) -> str:
@@ -431,129 +511,6 @@ def _error_estimate(M: NDArray, P0: NDArray, t: NDArray, P: NDArray, method: str
     return _rel_diff(P, Pref), "measured: difference from the exact transition-matrix solution at t"
 
 
-# ------------------------------------------------------------------ ODE reference
-def ode_integrator(M: ArrayLike, t_final: float) -> tuple[str, dict]:
-    r"""The ``solve_ivp`` method used by ``riccati_de(method="ode")``, and why.
-
-    DOP853 (explicit, order 8) unless both
-
-    * the horizon spans many time constants of the Hamiltonian, ``rho(M) t_final >
-      STIFF_RHO_T``: an explicit method's step is then bounded by stability, not accuracy, so
-      its evaluations grow like ``4.8 rho(M) t_final`` (measured) while Radau's level off once
-      P has settled, and
-    * Radau's linear algebra is affordable: each of its evaluations also solves with the LU
-      factors of the ``N x N`` Jacobian, ``N = n^2`` (``10 N^2`` flops: one real and one complex
-      system) and refactors it every few steps (``~N^3 / 3`` flops per evaluation), which together
-      must not exceed one right-hand side (``6 n^3`` flops plus ``1e5`` for the call overhead):
-      n <= 7.
-
-    Measured at rtol 1e-12 (random plants as in the tests): Radau on n = 50 over 1000 s (before
-    issue 14, on the 1275 entries of vech(P)) took 50 s CPU on one plant, where DOP853 takes 13 s,
-    and 8.4 s for its first 3,000 evaluations (reaching t = 0.0125 s) on another; n = 20 over 200 s:
-    2.9 s against 0.28 s; n = 10 over 1000 s: 1.5x DOP853; CAREX 2.3 (n = 2, ``rho(M) = 1000``):
-    1.6x over 10 s and 0.2x over 100 s (break-even near ``rho(M) t_final = 1.6e4``; Radau is also
-    1e4 times more accurate there).
-
-    Parameters
-    ----------
-    M : (2n, 2n) array_like
-        Hamiltonian (:func:`~optdesign.classical.bpf.filter_hamiltonian`).
-    t_final : float
-
-    Returns
-    -------
-    integrator : {"DOP853", "Radau"}
-    info : dict
-        ``rho_t`` (``rho(M) t_final``), ``stiff``, ``implicit_affordable``.
-
-    Raises
-    ------
-    DimensionError, NotFiniteError
-        M not a finite 2n x 2n matrix.
-    ValidationError
-        t_final not a finite number > 0.
-    """
-    M, n = as_hamiltonian(M)
-    N = n * n
-    rho_t = float(np.max(np.abs(np.linalg.eigvals(M)))) * as_positive_float("t_final", t_final) if n else 0.0
-    stiff = rho_t > STIFF_RHO_T
-    affordable = 10.0 * N**2 + N**3 / 3.0 <= 6.0 * n**3 + _RHS_OVERHEAD_FLOPS
-    integrator = "Radau" if stiff and affordable else "DOP853"
-    return integrator, {"rho_t": rho_t, "stiff": stiff, "implicit_affordable": affordable}
-
-
-def _ode(M: NDArray, P0: NDArray, t: NDArray, tol: float, clock: Deadline):
-    from scipy.integrate import solve_ivp
-
-    n = P0.shape[0]
-    A, S, W = M[n:, n:], M[:n, n:], M[n:, :n]
-
-    def rhs(_t: float, y: NDArray) -> NDArray:
-        P = y.reshape(n, n)
-        H = A @ P - 0.5 * (P @ S @ P)
-        return (H + H.T + W).ravel()                           # exactly symmetric, whatever P
-
-    t_end = float(t[-1])
-    integrator, why = ode_integrator(M, t_end if t_end > 0 else 1.0)
-    rtol = max(100 * _EPS, tol * 1e-4)
-    scale = max(float(np.max(np.abs(P0))), float(np.max(np.abs(W))) * min(t_end if t_end > 0 else 1.0, 1.0),
-                np.finfo(float).tiny)
-    atol = rtol * 1e-3 * scale
-    kw: dict = {"jac": _jacobian(A, S)} if integrator == "Radau" else {}
-    if clock.limited:
-        kw["events"] = _OutOfTime(clock)
-    t0 = time.perf_counter()
-    sol = solve_ivp(rhs, (0.0, t_end), P0.ravel(), method=integrator, t_eval=t, rtol=rtol,
-                    atol=atol, **kw)
-    elapsed = time.perf_counter() - t0
-    P = np.ascontiguousarray(np.asarray(sol.y, dtype=float).T).reshape(-1, n, n)
-    tt = np.asarray(sol.t, dtype=float)
-    status = Status.SOLVED if sol.success else Status.NUMERICAL_ERROR
-    t_stop = tt[-1] if tt.size else 0.0
-    message = "" if sol.success else f"solve_ivp ({integrator}) stopped at t = {t_stop:g}: {sol.message}"
-    stats = SolverStats(backend="scipy.integrate.solve_ivp", native_status=str(sol.message),
-                        time=elapsed, iterations=int(sol.nfev),
-                        extra={"integrator": integrator, "rtol": rtol, "atol": atol,
-                               "nfev": int(sol.nfev), "njev": int(getattr(sol, "njev", 0) or 0),
-                               **why})
-    scheme = f"solve_ivp {integrator} on the n^2 entries of P (rtol {rtol:.1e}, atol {atol:.1e})"
-    return P, stats, status, message, scheme
-
-
-def _jacobian(A: NDArray, S: NDArray):
-    """The Jacobian ``Fc (x) I + I (x) Fc`` of ``vec(Fc X + X Fc')`` (row-major vec), ``Fc = A - P S``,
-    for Radau (dense ``n^2 x n^2``: used only where :func:`ode_integrator` finds it affordable)."""
-    n = A.shape[0]
-    eye = np.eye(n)
-
-    def jac(_t: float, y: NDArray) -> NDArray:
-        Fc = A - y.reshape(n, n) @ S
-        return np.kron(Fc, eye) + np.kron(eye, Fc)
-
-    return jac
-
-
-class _OutOfTime:
-    """A terminal ``solve_ivp`` event that fires once the deadline has expired.
-
-    ``solve_ivp`` evaluates events after every step; the first evaluation past the deadline
-    places a root at the middle of that step (``g(t) = t_stop - t``, continuous in t), so the
-    integration ends there with the output times reached so far.
-    """
-
-    terminal = True
-    direction = -1.0
-
-    def __init__(self, clock: Deadline) -> None:
-        self.clock = clock
-        self.t_stop = np.inf
-        self.t_last = 0.0
-
-    def __call__(self, t: float, _y: NDArray) -> float:
-        if self.t_stop == np.inf and self.clock.expired:
-            self.t_stop = 0.5 * (self.t_last + t)
-        self.t_last = t
-        return self.t_stop - t
 # ------------------------------------------------------------------ discrete time
 def _discrete(plant: Plant, dt: float, P0: NDArray, t_final: float, steps: int | None, t_eval,
               tol: float, post: dict, clock: Deadline) -> RiccatiTrajectory:
@@ -575,6 +532,8 @@ def _discrete(plant: Plant, dt: float, P0: NDArray, t_final: float, steps: int |
             raise ValidationError(f"t_eval must be multiples of dt = {dt:g} for a discrete plant; found "
                                   f"{te[bad][0]:g}")
         idx = k.astype(int)
+    _check_size(plant.n, plant.p, idx.size, N, "t_eval" if t_eval is not None else "t_final", clock.limit,
+                work_name="t_final")
     A, C, (_, R) = plant.A, plant.C, plant.noise_covariances()
     W = plant.process_noise()
     t0 = time.perf_counter()
@@ -716,6 +675,20 @@ def _steady(plant: Plant, P: NDArray, post: dict, clock: Deadline):
     return are.P, are.L, dist, ""
 
 
+def _route(method: str, scheme: str, status: Status, stats: SolverStats) -> Route:
+    """One stage: the engine (or the scipy integrator) that produced the trajectory."""
+    if method == "ode":
+        name, kind = stats.backend, "backend"
+    elif method == "bpf":
+        name, kind = "bpf_riccati", "engine"
+    elif stats.native_status == "riccati_recursion":
+        name, kind = "riccati_recursion", "direct"
+    else:
+        name, kind = "riccati_flow", "engine"
+    outcome = "answered" if status is Status.SOLVED else status.value
+    return Route([Stage(name, kind, outcome, scheme, stats.time)])
+
+
 def _finish(plant, t, P, method, scheme, nsteps, err, kind, asym, status, message, stats, tol,
             post, clock) -> RiccatiTrajectory:
     L = _gains(plant, P)
@@ -731,6 +704,7 @@ def _finish(plant, t, P, method, scheme, nsteps, err, kind, asym, status, messag
     if not message:
         message = f"{method}: {len(t)} times on [{t[0]:g}, {t[-1]:g}]" if len(t) else f"{method}: no output"
     return RiccatiTrajectory(
+        route=_route(method, scheme, status, stats),
         t=np.asarray(t, dtype=float), P=P, L=L, method=method, scheme=scheme, steps=int(nsteps),
         P_steady=P_ss, L_steady=L_ss, steady_distance=dist, error_estimate=float(err),
         error_kind=kind, asymmetry=float(asym), status=status, message=message, solver_stats=stats,
