@@ -15,7 +15,7 @@ from ..._validate import as_int, as_poles, as_positive_float, renamed
 from ...classical.placement import pole_error
 from ...classical.riccati import format_pole as _fmt
 from ...classical.solheim import solheim
-from ...errors import BackendUnavailableError, RiccatiError, ValidationError
+from ...errors import BackendUnavailableError, OptDesignError, RiccatiError, ValidationError
 from ...formulate.inverse_kalman import (
     OBJECTIVES,
     STRUCTURES,
@@ -30,6 +30,8 @@ from .certificates import identity_certificate
 from .common import (
     METHODS,
     best_unverified,
+    POLE_CHECKS,
+    design_from_Q,
     empty_result,
     make_stats,
     nominal_noise,
@@ -242,6 +244,21 @@ class InverseKalmanProblem:
         early = self._early_answer(target, common, dl)
         if early is not None:
             return early
+        nominal = None
+        if objective == "nearest" and self.Qn is not None:
+            nominal = nominal_design(plant, target, common, self.Qn, tol, dl)
+            if nominal is not None and nominal.verification.passed:
+                return nominal
+        res = honest_status(self._answer(method, target, common, seed, dl, warm_start))
+        if not res.success and res.L is None and nominal is not None:
+            # the routes found nothing; the nominal places the targets, some other check fails
+            res = with_status(nominal, nominal.status,
+                              f"{nominal.message}; the solver routes found nothing: {res.message}")
+        return res
+
+    def _answer(self, method, target, common, seed, dl, warm_start) -> InverseKalmanResult:
+        """The engine, then the SDP / NLP / sequential routes."""
+        plant, tol = self.plant, self.tol
         with quiet():
             engine = None
             if method in ("auto", "sdp") and self._engine_usable():
@@ -359,6 +376,46 @@ def zero_noise_design(plant, target, common, tol, dl):
                 "has the smallest trace",
         solver_stats=make_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
         objective_value=0.0, extra={}, **common)
+
+
+def nominal_design(plant, target, common, Qn, tol, dl):
+    """``objective="nearest"``: when the nominal noise itself places the targets (its Kalman
+    filter passes every check), it is the nearest Q there is (distance 0) -- no SDP needed.
+    ``None`` otherwise.  (The inverse LQR of harold's ``test_simple_dlqr``, whose targets come
+    from the nominal weight, went to an SDP that answered "unbounded", issue 26.)"""
+    structure = common["structure"]
+    Q, Qw = (Qn, None) if structure == "full" else (None, Qn)
+    if Qw is not None:
+        Q = plant.G @ Qw @ plant.G.T
+    try:
+        L, P, Q, Qw, ver, poles = design_from_Q(plant, target, structure, Q, Qw, tol)
+    except (RiccatiError, OptDesignError, np.linalg.LinAlgError, ValueError):
+        return None
+    if not all(c.passed for c in ver if c.name in POLE_CHECKS):
+        return None
+    ok = ver.passed
+    return InverseKalmanResult(
+        L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=Status.OPTIMAL if ok else Status.OPTIMAL_INACCURATE,
+        message="the nominal Q itself places the targets (its Kalman filter passes every check): it is "
+                "the nearest Q, at distance 0" if ok else
+                "the nominal Q itself places the targets (the pole checks pass) but its Riccati solution "
+                "fails " + ", ".join(c.name for c in ver.failed) + " (an ill-conditioned Riccati equation): "
+                "the nearest Q (distance 0), not verified",
+        solver_stats=make_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
+        objective_value=0.0, extra={}, **common)
+
+
+def honest_status(res: InverseKalmanResult) -> InverseKalmanResult:
+    """The statuses a design question can have: a feasibility question is never ``unbounded``,
+    and ``infeasible`` comes only with a certificate; a route that found nothing otherwise
+    answers ``not_found`` (issue 26: "the SDP failed: clarabel: infeasible" answered
+    ``unbounded`` on a feasible target)."""
+    st = Status(res.status)
+    if res.L is None and (st == Status.UNBOUNDED or (st.is_infeasible and res.certificate is None)):
+        return with_status(res, Status.NOT_FOUND,
+                           f"no verified design, feasibility unknown (the solver's {st.value!r} is not a "
+                           f"certificate): {res.message}")
+    return res
 
 
 def run_sequential(plant, target, common, tol, dl):
