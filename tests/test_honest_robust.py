@@ -60,3 +60,30 @@ def test_dense_points_capped():
     ms = _random_polytope(5)
     with pytest.raises(ValidationError, match="dense_points must be at most"):
         od.robust_observer(ms, region=HalfPlane(0.5), dense_points=10**7)
+
+
+def test_robust_lmi_refuses_what_cannot_fit(monkeypatch):
+    """n = 300 with two models asked for 32.6 GB and aborted the interpreter (issue 26); the size
+    is refused up front with the estimate (budget lowered here so the test is machine-independent)."""
+    import optdesign.design.robust_lmi as rl
+    monkeypatch.setattr(rl, "memory_budget", lambda: 100 * 2**20)
+    rng = np.random.default_rng(0)
+    n = 100
+    ms = ModelSet([od.Plant(-np.eye(n) + 0.1 * rng.standard_normal((n, n)), rng.standard_normal((2, n)))
+                   for _ in range(2)])
+    assert rl.lmi_memory_estimate(300, 2) == 32_617_082_400
+    with pytest.raises(ValidationError, match=r"needs at least 0\.4 GiB .* more than the 0\.1 GiB"):
+        od.robust_lmi_observer(ms)
+
+
+def test_vary_counts_before_building():
+    pl = od.Plant(np.random.default_rng(0).standard_normal((5, 5)), np.eye(5))
+    with pytest.raises(ValidationError, match="vary with 20 entries .* asks for 1048577 models; at most 4096"):
+        ModelSet.vary(pl, [(i, j) for i in range(5) for j in range(4)], 0.1)
+    assert len(ModelSet.vary(pl, [(0, 0), (1, 1)], 0.1)) == 5
+
+
+def test_sample_grid_counts_before_building():
+    pl = od.Plant(-np.eye(2), [[1.0, 0.0]])
+    with pytest.raises(ValidationError, match="sample with grid=100 over 2 parameters"):
+        ModelSet.sample(lambda t: pl, [(0, 1), (0, 1)], grid=100)
