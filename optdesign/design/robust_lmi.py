@@ -31,7 +31,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import Deadline, as_time_limit
+from .._deadline import Deadline, as_time_limit, memory_budget
 from .._validate import as_gain_mask, as_int, as_positive_float
 from ..errors import ValidationError
 from ..formulate.robust_lmi import build_robust_lmi, default_margin
@@ -160,16 +160,6 @@ def robust_lmi_observer(
         deadline=deadline,
         options=options,
     )
-
-
-def memory_budget() -> int:
-    """Bytes a solve may use: half the machine's physical memory (4 GiB where it cannot be read)."""
-    import os
-
-    try:
-        return int(os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")) // 2
-    except (AttributeError, ValueError, OSError):  # pragma: no cover - non-POSIX
-        return 4 << 30
 
 
 def lmi_memory_estimate(n: int, models: int) -> int:

@@ -207,11 +207,15 @@ class InverseKalmanProblem:
         plant.require_observable(what="placing every filter pole")
         self._engine: EngineSetup | None = None
 
-    def engine(self) -> EngineSetup:
-        """The inverse Kalman engine's per-plant state (built on first use)."""
-        if self._engine is None:
-            self._engine = engine_setup(self.plant, self.structure, self.objective)
-        return self._engine
+    def engine(self, dl: Deadline | None = None) -> EngineSetup:
+        """The inverse Kalman engine's per-plant state (built on first use; its set-up counts
+        against ``dl``, and a set-up the deadline cut short is used once, not kept)."""
+        if self._engine is not None:
+            return self._engine
+        setup = engine_setup(self.plant, self.structure, self.objective, dl)
+        if dl is None or not dl.expired:
+            self._engine = setup
+        return setup
 
     def solve(self, poles: ArrayLike, *, method: str = "auto", seed: int = 0,
               time_limit: float | None = None, warm_start: Any = None) -> InverseKalmanResult:
@@ -264,7 +268,7 @@ class InverseKalmanProblem:
             if method in ("auto", "sdp") and self._engine_usable():
                 warm = (engine_warm_start(warm_start) if isinstance(warm_start, InverseKalmanResult)
                         else warm_start)
-                engine = run_engine(self.engine(), target, common, self.Qn, tol, seed, dl, warm)
+                engine = run_engine(self.engine(dl), target, common, self.Qn, tol, seed, dl, warm)
                 if engine is not None and (engine.success or engine.status == Status.TIME_LIMIT):
                     return engine
                 err = None if engine is None else uncomputable_poles(plant, engine, target, tol)
