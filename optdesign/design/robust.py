@@ -70,6 +70,7 @@ from ..results import Certificate, Check, SolverStats, Status, Verification
 from ..solvers.casadi_backend import solve_nlpsol
 from .robust_lmi import certify_gain, lmi_design
 from .robust_result import (
+    robust_route,
     RobustObserverDesign,
     RobustStart,
     as_regions,
@@ -272,7 +273,8 @@ def _design(spec: _Spec) -> RobustObserverDesign:
     nlp = _build(spec, start_list)
     judge = _Judge(spec, nlp)
     best, records = _search(spec, nlp, judge, start_list)
-    return _nlp_result(spec, best, records, lmi_res, per_model, t_start)
+    res = _nlp_result(spec, best, records, lmi_res, per_model, t_start)
+    return dataclasses.replace(res, route=robust_route(res))
 
 
 def _starts(spec: _Spec) -> tuple[RobustObserverDesign | None, list[RobustObserverDesign], list]:
@@ -631,6 +633,16 @@ def _nlp_result(
         ms, L, regions[ms.nominal if ms.nominal is not None else 0], spec.dense_points, spec.seed
     )
     verification, polytope_note, polytope_ok = polytope_claim(ms, best.verification, cert, dense)
+    if polytope_ok is False and _lmi_covers_polytope(lmi_res):
+        # the NLP's gain leaves the region inside the polytope; the LMI gain is proven on all of it
+        mm_l = evaluate_models(ms, lmi_res.L, regions)
+        value_l = _value_of(objective, aggregate, mm_l, lmi_res.L, np.asarray(ms.weights, dtype=float))
+        return dataclasses.replace(
+            lmi_res, method="nlp", objective=objective, aggregate=aggregate, value=value_l, metrics=mm_l,
+            starts=tuple(records), lmi=lmi_res, extra={**lmi_res.extra, **extra},
+            message=(f"the NLP's best gain is verified at the vertices only{polytope_note}; the LMI gain, "
+                     f"proven on the whole polytope by its common Lyapunov certificate, is returned: "
+                     f"{lmi_res.message}"))
     improvement = math.nan
     if lmi_res is not None and np.all(np.isfinite(lmi_res.L)) and lmi_res.metrics is not None:
         lv = _value_of(objective, aggregate, lmi_res.metrics, lmi_res.L, np.asarray(ms.weights, dtype=float))
@@ -675,6 +687,12 @@ def _nlp_result(
         extra=extra,
         certificate=None if cert is None else Certificate("lmi", how, cert.as_dict()),
     )
+
+
+def _lmi_covers_polytope(lmi_res) -> bool:
+    """The LMI start succeeded and its certificate covers the convex hull of the models."""
+    return bool(lmi_res is not None and lmi_res.success and lmi_res.lmi_certificate is not None
+                and lmi_res.lmi_certificate.holds and lmi_res.lmi_certificate.covers == "convex hull")
 
 
 #: the most random interior plants :func:`robust_observer` draws (each costs an eigendecomposition,

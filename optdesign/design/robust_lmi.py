@@ -23,6 +23,8 @@ MathWorks Robust Control Toolbox, ``msfsyn`` (multi-model / multi-objective stat
 
 from __future__ import annotations
 
+import dataclasses
+
 import math
 import time
 import warnings
@@ -41,6 +43,7 @@ from ..results import Certificate, Check, SolverStats, Status, Verification
 from ..solvers.cvxpy_backend import solve_cvxpy
 from .robust_result import (
     RobustObserverDesign,
+    robust_route,
     as_regions,
     check_choice,
     failed_design,
@@ -145,7 +148,7 @@ def robust_lmi_observer(
             "the H2 / H-infinity objectives and bounds need a noise model (Q and R) in every model"
         )
     deadline = Deadline(as_time_limit(time_limit))
-    return lmi_design(
+    res = lmi_design(
         ms,
         regions,
         objective,
@@ -160,6 +163,7 @@ def robust_lmi_observer(
         deadline=deadline,
         options=options,
     )
+    return dataclasses.replace(res, route=robust_route(res))
 
 
 def lmi_memory_estimate(n: int, models: int) -> int:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -22,6 +23,7 @@ from ...solvers.polish import min_norm_lstsq
 from ..verification import riccati_checks
 from .common import EPS, make_stats, project_psd, quiet, stable_poles, sym
 from .results import InfeasibilityCertificate, KalmanOptimalityResult
+from .route import optimality_route
 from .sdp_stage import feasibility_margin, polished_point, sdp_fixed_gain, whitening
 
 
@@ -104,7 +106,8 @@ def is_kalman_optimal(
         R = renamed("R", None, "a positional R", args[0], None, stacklevel=3)
     solver = renamed("sdp_solver", sdp_solver, "solver", solver, None, stacklevel=3)
     with quiet():
-        return decide_optimality(plant, L, R, omega, solver, tol, time_limit)
+        res = decide_optimality(plant, L, R, omega, solver, tol, time_limit)
+    return dataclasses.replace(res, route=optimality_route(res))
 
 
 def gain_relation_checks(plant: Plant, L: NDArray, R: NDArray):

@@ -44,6 +44,7 @@ from .common import (
 from .engine_route import engine_setup, engine_warm_start, run_engine
 from .nlp_route import run_nlp
 from .results import InfeasibilityCertificate, InverseKalmanResult
+from .route import inverse_kalman_route
 from .sdp_route import fixed_gain_design, run_sdp
 
 
@@ -247,21 +248,24 @@ class InverseKalmanProblem:
                       structure=structure, plant=plant)
         early = self._early_answer(target, common, dl)
         if early is not None:
-            return early
+            name = "zero_noise" if early.certificate is None else str(early.certificate.kind)
+            return dataclasses.replace(early, route=inverse_kalman_route(early, early=name))
         nominal = None
         if objective == "nearest" and self.Qn is not None:
             nominal = nominal_design(plant, target, common, self.Qn, tol, dl)
             if nominal is not None and nominal.verification.passed:
-                return nominal
-        res = honest_status(self._answer(method, target, common, seed, dl, warm_start))
+                return dataclasses.replace(nominal, route=inverse_kalman_route(nominal, early="nominal_noise"))
+        res, engine = self._answer(method, target, common, seed, dl, warm_start)
+        res = honest_status(res)
         if not res.success and res.L is None and nominal is not None:
             # the routes found nothing; the nominal places the targets, some other check fails
             res = with_status(nominal, nominal.status,
                               f"{nominal.message}; the solver routes found nothing: {res.message}")
-        return res
+        return dataclasses.replace(res, route=inverse_kalman_route(res, engine=engine, nominal=nominal))
 
-    def _answer(self, method, target, common, seed, dl, warm_start) -> InverseKalmanResult:
-        """The engine, then the SDP / NLP / sequential routes."""
+    def _answer(self, method, target, common, seed, dl, warm_start):
+        """The engine, then the SDP / NLP / sequential routes: ``(answer, the engine's result or
+        None)``."""
         plant, tol = self.plant, self.tol
         with quiet():
             engine = None
@@ -270,7 +274,7 @@ class InverseKalmanProblem:
                         else warm_start)
                 engine = run_engine(self.engine(dl), target, common, self.Qn, tol, seed, dl, warm)
                 if engine is not None and (engine.success or engine.status == Status.TIME_LIMIT):
-                    return engine
+                    return engine, engine
                 err = None if engine is None else uncomputable_poles(plant, engine, target, tol)
                 if err is not None and engine is not None:  # the other routes cannot help
                     own = engine.verification["pole_error"].value
@@ -278,9 +282,9 @@ class InverseKalmanProblem:
                                                f"poles fix the gain, and neither the engine's nor the "
                                                f"placed gain refined for its poles places them to the "
                                                f"tolerance (pole errors {own:.1e}, {err:.1e}); the other "
-                                               f"routes were not run")
+                                               f"routes were not run"), engine
             res = self._route(method, target, common, seed, dl)
-            return res if engine is None else _best_of(plant, res, engine)
+            return (res, None) if engine is None else (_best_of(plant, res, engine), engine)
 
     def _engine_usable(self) -> bool:
         """The engine certifies with Clarabel: used unless another SDP solver was asked for or
