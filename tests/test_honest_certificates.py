@@ -102,3 +102,15 @@ def test_solver_verdict_without_certificate_is_not_found(status):
     res = honest_status(empty_result(common, status, "the SDP failed: clarabel: infeasible", None, None))
     assert res.status == Status.NOT_FOUND
     assert "not a certificate" in res.message
+
+
+def test_is_kalman_optimal_keeps_a_short_time_limit():
+    """n = 60, time_limit = 1 returned after 2.7 s (the SDP's set-up past the deadline); now the
+    SDP is not started when its set-up alone would run past the limit: status time_limit, with the
+    reason in the message."""
+    plant, L = _care_gain_plant(seed=0)
+    res = od.is_kalman_optimal(plant, L, time_limit=1)
+    assert res.status == Status.TIME_LIMIT
+    assert res.certificate is None
+    assert "set-up" in res.message or "time limit" in res.message
+    assert res.route.names[0] == "circle_condition"
