@@ -3,6 +3,7 @@
 import tracemalloc
 
 import numpy as np
+
 import optdesign as od
 from optdesign._deadline import Deadline, dense_kkt_refusal
 from optdesign.solvers.clarabel_fixed_gain import _triangle_map, family_map

@@ -25,8 +25,8 @@ def _interior_outside(ms, L, region, count=200, seed=123):
     out = 0
     for _ in range(count):
         w = rng.dirichlet(np.ones(len(ms)))
-        A = sum(wi * pl.A for wi, pl in zip(w, ms))
-        C = sum(wi * pl.C for wi, pl in zip(w, ms))
+        A = sum(wi * pl.A for wi, pl in zip(w, ms, strict=True))
+        C = sum(wi * pl.C for wi, pl in zip(w, ms, strict=True))
         out += bool(region.margin(np.linalg.eigvals(A - L @ C)) > 1e-9)
     return out
 
@@ -81,7 +81,8 @@ def test_robust_lmi_refuses_what_cannot_fit(monkeypatch):
 
 def test_vary_counts_before_building():
     pl = od.Plant(np.random.default_rng(0).standard_normal((5, 5)), np.eye(5))
-    with pytest.raises(ValidationError, match="vary with 20 entries .* asks for 1048577 models; at most 4096"):
+    with pytest.raises(ValidationError,
+                       match="vary with 20 entries .* asks for 1048577 models; at most 4096"):
         ModelSet.vary(pl, [(i, j) for i in range(5) for j in range(4)], 0.1)
     assert len(ModelSet.vary(pl, [(0, 0), (1, 1)], 0.1)) == 5
 

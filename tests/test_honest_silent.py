@@ -72,8 +72,8 @@ def test_region_design_on_dis1_prints_nothing(capfd):
     import optdesign as od
     from optdesign.regions import Disk, HalfPlane, Sector
     plant = od.problems.load("compleib_dis1").plant
-    res = od.well_conditioned_observer(plant, region=HalfPlane(0.3) & Sector.from_damping(0.5) & Disk(0, 10.0),
-                                       time_limit=4)
+    region = HalfPlane(0.3) & Sector.from_damping(0.5) & Disk(0, 10.0)
+    res = od.well_conditioned_observer(plant, region=region, time_limit=4)
     out, err = capfd.readouterr()
     assert out == "" and err == ""
     assert res.L is not None

@@ -226,7 +226,8 @@ def test_trade_off_kappa2_under_an_h2_bound():
 
 def test_h2_objective_and_hinf_bound():
     ms = aircraft_set(0.1)
-    res = robust_observer(ms, region=REGION, objective="h2", per_model_starts=False, starts=0, dense_points=50)
+    res = robust_observer(ms, region=REGION, objective="h2", per_model_starts=False, starts=0,
+                          dense_points=50)
     assert res.success, res.message
     kal = max(estimation_error_h2(pl, filter_are(pl).L) for pl in ms)
     assert res.value >= kal * (1 - 1e-9)  # no gain beats a model's own Kalman filter

@@ -93,8 +93,15 @@ from .._deadline import Deadline
 from .._validate import as_bool, as_frequencies, as_matrix, as_positive_float, as_real, as_vector, check_pd
 from ..errors import ValidationError
 from ..model.plant import Plant
-from .frequency import (CHUNK, adaptive_minimize, as_gain, frequency_grid, frequency_points, nudge_off_poles,
-                        return_difference_floor)
+from .frequency import (
+    CHUNK,
+    adaptive_minimize,
+    as_gain,
+    frequency_grid,
+    frequency_points,
+    nudge_off_poles,
+    return_difference_floor,
+)
 
 __all__ = [
     "return_difference",

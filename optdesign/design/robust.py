@@ -70,7 +70,6 @@ from ..results import Certificate, Check, SolverStats, Status, Verification
 from ..solvers.casadi_backend import solve_nlpsol
 from .robust_lmi import certify_gain, lmi_design
 from .robust_result import (
-    robust_route,
     RobustObserverDesign,
     RobustStart,
     as_regions,
@@ -78,6 +77,7 @@ from .robust_result import (
     failed_design,
     fixed_mode_certificate,
     optional_bound,
+    robust_route,
 )
 from .robust_verify import DenseCheck, ModelMetrics, dense_check, evaluate_models, gain_checks
 
@@ -705,7 +705,8 @@ def dense_count(value: Any) -> int:
     ``dense_points=10**7`` unbounded)."""
     k = as_int("dense_points", value, 0)
     if k > DENSE_POINTS_MAX:
-        raise ValidationError(f"dense_points must be at most {DENSE_POINTS_MAX} (each interior plant costs an "
+        raise ValidationError(f"dense_points must be at most {DENSE_POINTS_MAX} (each interior plant "
+                              f"costs an "
                               f"eigendecomposition, kappa2 and an H2 solve); found {k}")
     return k
 
@@ -726,7 +727,8 @@ def polytope_claim(ms: ModelSet, verification: Verification, cert, dense: DenseC
     if cert is not None and cert.holds and cert.covers == "convex hull":
         check = Check.at_most("polytope_interior", 0.0, 0.0,
                               "a common Lyapunov certificate covers every convex combination of the models")
-        return verification + Verification.of([check]), "; the polytope by a common Lyapunov certificate", True
+        note = "; the polytope by a common Lyapunov certificate"
+        return verification + Verification.of([check]), note, True
     if dense.count == 0:
         check = Check.at_most("polytope_interior", math.nan, 0.0,
                               "no certificate and no interior plant checked (dense_points=0): only the "
@@ -735,14 +737,16 @@ def polytope_claim(ms: ModelSet, verification: Verification, cert, dense: DenseC
                 "; ONLY THE VERTICES were verified: no certificate and dense_points=0", None)
     outside = dense.count - dense.in_region
     check = Check.at_most("polytope_interior", float(outside), 0.0,
-                          f"random interior plants (of {dense.count}) with a pole outside the region or unstable")
+                          f"random interior plants (of {dense.count}) with a pole outside the region or "
+                          f"unstable")
     if outside:
         return (verification + Verification.of([check]),
                 f"; but NOT on the polytope: {outside} of {dense.count} random interior plants have poles "
                 f"outside the region (worst margin {dense.worst_margin:.3g}); only the vertices are verified",
                 False)
     return (verification + Verification.of([check]),
-            f"; no certificate for the polytope, all {dense.count} random interior plants in the region", True)
+            f"; no certificate for the polytope, all {dense.count} random interior plants in the region",
+            True)
 
 
 # --------------------------------------------------------------------------- helpers for users

@@ -24,7 +24,6 @@ MathWorks Robust Control Toolbox, ``msfsyn`` (multi-model / multi-objective stat
 from __future__ import annotations
 
 import dataclasses
-
 import math
 import time
 import warnings
@@ -43,12 +42,12 @@ from ..results import Certificate, Check, SolverStats, Status, Verification
 from ..solvers.cvxpy_backend import solve_cvxpy
 from .robust_result import (
     RobustObserverDesign,
-    robust_route,
     as_regions,
     check_choice,
     failed_design,
     fixed_mode_certificate,
     optional_bound,
+    robust_route,
 )
 from .robust_verify import (
     LMICertificate,
@@ -188,7 +187,8 @@ def check_lmi_size(ms: ModelSet) -> None:
         raise ValidationError(
             f"the robust LMI for {len(ms)} models of order n = {ms.n} needs at least {need / 2**30:.1f} GiB "
             f"(a dense block of (n(n+1)/2)^2 doubles per model in the interior-point solve), more than the "
-            f"{budget / 2**30:.1f} GiB available to it: reduce the order (a balanced truncation) or the number "
+            f"{budget / 2**30:.1f} GiB available to it: reduce the order (a balanced truncation) or the "
+            f"number "
             f"of models")
 
 

@@ -359,7 +359,8 @@ def robust_route(res: RobustObserverDesign) -> Route:
         detail = "" if st is None else f"{st.backend}: {st.native_status}"
         answered = has_gain and Status(res.status).is_solved and (
             res.method == "lmi" or (lmi is not res and np.array_equal(res.L, lmi.L)))
-        stages.append(Stage("robust_lmi", "backend", "answered" if answered else Status(lmi.status).value, detail))
+        out = "answered" if answered else Status(lmi.status).value
+        stages.append(Stage("robust_lmi", "backend", out, detail))
     if res.method == "nlp":
         verified = [s for s in res.starts if s.verified]
         from_lmi = lmi is not None and lmi is not res and has_gain and np.array_equal(res.L, lmi.L)

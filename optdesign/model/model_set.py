@@ -352,7 +352,8 @@ class ModelSet:
         for i, j in idx:
             if not (0 <= i < X0.shape[0] and 0 <= j < X0.shape[1]):
                 raise ValidationError(f"entry ({i}, {j}) is outside {matrix}, which has shape {X0.shape}")
-        check_model_count(2 ** len(idx) + bool(include_nominal), f"vary with {len(idx)} entries (2**{len(idx)} corners)")
+        check_model_count(2 ** len(idx) + bool(include_nominal),
+                          f"vary with {len(idx)} entries (2**{len(idx)} corners)")
         corners = np.array(list(itertools.product((-size, size), repeat=len(idx))), dtype=float)
         deltas = np.vstack([corners, np.zeros((1, len(idx)))]) if include_nominal else corners
 
@@ -441,7 +442,8 @@ class ModelSet:
         if grid is not None:
             grid = as_int("grid", grid, 2)
             check_model_count(grid ** len(names) + samples + bool(include_nominal),
-                              f"sample with grid={grid} over {len(names)} parameters ({grid}**{len(names)} points)")
+                              f"sample with grid={grid} over {len(names)} parameters "
+                              f"({grid}**{len(names)} points)")
             axes = [np.linspace(lo, hi, grid) for lo, hi in box]
             pts.extend(np.array(t, dtype=float) for t in itertools.product(*axes))
         rng = np.random.default_rng(seed)

@@ -170,7 +170,9 @@ def continuous_triangle_map(A: NDArray, N: NDArray) -> NDArray[np.float64]:
     for c in range(Ii.size):
         i, j = Ii[c], Ji[c]
         # X = (e_i e_j' + e_j e_i') / w (once on the diagonal); N X N' = (N_i N_j' + N_j N_i') / w
-        M = np.outer(AN[:, i], N[:, j]) + np.outer(AN[:, j], N[:, i]) if i != j else np.outer(AN[:, i], N[:, i])
+        M = np.outer(AN[:, i], N[:, j])
+        if i != j:
+            M = M + np.outer(AN[:, j], N[:, i])
         Y = -(M + M.T) / wi[c]
         T[:, c] = Y[Io, Jo] * wo
     return T

@@ -106,7 +106,8 @@ class OneOutputForm:
     basis: NDArray[np.float64] = field(repr=False)
 
 
-def one_output_form_of_plant(A: NDArray, C: NDArray, deadline: Deadline | None = None) -> OneOutputForm | None:
+def one_output_form_of_plant(A: NDArray, C: NDArray,
+                             deadline: Deadline | None = None) -> OneOutputForm | None:
     r"""The n-constraint form of a one-output continuous plant, without the family's directions T.
 
     ``W`` is orthogonal to every direction ``-(A M + M A')``, ``M = N X N'``, iff
@@ -157,7 +158,6 @@ def one_output_form(T: NDArray) -> OneOutputForm | None:
     p)(n - p + 1)/2`` for p): the complement of ``range(T)`` by a complete QR factorization (of
     dimension n for one output, ``n p - p(p - 1)/2`` for p); None when T does not have full column
     rank (a direction of the family does not move Q: the form does not describe the family)."""
-    import scipy.sparse as sp
 
     T = np.asarray(T, dtype=float)
     t, m = T.shape

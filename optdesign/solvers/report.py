@@ -131,7 +131,7 @@ def captured_output() -> Iterator[Captured]:
                 saved.append(os.dup(fd))
                 os.dup2(tmp.fileno(), fd)
         except OSError:  # pragma: no cover - no descriptors 1/2 (embedded interpreters)
-            for fd, old in zip((1, 2), saved):
+            for fd, old in zip((1, 2), saved, strict=False):
                 os.dup2(old, fd)
                 os.close(old)
             saved = []
@@ -141,7 +141,7 @@ def captured_output() -> Iterator[Captured]:
         finally:
             sys.stdout, sys.stderr = py_out, py_err
             _flush_c_stdio()
-            for fd, old in zip((1, 2), saved):
+            for fd, old in zip((1, 2), saved, strict=False):
                 os.dup2(old, fd)
                 os.close(old)
             tmp.seek(0)

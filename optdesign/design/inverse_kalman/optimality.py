@@ -343,8 +343,10 @@ def optimality_by_sdp(ctx: OptimalityContext, circ, solver, tol, deadline) -> Ka
     what = (f"the margin SDP gave {t_star:.4g} ({rep.stats.native_status})" if P0 is not None else
             f"the fixed-gain SDP failed ({rep.message})")
     in_floor = circ is not None and circ.min_eigenvalue < -circ.tol
-    holds = (f", while the return-difference inequality holds ({circ_txt})" if circ is not None and not in_floor
-             else f"; the return-difference inequality fails only inside its rounding floor ({circ_txt}, floor "
+    holds = (f", while the return-difference inequality holds ({circ_txt})"
+             if circ is not None and not in_floor
+             else f"; the return-difference inequality fails only inside its rounding floor "
+                  f"({circ_txt}, floor "
                   f"{circ.rounding_floor:.2g}: rounding, not evidence)" if in_floor else "")
     msg = (f"inconclusive: {what}, but no polished PSD Q reproduces L" + holds
            + ("; " + "; ".join(notes) if notes else ""))

@@ -52,7 +52,8 @@ def _route_stages(res: Any) -> list[Stage]:
     if "solheim" in d:
         stages.append(Stage("sequential (Solheim)", "direct", "solved"))
     if "circle" in d:
-        stages.append(Stage("return_difference", "certificate", "no proof", "the inequality holds at the gain"))
+        stages.append(Stage("return_difference", "certificate", "no proof",
+                            "the inequality holds at the gain"))
     if "refused" in d:
         stages.append(Stage("direct_form_sdp", "backend", "skipped", str(d["refused"])[:80]))
     return stages

@@ -29,8 +29,8 @@ from ..verification import POLE_FLOOR_CAP, pole_tolerance
 from .certificates import identity_certificate
 from .common import (
     METHODS,
-    best_unverified,
     POLE_CHECKS,
+    best_unverified,
     design_from_Q,
     empty_result,
     make_stats,
@@ -254,7 +254,8 @@ class InverseKalmanProblem:
         if objective == "nearest" and self.Qn is not None:
             nominal = nominal_design(plant, target, common, self.Qn, tol, dl)
             if nominal is not None and nominal.verification.passed:
-                return dataclasses.replace(nominal, route=inverse_kalman_route(nominal, early="nominal_noise"))
+                route = inverse_kalman_route(nominal, early="nominal_noise")
+                return dataclasses.replace(nominal, route=route)
         res, engine = self._answer(method, target, common, seed, dl, warm_start)
         res = honest_status(res)
         if not res.success and res.L is None and nominal is not None:
