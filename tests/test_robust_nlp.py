@@ -226,7 +226,8 @@ def test_trade_off_kappa2_under_an_h2_bound():
 
 def test_h2_objective_and_hinf_bound():
     ms = aircraft_set(0.1)
-    res = robust_observer(ms, region=REGION, objective="h2", per_model_starts=False, starts=0, dense_points=0)
+    res = robust_observer(ms, region=REGION, objective="h2", per_model_starts=False, starts=0,
+                          dense_points=50)
     assert res.success, res.message
     kal = max(estimation_error_h2(pl, filter_are(pl).L) for pl in ms)
     assert res.value >= kal * (1 - 1e-9)  # no gain beats a model's own Kalman filter
@@ -275,7 +276,7 @@ def test_per_model_designs_and_the_nominal_gain_on_the_others():
     assert mm.kappa2.shape == (9,) and dense.count == 20
     # the nominal design is not robust here: some model's poles leave the region
     assert not ver.passed and ver["region_margin"].value > 0
-    full = robust_observer(ms, region=REGION, starts=0, dense_points=0, options=FAST)
+    full = robust_observer(ms, region=REGION, starts=0, dense_points=50, options=FAST)
     assert full.success and len(full.extra["per_model"]) == 9
     assert any("nominal" in s.origin for s in full.starts)
 
@@ -288,7 +289,7 @@ def test_ipopt_route_runs_and_is_verified():
         nlp_solver="ipopt",
         per_model_starts=False,
         starts=0,
-        dense_points=0,
+        dense_points=50,
         options={"orders": (None,), "maxiter": 100},
     )
     assert res.success  # never worse than its verified LMI start

@@ -20,7 +20,8 @@ from .._validate import as_int, as_matrix, as_positive_float, as_vector
 from ..errors import ValidationError
 from ..model.plant import Plant
 
-__all__ = ["as_gain", "frequency_points", "frequency_grid", "nudge_off_poles", "adaptive_minimize", "CHUNK"]
+__all__ = ["as_gain", "frequency_points", "frequency_grid", "nudge_off_poles", "adaptive_minimize", "CHUNK",
+           "return_difference_floor"]
 
 #: frequencies evaluated per vectorized call while a time budget runs (checked between chunks)
 CHUNK = 128
@@ -258,3 +259,48 @@ def adaptive_minimize(
     if full_output:
         return w[order], v[order], complete
     return w[order], v[order]
+
+
+def return_difference_floor(plant: Plant, L: NDArray, V: NDArray, R: NDArray, omega: float) -> float:
+    r"""The rounding floor of ``lambda_min(T V T^* - R)`` at one frequency (absolute).
+
+    ``T = I + C X`` with ``X = (s I - A)^-1 L`` from a backward-stable LU solve, whose forward
+    error is at most ``eps cond_1(sI - A) ||X||`` (Higham, *Accuracy and Stability of Numerical
+    Algorithms*, 2nd ed., Thm 7.2); so ``||dT|| <= eps ||C|| cond(sI - A) ||X||``, and the
+    Hermitian form ``T V T^* - R`` is known to ``2 ||T|| ||V|| ||dT|| + p eps (||T||^2 ||V|| +
+    ||R||)`` (Weyl: its eigenvalues move by at most that).  A violation smaller than this is
+    rounding, not evidence (issue 26: ``-8e-5`` against ``||T R T^*|| = 6.7e11`` called a true
+    Kalman gain "infeasible").
+
+    Parameters
+    ----------
+    plant : Plant
+    L : (n, p) ndarray
+    V, R : (p, p) ndarrays
+        The weights of ``T V T^* >= R`` (continuous: ``V = R``).
+    omega : float
+        Frequency (rad/s).
+
+    Returns
+    -------
+    float
+        The floor (``inf`` where ``sI - A`` is singular to working precision).
+    """
+    import scipy.linalg as sla
+
+    eps = float(np.finfo(float).eps)
+    n, p = plant.n, plant.p
+    s = complex(frequency_points(plant, np.array([float(omega)]))[0])
+    M = s * np.eye(n) - plant.A
+    try:
+        lu, piv = sla.lu_factor(M, check_finite=False)
+        X = sla.lu_solve((lu, piv), L.astype(complex), check_finite=False)
+        rcond = float(sla.lapack.zgecon(lu, float(np.linalg.norm(M, 1)), norm="1")[0])
+    except (np.linalg.LinAlgError, ValueError):
+        return math.inf
+    if not (rcond > 0.0 and np.all(np.isfinite(X))):
+        return math.inf
+    T = np.eye(p) + plant.C @ X
+    nT, nV, nR = (float(np.linalg.norm(T, 2)), float(np.linalg.norm(V, 2)), float(np.linalg.norm(R, 2)))
+    dT = eps * float(np.linalg.norm(plant.C, 2)) * float(np.linalg.norm(X, 2)) / rcond
+    return 2.0 * nT * nV * dT + p * eps * (nT * nT * nV + nR)

@@ -93,7 +93,15 @@ from .._deadline import Deadline
 from .._validate import as_bool, as_frequencies, as_matrix, as_positive_float, as_real, as_vector, check_pd
 from ..errors import ValidationError
 from ..model.plant import Plant
-from .frequency import CHUNK, adaptive_minimize, as_gain, frequency_grid, frequency_points, nudge_off_poles
+from .frequency import (
+    CHUNK,
+    adaptive_minimize,
+    as_gain,
+    frequency_grid,
+    frequency_points,
+    nudge_off_poles,
+    return_difference_floor,
+)
 
 __all__ = [
     "return_difference",
@@ -335,6 +343,10 @@ class CircleConditionResult:
     complete : bool
         False when ``time_limit`` stopped the search before the whole grid was evaluated and every
         local minimum refined.
+    rounding_floor : float
+        How far ``min_eigenvalue`` can be off by rounding alone (from the norms of ``T``, ``V``,
+        ``C``, ``X = (sI - A)^-1 L`` and the condition of ``sI - A`` at ``omega_worst``:
+        :func:`~optdesign.analysis.frequency.return_difference_floor`).
     """
 
     min_eigenvalue: float
@@ -353,6 +365,15 @@ class CircleConditionResult:
     perturbation: NDArray[np.complex128]
     message: str = ""
     complete: bool = True
+    rounding_floor: float = 0.0
+
+    @property
+    def violation_certain(self) -> bool:
+        """A violation beyond both ``tol`` and the rounding floor: evidence that L is not a Kalman
+        gain.  A violation inside the floor is rounding, not a certificate."""
+        if not np.isfinite(self.min_eigenvalue):
+            return False
+        return bool(self.min_eigenvalue < -max(self.tol, self.rounding_floor))
 
     @property
     def certificate(self) -> dict[str, Any]:
@@ -375,6 +396,7 @@ class CircleConditionResult:
             "T_worst": c(self.T_worst),
             "destabilizing_perturbation": c(self.perturbation),
             "complete": self.complete,
+            "rounding_floor": self.rounding_floor,
         }
 
     def summary(self) -> str:
@@ -558,12 +580,15 @@ def circle_condition(
     T_star = T_of(np.array([w_star]))[0]
     direction, Delta = worst_case_parts(T_star, Vs, R)
     min_eig = float(vals[i])
+    floor = return_difference_floor(plant, L, Vs, R, w_star) if min_eig < -tol else 0.0
     holds = bool(min_eig >= -tol)
     passed = holds and v_ok and complete
     if not holds and not message:
         ineq = "T V T* - R" if plant.is_discrete else "T R T* - R"
         message = (f"{ineq} has eigenvalue {min_eig:.4g} < -tol at omega = {w_star:.6g} rad/s: "
-                   "L is not a Kalman gain for this R")
+                   "L is not a Kalman gain for this R" if min_eig < -floor else
+                   f"{ineq} has eigenvalue {min_eig:.4g} < -tol at omega = {w_star:.6g} rad/s, inside its "
+                   f"rounding floor {floor:.2g}: no evidence either way")
     if not complete:
         message = "; ".join(filter(None, [message, search_stopped(deadline, w_all.size, holds)]))
     for a in (w_all, vals):
@@ -572,6 +597,7 @@ def circle_condition(
         min_eigenvalue=min_eig, omega_worst=w_star, passed=passed, omega=w_all, values=vals, tol=tol,
         R=R, V=np.asarray(V, dtype=float), discrete=plant.is_discrete, dt=plant.dt, V_source=V_source,
         T_worst=T_star, direction=direction, perturbation=Delta, message=message, complete=complete,
+        rounding_floor=floor,
     )
 
 

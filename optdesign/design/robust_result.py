@@ -19,7 +19,7 @@ from .._validate import as_positive_float
 from ..errors import DimensionError, ValidationError
 from ..model.model_set import ModelSet
 from ..model.regions import Region, stability_region
-from ..results import Certificate, Check, DesignResult, SolverStats, Status, Verification
+from ..results import Certificate, Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 from .robust_verify import DenseCheck, LMICertificate, ModelMetrics
 
 __all__ = [
@@ -189,6 +189,8 @@ class RobustObserverDesign(DesignResult):
             )
         if self.certificate is not None:
             lines.append(f"certificate: {self.certificate}")
+        if self.route:
+            lines.append(f"route: {self.route}")
         lines.append(self.verification.summary())
         return "\n".join(lines)
 
@@ -342,3 +344,39 @@ def failed_design(
         certificate=certificate,
         **kw,
     )
+
+
+def robust_route(res: RobustObserverDesign) -> Route:
+    """The route of a robust design (issue 26, item 2), built in one place from what the result
+    records: the LMI (the convex route, or the NLP's first start), each NLP start and whether its
+    gain verified, the common-Lyapunov certificate check, the dense check of a polytope.  The
+    stage that produced the returned gain is ``answered``."""
+    stages: list[Stage] = []
+    has_gain = bool(np.all(np.isfinite(res.L))) if res.L is not None else False
+    lmi = res if res.method == "lmi" else res.lmi
+    if lmi is not None:
+        st = lmi.solver_stats
+        detail = "" if st is None else f"{st.backend}: {st.native_status}"
+        answered = has_gain and Status(res.status).is_solved and (
+            res.method == "lmi" or (lmi is not res and np.array_equal(res.L, lmi.L)))
+        out = "answered" if answered else Status(lmi.status).value
+        stages.append(Stage("robust_lmi", "backend", out, detail))
+    if res.method == "nlp":
+        verified = [s for s in res.starts if s.verified]
+        from_lmi = lmi is not None and lmi is not res and has_gain and np.array_equal(res.L, lmi.L)
+        best = min(verified, key=lambda s: s.value) if (verified and has_gain and not from_lmi) else None
+        backend = "nlp"
+        for s in res.starts:
+            out = "answered" if s is best else ("rejected" if not s.verified else "unchanged")
+            stages.append(Stage(f"{backend} from {s.origin}", "engine", out, f"value {s.value:.4g}"))
+    if res.lmi_certificate is not None:
+        cert = res.lmi_certificate
+        stages.append(Stage("common_lyapunov_certificate", "certificate", "holds" if cert.holds else "fails",
+                            f"covers the {cert.covers}"))
+    if res.dense is not None and res.dense.count:
+        d = res.dense
+        stages.append(Stage("dense_check", "check", f"{d.in_region}/{d.count} in region",
+                            "random interior plants"))
+    if not stages:
+        stages.append(Stage(res.method, "backend", Status(res.status).value))
+    return Route(stages)

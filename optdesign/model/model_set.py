@@ -175,6 +175,24 @@ def _check_ranges(ranges: Any) -> tuple[tuple[str, ...], NDArray[np.float64]]:
     return names, box
 
 
+#: the most models a model set is built with (:meth:`ModelSet.vary` makes 2**k corners: 20 entries
+#: built 1,048,577 plants in 31 s, and every design then evaluates each of them)
+MAX_MODELS = 4096
+
+
+def check_model_count(count: int, what: str) -> None:
+    """Refuse, before building anything, a model set of more than :data:`MAX_MODELS` models.
+
+    Raises
+    ------
+    ValidationError
+        ``count > MAX_MODELS`` (the message names what asked for them and how many).
+    """
+    if count > MAX_MODELS:
+        raise ValidationError(f"{what} asks for {count} models; at most {MAX_MODELS} are built (every design "
+                              f"evaluates each model): vary fewer entries or sample the box instead")
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class ModelSet:
     """A set of plant models with one estimator gain to design for all of them.
@@ -334,6 +352,8 @@ class ModelSet:
         for i, j in idx:
             if not (0 <= i < X0.shape[0] and 0 <= j < X0.shape[1]):
                 raise ValidationError(f"entry ({i}, {j}) is outside {matrix}, which has shape {X0.shape}")
+        check_model_count(2 ** len(idx) + bool(include_nominal),
+                          f"vary with {len(idx)} entries (2**{len(idx)} corners)")
         corners = np.array(list(itertools.product((-size, size), repeat=len(idx))), dtype=float)
         deltas = np.vstack([corners, np.zeros((1, len(idx)))]) if include_nominal else corners
 
@@ -416,10 +436,14 @@ class ModelSet:
             )
         names, box = _check_ranges(ranges)
         samples = as_int("samples", samples, 0)
+        check_model_count(samples, "samples")
         seed = as_int("seed", seed, 0)
         pts: list[NDArray] = []
         if grid is not None:
             grid = as_int("grid", grid, 2)
+            check_model_count(grid ** len(names) + samples + bool(include_nominal),
+                              f"sample with grid={grid} over {len(names)} parameters "
+                              f"({grid}**{len(names)} points)")
             axes = [np.linspace(lo, hi, grid) for lo, hi in box]
             pts.extend(np.array(t, dtype=float) for t in itertools.product(*axes))
         rng = np.random.default_rng(seed)

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from .._backends import import_casadi
 from ..errors import ValidationError
 from ..results import SolverStats, Status
-from .report import SolverReport
+from .report import Captured, SolverReport, captured_output
 from .status import map_status
 
 __all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "ipopt_solver", "run_solver", "setup_error_report",
@@ -60,7 +60,8 @@ def check_ipopt_options(options: dict[str, Any]) -> None:
     plugin["print_time"] = False
     x = ca.MX.sym("x")
     try:
-        ca.nlpsol("options_check", "ipopt", {"x": x, "f": x * x}, plugin)(x0=0.0)
+        with captured_output():
+            ca.nlpsol("options_check", "ipopt", {"x": x, "f": x * x}, plugin)(x0=0.0)
     except (RuntimeError, TypeError, NotImplementedError) as exc:
         raise ValidationError(
             f"options must be IPOPT / CasADi options that IPOPT accepts (e.g. {{'ipopt.max_iter': 200}}); "
@@ -94,12 +95,13 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
         opti.solver("ipopt", plugin, ipopt)
     t0 = time.perf_counter()
     error = ""
-    try:
-        sol = opti.solve()
-        getter = sol.value
-    except RuntimeError as exc:  # IPOPT did not report success
-        error = _error_line(exc)
-        getter = opti.debug.value
+    with captured_output() as cap:  # CasADi's WARNING(...) lines, IPOPT's banner: never printed
+        try:
+            sol = opti.solve()
+            getter = sol.value
+        except RuntimeError as exc:  # IPOPT did not report success
+            error = _error_line(exc)
+            getter = opti.debug.value
     elapsed = time.perf_counter() - t0
     try:
         st = opti.stats()
@@ -117,7 +119,7 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
         obj = float(getter(opti.f))
     except Exception:  # noqa: BLE001 - objective may be unavailable after a crash
         obj = float("nan")
-    return _report(status, native, st, _wall(st, elapsed), obj, error, value)
+    return _report(status, native, st, _wall(st, elapsed), obj, error, value, cap)
 
 
 def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] | None = None, *,
@@ -171,11 +173,17 @@ def _wall(st: dict, elapsed: float) -> float:
 
 
 def _report(status: Status, native: str, st: dict, seconds: float, obj: float, error: str,
-            value: Callable[..., Any], *, extra: dict[str, Any] | None = None) -> SolverReport:
-    """The :class:`SolverReport` of one IPOPT run (``st``: its stats, empty if it did not run)."""
+            value: Callable[..., Any], cap: Captured | None = None, *,
+            extra: dict[str, Any] | None = None) -> SolverReport:
+    """The :class:`SolverReport` of one IPOPT run (``st``: its stats, empty if it did not run);
+    what it printed (``cap``, or the ``solver_output`` / ``solver_warnings`` that
+    :func:`_ipopt_call` put in ``st``) goes to ``extra``."""
+    chatter = cap.as_extra() if cap is not None else {
+        k: st[k] for k in ("solver_output", "solver_warnings") if k in st}
     stats = SolverStats(backend="ipopt", native_status=native, time=seconds,
                         iterations=int(st["iter_count"]) if "iter_count" in st else None,
-                        extra={"objective": obj, **(extra or {}), **({"error": error} if error else {})})
+                        extra={"objective": obj, **(extra or {}), **chatter,
+                               **({"error": error} if error else {})})
     msg = f"ipopt: {native}" + (f" ({error})" if error and error not in native else "")
     return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)
 
@@ -186,13 +194,16 @@ def _ipopt_call(make: Callable[[], Any], x0: Any,
     seconds)`` -- on a RuntimeError (a callback, an evaluation or the plugin failed to run) empty
     stats, ``x0``, NaN and the error's first line."""
     t0 = time.perf_counter()
-    try:
-        solver = make()
-        sol = solver(x0=x0, **bounds)
-        st, x, obj, error = solver.stats(), np.asarray(sol["x"], dtype=float).ravel(), float(sol["f"]), ""
-    except RuntimeError as exc:
-        st, x, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
-        error = _error_line(exc)
+    with captured_output() as cap:  # CasADi's WARNING(...) lines, IPOPT's banner: never printed
+        try:
+            solver = make()
+            sol = solver(x0=x0, **bounds)
+            st, x, obj, error = solver.stats(), np.asarray(sol["x"], dtype=float).ravel(), float(sol["f"]), ""
+        except RuntimeError as exc:
+            st, x, obj = {}, np.asarray(x0, dtype=float).ravel(), float("nan")
+            error = _error_line(exc)
+    if cap.as_extra():
+        st = {**st, **cap.as_extra()}
     return st, x, obj, error, time.perf_counter() - t0
 
 

@@ -133,14 +133,49 @@ def _triangle_map(Kmat: NDArray, n_out: int, n_in: int) -> NDArray[np.float64]:
 class FamilyMap:
     """The gain-independent part of the family: ``N`` (n, n - p) an orthonormal basis of
     null(C), ``Cp`` (n, p) the pseudo-inverse of C, and (continuous time) the triangle matrix
-    ``T`` of :math:`\\mathcal{T}` (None in discrete time, where it depends on the gain)."""
+    ``T`` of :math:`\\mathcal{T}` (None in discrete time, where it depends on the gain).
+
+    ``T`` has ``n(n+1)/2 x (n-p)(n-p+1)/2`` entries (3.2 GB at n = 200): it is built on first
+    use (:attr:`T`, by :func:`continuous_triangle_map`, with no larger intermediate), and only
+    the routes that need it (the direct form of the fixed-gain SDP, the dense IPM) use it; the
+    one-output complement form is built without it (:func:`complement_basis_one_output`).
+    """
 
     A: NDArray[np.float64]
     C: NDArray[np.float64]
     dt: float | None
     N: NDArray[np.float64]
     Cp: NDArray[np.float64]
-    T: NDArray[np.float64] | None
+
+    @functools.cached_property
+    def T(self) -> NDArray[np.float64] | None:  # noqa: N802 - the map's name in the references
+        return None if self.dt is not None else continuous_triangle_map(self.A, self.N)
+
+    @property
+    def triangle_bytes(self) -> int:
+        """Bytes of :attr:`T` (built or not)."""
+        n, d = self.N.shape
+        return 8 * (n * (n + 1) // 2) * (d * (d + 1) // 2)
+
+
+def continuous_triangle_map(A: NDArray, N: NDArray) -> NDArray[np.float64]:
+    """The triangle matrix of ``X -> -(A N X N' + N X N' A')`` (``svec`` in, ``svec`` out), one
+    column per basis matrix of X -- no ``n^2 x d^2`` Kronecker intermediate (issue 26: it was
+    ``n^2 (n-1)^2`` doubles, a MemoryError at n = 150)."""
+    n, d = N.shape
+    AN = A @ N
+    Io, Jo, wo = svec_index(n)
+    Ii, Ji, wi = svec_index(d)
+    T = np.empty((Io.size, Ii.size))
+    for c in range(Ii.size):
+        i, j = Ii[c], Ji[c]
+        # X = (e_i e_j' + e_j e_i') / w (once on the diagonal); N X N' = (N_i N_j' + N_j N_i') / w
+        M = np.outer(AN[:, i], N[:, j])
+        if i != j:
+            M = M + np.outer(AN[:, j], N[:, i])
+        Y = -(M + M.T) / wi[c]
+        T[:, c] = Y[Io, Jo] * wo
+    return T
 
 
 def family_map(A: NDArray, C: NDArray, dt: float | None) -> FamilyMap:
@@ -160,11 +195,7 @@ def family_map(A: NDArray, C: NDArray, dt: float | None) -> FamilyMap:
                               f"{sv[-1]:.3g}")
     N = Vt[p:].T
     Cp = np.linalg.pinv(C)
-    T = None
-    if dt is None:
-        AN = A @ N
-        T = _triangle_map(-(np.kron(N, AN) + np.kron(AN, N)), n, n - p)
-    return FamilyMap(A=A, C=C, dt=dt, N=N, Cp=Cp, T=T)
+    return FamilyMap(A=A, C=C, dt=dt, N=N, Cp=Cp)
 
 
 def riccati_of_gain(A: NDArray, C: NDArray, L: NDArray, R: NDArray, Q: NDArray,
@@ -199,10 +230,16 @@ class FixedGainFamily:
     R: NDArray[np.float64]
     P0: NDArray[np.float64]
     Q0: NDArray[np.float64]
-    T: NDArray[np.float64]
+    T_gain: NDArray[np.float64] | None
     scale: float
     gain_residual: float
     LRL: NDArray[np.float64] = field(repr=False, default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def T(self) -> NDArray[np.float64]:  # noqa: N802
+        """The family's directions: the plant's map in continuous time (built on first use),
+        the gain's own in discrete time."""
+        return self.map.T if self.T_gain is None else self.T_gain
 
     def P_of(self, x: NDArray) -> NDArray[np.float64]:
         N = self.map.N
@@ -241,15 +278,15 @@ def fixed_gain_family(fmap: FamilyMap, L: NDArray, R: NDArray,
     P0 = K @ Cp.T + Cp @ K.T - Cp @ S @ Cp.T
     P0 = 0.5 * (P0 + P0.T)
     LRLs = 0.5 * (LRL + LRL.T) / s
-    if fmap.T is not None:   # continuous time: the plant's own map
+    if fmap.dt is None:   # continuous time: the plant's own map (fmap.T, built when used)
         Q0 = LRLs - A @ P0 - P0 @ A.T
-        T = fmap.T
+        T = None
     else:
         Q0 = P0 - F @ P0 @ F.T - LRLs
         N = fmap.N
         FN = F @ N
         T = _triangle_map(np.kron(N, N) - np.kron(FN, FN), A.shape[0], N.shape[1])
-    return FixedGainFamily(map=fmap, L=L, R=R, P0=P0, Q0=0.5 * (Q0 + Q0.T), T=T, scale=s,
+    return FixedGainFamily(map=fmap, L=L, R=R, P0=P0, Q0=0.5 * (Q0 + Q0.T), T_gain=T, scale=s,
                            gain_residual=asym, LRL=LRLs)
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from .._backends import import_cvxpy
 from ..errors import BackendUnavailableError, ValidationError
 from ..results import SolverStats
-from .report import SolverReport
+from .report import SolverReport, captured_output
 from .status import map_status
 
 __all__ = ["import_cvxpy", "available_sdp_solvers", "default_sdp_solver", "solve_cvxpy", "SDP_SOLVERS",
@@ -64,6 +64,41 @@ def _resolve(solver: str | None) -> str:
     return name
 
 
+#: keywords of ``cvxpy.Problem.solve`` itself (not passed to the solver)
+CVXPY_KEYWORDS = frozenset({"verbose", "warm_start", "ignore_dpp", "canon_backend", "enforce_dpp", "gp",
+                            "qcp", "requires_grad", "parallel"})
+#: SCS's settings (scs 3.x ``ScsSettings``) and the names cvxpy translates for it
+SCS_SETTINGS = frozenset({"max_iters", "eps_abs", "eps_rel", "eps_infeas", "alpha", "scale", "normalize",
+                          "rho_x", "adaptive_scale", "acceleration_lookback", "acceleration_interval",
+                          "time_limit_secs", "write_data_filename", "log_csv_filename", "use_indirect",
+                          "gpu", "mkl", "use_quad_obj"})
+
+
+def check_solver_options(name: str, options: dict[str, Any]) -> None:
+    """Refuse an option the solver does not know before it reaches the solver (issue 26: a bogus
+    option reached Clarabel as ``TypeError: unrecognized solver setting``).
+
+    Raises
+    ------
+    ValidationError
+        Naming the option, the solver and the settings it knows.
+    """
+    if name == "CLARABEL":
+        try:
+            import clarabel
+        except ImportError:  # pragma: no cover - cvxpy reports it
+            return
+        known = {k for k in dir(clarabel.DefaultSettings()) if not k.startswith("_")}
+    elif name == "SCS":
+        known = set(SCS_SETTINGS)
+    else:  # pragma: no cover - _resolve admits only the two
+        return
+    bad = sorted(k for k in options if k not in known and k not in CVXPY_KEYWORDS)
+    if bad:
+        raise ValidationError(f"unknown {name} option {bad[0]!r} in the solver options; {name} knows "
+                              f"{', '.join(sorted(known))}")
+
+
 def solve_cvxpy(problem, solver: str | None = None, options: dict[str, Any] | None = None) -> SolverReport:
     """Solve a cvxpy problem; never raises on solver failure (status says what happened).
 
@@ -79,14 +114,18 @@ def solve_cvxpy(problem, solver: str | None = None, options: dict[str, Any] | No
     name = _resolve(solver)
     opts = dict(DEFAULT_OPTIONS.get(name, {}))
     opts.update(options or {})
+    check_solver_options(name, opts)
     t0 = time.perf_counter()
     error = ""
-    try:
-        problem.solve(solver=name, **opts)
-        native = str(problem.status)
-    except cp.error.SolverError as exc:
-        native = "solver_error"
-        error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+    with captured_output() as cap:  # cvxpy's "Solution may be inaccurate", the solvers' logs
+        try:
+            problem.solve(solver=name, **opts)
+            native = str(problem.status)
+        except cp.error.SolverError as exc:
+            native = "solver_error"
+            error = str(exc).strip().splitlines()[-1] if str(exc).strip() else repr(exc)
+        except TypeError as exc:  # a setting of the right name with a value of the wrong type
+            raise ValidationError(f"options for {name}: {exc} (found {options!r})") from None
     elapsed = time.perf_counter() - t0
     status = map_status("cvxpy", native)
     st = problem.solver_stats if error == "" else None
@@ -101,7 +140,8 @@ def solve_cvxpy(problem, solver: str | None = None, options: dict[str, Any] | No
         native_status=native,
         time=float(st.solve_time) if (st is not None and st.solve_time is not None) else elapsed,
         iterations=int(st.num_iters) if (st is not None and st.num_iters is not None) else None,
-        extra={"objective": obj, "wall_time": elapsed, **({"error": error} if error else {})},
+        extra={"objective": obj, "wall_time": elapsed, **({"error": error} if error else {}),
+               **cap.as_extra()},
     )
     msg = f"{name.lower()}: {native}" + (f" ({error})" if error else "")
     return SolverReport(status=status, stats=stats, value=value, objective=obj, message=msg)

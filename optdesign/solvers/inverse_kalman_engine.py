@@ -69,7 +69,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import Deadline
+from .._deadline import Deadline, dense_kkt_refusal
 from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
 from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
@@ -701,10 +701,16 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
     ``infeasible``."""
     plant = setup.plant
     R = np.asarray(plant.R, dtype=float)
+    t_size, d = plant.n * (plant.n + 1) // 2, plant.n - plant.p
+    why = dense_kkt_refusal(t_size + d * (d + 1) // 2, deadline,
+                            f"the direct form of the fixed-gain SDP at n = {plant.n}")
+    if why:  # issue 26: O(n^4) memory and O(n^6) time, past time_limit and into the OOM killer
+        status = Status.TIME_LIMIT if deadline.limited and "s left" in why else Status.NOT_FOUND
+        return _result(setup, target, status, f"no design: {why}", t0, cpu0, tol=tol,
+                       details={"refused": why})
     g = np.ones((len(terms), 1), dtype=complex)
     L, _ = spectral_blocks(terms, R, setup.Gd).gain(g)
     fam = fixed_gain_family(setup.family, L, R, Qn)
-    d = plant.n - plant.p
     first = setup.objective == "min_trace" and d >= ONE_OUTPUT_FIRST_TRY_MIN_DIM
     ipm = setup.objective == "min_trace" and setup.structure == "full" and d >= ONE_OUTPUT_IPM_MIN_DIM
     miss = pole_error(np.linalg.eigvals(plant.A - L @ plant.C), target) if (first or ipm) else 0.0

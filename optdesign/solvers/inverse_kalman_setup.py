@@ -11,12 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .._deadline import Deadline
 from .._validate import as_poles
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
 from .clarabel_fixed_gain import FamilyMap, family_map
-from .one_output_sdp import OneOutputForm, one_output_form
+from .one_output_sdp import OneOutputForm, one_output_form, one_output_form_of_plant
 
 __all__ = ["EngineSetup", "prepare_inverse_kalman", "engine_applies"]
 
@@ -68,8 +69,15 @@ class EngineSetup:
         return self.plant.p == 1 and self.structure == "full" and self.objective == "min_trace"
 
 
+#: the family's direction matrix T (n(n+1)/2 x (n-p)(n-p+1)/2 doubles) is built for the complement
+#: form only below this many bytes (256 MiB: n ~ 80); above, the form of one output comes from
+#: Lyapunov solves (:func:`~optdesign.solvers.one_output_sdp.one_output_form_of_plant`) or not at all
+TRIANGLE_BYTES_MAX = 256 << 20
+
+
 def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
-                           objective: str = "min_trace", verify: bool = True) -> EngineSetup:
+                           objective: str = "min_trace", verify: bool = True,
+                           deadline: Deadline | None = None) -> EngineSetup:
     """Build the per-plant state of the engine.
 
     Parameters
@@ -80,6 +88,10 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
     q_structure : {"full", "input", "diagonal"}
         ``Q`` any n x n ``Q >= 0``; ``Q = G Qw G'`` with ``Qw >= 0``; ``Q = G diag(qw) G'``.
     objective : {"min_trace", "nearest", "feasibility"}
+    verify : bool
+    deadline : Deadline, optional
+        The set-up counts against the caller's time limit: the one-output form's solves stop when
+        it expires (the form is then None).
 
     Returns
     -------
@@ -105,7 +117,14 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
     Gd = np.eye(plant.n) if q_structure == "full" else np.asarray(plant.G, dtype=float)
     fmap = family_map(plant.A, plant.C, plant.dt)
     full_trace = q_structure == "full" and objective == "min_trace"
-    form = one_output_form(fmap.T) if (full_trace and fmap.T is not None) else None
+    form = None
+    if full_trace and plant.dt is None:
+        # one output: n Lyapunov solves, O(n^3) memory (issue 26: the QR of T was O(n^4) memory and
+        # O(n^6) time -- a MemoryError at n = 150); T only where it is small
+        form = one_output_form_of_plant(plant.A, plant.C, deadline) if plant.p == 1 else None
+        if form is None and fmap.triangle_bytes <= TRIANGLE_BYTES_MAX and not (
+                deadline is not None and deadline.expired):
+            form = one_output_form(fmap.T)
     return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=fmap,
                        complement_form=form, eig_A=np.linalg.eigvals(plant.A).astype(complex),
                        verify=bool(verify))

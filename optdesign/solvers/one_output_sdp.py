@@ -55,11 +55,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._backends import import_clarabel
-from .._deadline import Deadline
+from .._deadline import Deadline, dense_kkt_refusal
 from .clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec, svec_index
 from .fixed_gain_ipm import standard_form_ipm, symmetric_basis
 
 __all__ = ["POLISH_START_TOL", "KKT_TOL", "IPM_MIN_N", "OneOutputForm", "one_output_form",
+           "one_output_form_of_plant", "form_of_basis",
            "OneOutputSolution", "solve_one_output", "symmetric_product_matrix"]
 
 _EPS = float(np.finfo(float).eps)
@@ -105,12 +106,58 @@ class OneOutputForm:
     basis: NDArray[np.float64] = field(repr=False)
 
 
+def one_output_form_of_plant(A: NDArray, C: NDArray,
+                             deadline: Deadline | None = None) -> OneOutputForm | None:
+    r"""The n-constraint form of a one-output continuous plant, without the family's directions T.
+
+    ``W`` is orthogonal to every direction ``-(A M + M A')``, ``M = N X N'``, iff
+    ``N' (A' W + W A) N = 0`` -- iff ``A' W + W A = c v' + v c'`` for some ``v`` (``c = C'``, since
+    ``C N = 0``).  So the complement is spanned by the n Lyapunov solutions ``W_k`` of
+    ``A' W + W A = c e_k' + e_k c'`` -- one real Schur form of A and n triangular Sylvester solves
+    (LAPACK ``trsyl``), O(n^3) memory and O(n^4) time, where the QR of T (:func:`one_output_form`)
+    needs the ``n(n+1)/2 x n(n-1)/2`` matrix T itself (3.2 GB at n = 200) and O(n^6) time --
+    then a thin QR of the n columns ``svec(W_k)``.
+
+    Returns None when A and -A share an eigenvalue to working precision (the Lyapunov operator is
+    singular: the caller builds the form from T), or when ``deadline`` expires during the solves.
+    """
+    import scipy.linalg as sla
+
+    A = np.asarray(A, dtype=float)
+    c = np.asarray(C, dtype=float).reshape(-1)
+    n = A.shape[0]
+    S, U = sla.schur(A, output="real")
+    lam = np.linalg.eigvals(A)
+    gap = float(np.min(np.abs(lam[:, None] + lam[None, :])))
+    if not gap > 1e3 * n * _EPS * max(1.0, float(np.linalg.norm(A, 1))):
+        return None
+    I, J, w = svec_index(n)
+    uc = U.T @ c
+    cols = np.empty((I.size, n))
+    for k in range(n):
+        if deadline is not None and deadline.expired:
+            return None
+        rhs = np.outer(uc, U[k]) + np.outer(U[k], uc)
+        X, scale, info = sla.lapack.dtrsyl(S, S, rhs, trana="T", tranb="N", isgn=1)
+        if info < 0 or not scale > 0:
+            return None
+        Wk = U @ (X / scale) @ U.T
+        Wk = 0.5 * (Wk + Wk.T)
+        cols[:, k] = Wk[I, J] * w
+    if not np.all(np.isfinite(cols)):
+        return None
+    Qf, Rf = np.linalg.qr(cols)
+    d = np.abs(np.diag(Rf))
+    if not d.min() > 1e3 * I.size * _EPS * max(float(d.max()), 1e-300):
+        return None
+    return form_of_basis(np.ascontiguousarray(Qf), n)
+
+
 def one_output_form(T: NDArray) -> OneOutputForm | None:
     """The form of the family directions ``T`` ((n(n+1)/2, m); m = n(n-1)/2 for one output, ``(n -
     p)(n - p + 1)/2`` for p): the complement of ``range(T)`` by a complete QR factorization (of
     dimension n for one output, ``n p - p(p - 1)/2`` for p); None when T does not have full column
     rank (a direction of the family does not move Q: the form does not describe the family)."""
-    import scipy.sparse as sp
 
     T = np.asarray(T, dtype=float)
     t, m = T.shape
@@ -122,7 +169,15 @@ def one_output_form(T: NDArray) -> OneOutputForm | None:
     d = np.abs(np.diag(Rf))
     if m and not d.min() > 1e3 * t * _EPS * max(float(d.max()), 1e-300):
         return None
-    W = np.ascontiguousarray(Qf[:, m:])
+    return form_of_basis(np.ascontiguousarray(Qf[:, m:]), n)
+
+
+def form_of_basis(W: NDArray, n: int) -> OneOutputForm:
+    """The :class:`OneOutputForm` of an orthonormal basis ``W`` ((n(n+1)/2, nc), Clarabel's
+    scaled triangle) of the complement of the family's directions."""
+    import scipy.sparse as sp
+
+    t, nc = W.shape
     # Clarabel's CSC data from their parts, 32-bit indices (4x cheaper than from a dense array at small n)
     zero = sp.csc_matrix((np.zeros(0), np.zeros(0, dtype=np.int32), np.zeros(nc + 1, dtype=np.int32)),
                          shape=(nc, nc))
@@ -222,6 +277,9 @@ def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
     bn = b / beta
     start = _interior_point(form, bn, deadline) if n >= IPM_MIN_N else None
     if start is None:
+        why = dense_kkt_refusal(n * (n + 1) // 2, deadline, f"Clarabel on the n-constraint form at n = {n}")
+        if why:
+            return _failed(why)
         Pm, Am, h = form.clarabel_data
         cones = [clarabel.PSDTriangleConeT(n)]
         sol = clarabel.DefaultSolver(Pm, -bn, Am, h, cones, _settings(clarabel, deadline)).solve()

@@ -82,7 +82,7 @@ def one_output_verdict(plant, target, common, res, dl):
         circ = circle_condition(plant, L, R=np.asarray(plant.R, dtype=float))
     except (ValidationError, np.linalg.LinAlgError):
         return res
-    if circ.passed:
+    if not circ.violation_certain:  # holds, or a violation inside its rounding floor: no proof
         res.details["circle"] = circ
         return res
     ineq = "T V T* >= R" if plant.is_discrete else "T R T* >= R"
@@ -108,7 +108,7 @@ def infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, 
     found = closest_poles_search(plant, target, structure, Qn, seed, dl)
     closest = {k: v for k, v in found.items() if k != "rep"}
     details["closest"] = closest
-    if circ is not None and not circ.passed and structure == "full":
+    if circ is not None and circ.violation_certain and structure == "full":
         kind = "return_difference"
         reason = (f"the return-difference inequality fails: lambda_min(T R T* - R) = "
                   f"{circ.min_eigenvalue:.4g} at omega = {circ.omega_worst:.6g} rad/s"
@@ -127,7 +127,7 @@ def infeasible_fixed_gain(plant, target, common, L, R, t_star, rep_m, Qn, seed, 
     if not closest:
         reason += ("; no closest poles: no scaled nominal noise of this structure gives a stabilizing "
                    "Riccati solution (modes on the stability boundary not excited?)")
-    show = circ is not None and (kind == "return_difference" or not circ.passed)
+    show = circ is not None and (kind == "return_difference" or circ.violation_certain)
     cert = InfeasibilityCertificate(
         kind=kind, reason=reason, margin=t_star if np.isfinite(t_star) else None,
         omega=circ.omega_worst if show else None, min_eigenvalue=circ.min_eigenvalue if show else None,

@@ -23,10 +23,12 @@ from .results import InverseKalmanResult
 __all__ = ["engine_setup", "run_engine"]
 
 
-def engine_setup(plant: Plant, structure: str, objective: str) -> EngineSetup:
-    """The engine's per-plant state (built once by a problem object, or per call)."""
+def engine_setup(plant: Plant, structure: str, objective: str, dl: Deadline | None = None) -> EngineSetup:
+    """The engine's per-plant state (built once by a problem object, or per call); its set-up
+    counts against ``dl``."""
     # the verb verifies every design itself (design/verification.py): the engine need not
-    return prepare_inverse_kalman(plant, q_structure=structure, objective=objective, verify=False)
+    return prepare_inverse_kalman(plant, q_structure=structure, objective=objective, verify=False,
+                                  deadline=dl)
 
 
 def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: NDArray | None, tol: float,

@@ -182,6 +182,8 @@ class InverseKalmanResult(DesignResult):
                     lines.append(f"  {name} = " + np.array2string(X, prefix=f"  {name} = "))
         if self.certificate is not None:
             lines.append(f"  certificate: {self.certificate}")
+        if self.route:
+            lines.append(f"  route: {self.route}")
         lines.append("  verification:")
         lines.extend("    " + str(c) for c in self.verification)
         return "\n".join(lines)

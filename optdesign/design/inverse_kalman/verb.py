@@ -15,7 +15,7 @@ from ..._validate import as_int, as_poles, as_positive_float, renamed
 from ...classical.placement import pole_error
 from ...classical.riccati import format_pole as _fmt
 from ...classical.solheim import solheim
-from ...errors import BackendUnavailableError, RiccatiError, ValidationError
+from ...errors import BackendUnavailableError, OptDesignError, RiccatiError, ValidationError
 from ...formulate.inverse_kalman import (
     OBJECTIVES,
     STRUCTURES,
@@ -29,7 +29,9 @@ from ..verification import POLE_FLOOR_CAP, pole_tolerance
 from .certificates import identity_certificate
 from .common import (
     METHODS,
+    POLE_CHECKS,
     best_unverified,
+    design_from_Q,
     empty_result,
     make_stats,
     nominal_noise,
@@ -42,6 +44,7 @@ from .common import (
 from .engine_route import engine_setup, engine_warm_start, run_engine
 from .nlp_route import run_nlp
 from .results import InfeasibilityCertificate, InverseKalmanResult
+from .route import inverse_kalman_route
 from .sdp_route import fixed_gain_design, run_sdp
 
 
@@ -205,11 +208,15 @@ class InverseKalmanProblem:
         plant.require_observable(what="placing every filter pole")
         self._engine: EngineSetup | None = None
 
-    def engine(self) -> EngineSetup:
-        """The inverse Kalman engine's per-plant state (built on first use)."""
-        if self._engine is None:
-            self._engine = engine_setup(self.plant, self.structure, self.objective)
-        return self._engine
+    def engine(self, dl: Deadline | None = None) -> EngineSetup:
+        """The inverse Kalman engine's per-plant state (built on first use; its set-up counts
+        against ``dl``, and a set-up the deadline cut short is used once, not kept)."""
+        if self._engine is not None:
+            return self._engine
+        setup = engine_setup(self.plant, self.structure, self.objective, dl)
+        if dl is None or not dl.expired:
+            self._engine = setup
+        return setup
 
     def solve(self, poles: ArrayLike, *, method: str = "auto", seed: int = 0,
               time_limit: float | None = None, warm_start: Any = None) -> InverseKalmanResult:
@@ -241,15 +248,34 @@ class InverseKalmanProblem:
                       structure=structure, plant=plant)
         early = self._early_answer(target, common, dl)
         if early is not None:
-            return early
+            name = "zero_noise" if early.certificate is None else str(early.certificate.kind)
+            return dataclasses.replace(early, route=inverse_kalman_route(early, early=name))
+        nominal = None
+        if objective == "nearest" and self.Qn is not None:
+            nominal = nominal_design(plant, target, common, self.Qn, tol, dl)
+            if nominal is not None and nominal.verification.passed:
+                route = inverse_kalman_route(nominal, early="nominal_noise")
+                return dataclasses.replace(nominal, route=route)
+        res, engine = self._answer(method, target, common, seed, dl, warm_start)
+        res = honest_status(res)
+        if not res.success and res.L is None and nominal is not None:
+            # the routes found nothing; the nominal places the targets, some other check fails
+            res = with_status(nominal, nominal.status,
+                              f"{nominal.message}; the solver routes found nothing: {res.message}")
+        return dataclasses.replace(res, route=inverse_kalman_route(res, engine=engine, nominal=nominal))
+
+    def _answer(self, method, target, common, seed, dl, warm_start):
+        """The engine, then the SDP / NLP / sequential routes: ``(answer, the engine's result or
+        None)``."""
+        plant, tol = self.plant, self.tol
         with quiet():
             engine = None
             if method in ("auto", "sdp") and self._engine_usable():
                 warm = (engine_warm_start(warm_start) if isinstance(warm_start, InverseKalmanResult)
                         else warm_start)
-                engine = run_engine(self.engine(), target, common, self.Qn, tol, seed, dl, warm)
+                engine = run_engine(self.engine(dl), target, common, self.Qn, tol, seed, dl, warm)
                 if engine is not None and (engine.success or engine.status == Status.TIME_LIMIT):
-                    return engine
+                    return engine, engine
                 err = None if engine is None else uncomputable_poles(plant, engine, target, tol)
                 if err is not None and engine is not None:  # the other routes cannot help
                     own = engine.verification["pole_error"].value
@@ -257,9 +283,9 @@ class InverseKalmanProblem:
                                                f"poles fix the gain, and neither the engine's nor the "
                                                f"placed gain refined for its poles places them to the "
                                                f"tolerance (pole errors {own:.1e}, {err:.1e}); the other "
-                                               f"routes were not run")
+                                               f"routes were not run"), engine
             res = self._route(method, target, common, seed, dl)
-            return res if engine is None else _best_of(plant, res, engine)
+            return (res, None) if engine is None else (_best_of(plant, res, engine), engine)
 
     def _engine_usable(self) -> bool:
         """The engine certifies with Clarabel: used unless another SDP solver was asked for or
@@ -359,6 +385,46 @@ def zero_noise_design(plant, target, common, tol, dl):
                 "has the smallest trace",
         solver_stats=make_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
         objective_value=0.0, extra={}, **common)
+
+
+def nominal_design(plant, target, common, Qn, tol, dl):
+    """``objective="nearest"``: when the nominal noise itself places the targets (its Kalman
+    filter passes every check), it is the nearest Q there is (distance 0) -- no SDP needed.
+    ``None`` otherwise.  (The inverse LQR of harold's ``test_simple_dlqr``, whose targets come
+    from the nominal weight, went to an SDP that answered "unbounded", issue 26.)"""
+    structure = common["structure"]
+    Q, Qw = (Qn, None) if structure == "full" else (None, Qn)
+    if Qw is not None:
+        Q = plant.G @ Qw @ plant.G.T
+    try:
+        L, P, Q, Qw, ver, poles = design_from_Q(plant, target, structure, Q, Qw, tol)
+    except (RiccatiError, OptDesignError, np.linalg.LinAlgError, ValueError):
+        return None
+    if not all(c.passed for c in ver if c.name in POLE_CHECKS):
+        return None
+    ok = ver.passed
+    return InverseKalmanResult(
+        L=L, Q=Q, Qw=Qw, P=P, poles=poles, status=Status.OPTIMAL if ok else Status.OPTIMAL_INACCURATE,
+        message="the nominal Q itself places the targets (its Kalman filter passes every check): it is "
+                "the nearest Q, at distance 0" if ok else
+                "the nominal Q itself places the targets (the pole checks pass) but its Riccati solution "
+                "fails " + ", ".join(c.name for c in ver.failed) + " (an ill-conditioned Riccati equation): "
+                "the nearest Q (distance 0), not verified",
+        solver_stats=make_stats("analytic", "solved", dl.elapsed), verification=ver, certificate=None,
+        objective_value=0.0, extra={}, **common)
+
+
+def honest_status(res: InverseKalmanResult) -> InverseKalmanResult:
+    """The statuses a design question can have: a feasibility question is never ``unbounded``,
+    and ``infeasible`` comes only with a certificate; a route that found nothing otherwise
+    answers ``not_found`` (issue 26: "the SDP failed: clarabel: infeasible" answered
+    ``unbounded`` on a feasible target)."""
+    st = Status(res.status)
+    if res.L is None and (st == Status.UNBOUNDED or (st.is_infeasible and res.certificate is None)):
+        return with_status(res, Status.NOT_FOUND,
+                           f"no verified design, feasibility unknown (the solver's {st.value!r} is not a "
+                           f"certificate): {res.message}")
+    return res
 
 
 def run_sequential(plant, target, common, tol, dl):
