@@ -4,7 +4,7 @@ hand-written minimal SDPs, side by side in one process (issue 14).
 For each size (n, p) a few random feasible targets (the poles of the Kalman filter of a random
 plant with a random Q >= 0, continuous time; three per size) are solved by
 
-* ``engine``      -- :func:`optdesign.solvers.inverse_kalman_engine.solve_inverse_kalman` (SQP and
+* ``engine``      -- :func:`optdesign.engines.inverse_kalman_engine.solve_inverse_kalman` (SQP and
                      Newton on the null-vector parametrization of the gains with the target poles,
                      the fixed-gain SDP on Clarabel as certificate; one output: that SDP alone);
 * ``nlp``         -- ``kalman_for_poles(method="nlp")`` (the spectral NLP on IPOPT, 3 starts);
@@ -64,7 +64,7 @@ from optdesign.classical.placement import pole_error  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
 from optdesign.design.verification import POLE_FLOOR_CAP  # noqa: E402
 from optdesign.errors import OptDesignError  # noqa: E402
-from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
+from optdesign.engines.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
 
 OUT = Path(__file__).resolve().parent / "results"
 SIZES = [(2, 1), (10, 1), (20, 1), (5, 2), (10, 4), (20, 2), (20, 4), (40, 8)]
@@ -414,16 +414,16 @@ ONE_OUTPUT_STAGES = [
     ("optdesign.design.inverse_kalman.verb:InverseKalmanProblem", "_early_answer", "early answers"),
     ("optdesign.design.inverse_kalman.engine_route", "prepare_inverse_kalman", "engine setup (map, form)"),
     ("optdesign.design.inverse_kalman.engine_route", "solve_inverse_kalman", "engine"),
-    ("optdesign.solvers.inverse_kalman_engine", "single_output_gain", "  gain (one batched solve)"),
-    ("optdesign.solvers.inverse_kalman_engine", "fixed_gain_family", "  the gain's family"),
-    ("optdesign.solvers.inverse_kalman_engine", "solve_one_output", "  SDP, n-constraint form (all of it)"),
-    ("optdesign.solvers.one_output_sdp", "_polish", "  Newton polish (part of the SDP row)"),
-    ("optdesign.solvers.one_output_sdp", "_kkt", "  KKT test (part of the SDP row)"),
-    ("optdesign.solvers.inverse_kalman_engine", "riccati_of_gain", "  design (Lyapunov P)"),
-    ("optdesign.solvers.inverse_kalman_engine", "spectral_terms", "  general route: spectral terms"),
-    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain", "  general route: Clarabel, direct form"),
-    ("optdesign.solvers.inverse_kalman_engine", "solve_fixed_gain_ipm", "  general route: dense IPM"),
-    ("optdesign.solvers.inverse_kalman_engine", "_optimize", "  general route: polish"),
+    ("optdesign.engines.inverse_kalman_engine", "single_output_gain", "  gain (one batched solve)"),
+    ("optdesign.engines.inverse_kalman_engine", "fixed_gain_family", "  the gain's family"),
+    ("optdesign.engines.inverse_kalman_engine", "solve_one_output", "  SDP, n-constraint form (all of it)"),
+    ("optdesign.engines.one_output_sdp", "_polish", "  Newton polish (part of the SDP row)"),
+    ("optdesign.engines.one_output_sdp", "_kkt", "  KKT test (part of the SDP row)"),
+    ("optdesign.engines.inverse_kalman_engine", "riccati_of_gain", "  design (Lyapunov P)"),
+    ("optdesign.engines.inverse_kalman_engine", "spectral_terms", "  general route: spectral terms"),
+    ("optdesign.engines.inverse_kalman_engine", "solve_fixed_gain", "  general route: Clarabel, direct form"),
+    ("optdesign.engines.inverse_kalman_engine", "solve_fixed_gain_ipm", "  general route: dense IPM"),
+    ("optdesign.engines.inverse_kalman_engine", "_optimize", "  general route: polish"),
     ("optdesign.design.inverse_kalman.engine_route", "verify_design", "verification"),
     ("optdesign.design.inverse_kalman.common", "newton_kalman_checks", "  Newton-step checks (all of them)"),
     ("optdesign.design.verification", "are_correction_of_terms",
@@ -493,7 +493,7 @@ def sparse_fixed_gain(plant: Plant, L, options: dict) -> tuple[str, float, int]:
     import clarabel
     import scipy.sparse as sp
 
-    from optdesign.solvers.clarabel_fixed_gain import CLARABEL_OPTIONS, smat, svec
+    from optdesign.backends.clarabel_fixed_gain import CLARABEL_OPTIONS, smat, svec
 
     A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
     n, p = C.shape[1], C.shape[0]
@@ -532,7 +532,7 @@ def sdp_forms() -> str:
     retry; the gain is the one the poles fix (one output, the main run's targets) or the Kalman gain of
     the target (several outputs).  Medians of 3 runs per target."""
     from optdesign.design.inverse_kalman.common import placed_gain
-    from optdesign.solvers.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain
+    from optdesign.backends.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain
 
     def cpu_ms(fn):
         out, ts = None, []
@@ -601,9 +601,9 @@ def verify_ab(rounds: int = 15) -> str:
 @contextlib.contextmanager
 def general_route():
     """The one-output engine without its first route, the n-constraint form
-    (``optdesign.solvers.one_output_sdp``): what runs when that form certifies nothing -- the A/B
+    (``optdesign.engines.one_output_sdp``): what runs when that form certifies nothing -- the A/B
     modes of the general route's own choices (``--first-try``, ``--ipm``) measure it."""
-    import optdesign.solvers.inverse_kalman_engine as eng
+    import optdesign.engines.inverse_kalman_engine as eng
 
     real = eng._one_output_form
     eng._one_output_form = lambda *a, **k: None
@@ -614,7 +614,7 @@ def general_route():
 
 
 def form_ab(count: int = 40, discrete: int = 10) -> str:
-    """The n-constraint form (``optdesign.solvers.one_output_sdp``, the engine's first one-output
+    """The n-constraint form (``optdesign.engines.one_output_sdp``, the engine's first one-output
     route) against the general route it replaces (the direct form on Clarabel or the dense IPM,
     polished on its face), on the main run's one-output targets, ``count`` random continuous ones
     (n = 2..20, seed 123, as ``--ipm``) and ``discrete`` random discrete ones (n = 2..12, seed 7):
@@ -672,8 +672,8 @@ def first_try_ab(count: int = 40) -> str:
     min-trace targets (n = 2..20, seed 123): the same statuses / verified count / optima?  Clarabel
     iterations of the accepted solve, how often the first try was not certified (solved again or
     not computable), CPU per design."""
-    import optdesign.solvers.inverse_kalman_engine as eng
-    from optdesign.solvers.clarabel_fixed_gain import CLARABEL_OPTIONS
+    import optdesign.engines.inverse_kalman_engine as eng
+    from optdesign.backends.clarabel_fixed_gain import CLARABEL_OPTIONS
 
     rng = np.random.default_rng(0)
     targets = [t for size in SIZES[:3] for t in (random_target(rng, *size) for _ in range(3))]
@@ -720,15 +720,15 @@ def first_try_ab(count: int = 40) -> str:
 
 
 def ipm_ab(count: int = 40) -> tuple[str, str]:
-    """The dense IPM (``optdesign.solvers.fixed_gain_ipm``) against Clarabel (tight
+    """The dense IPM (``optdesign.engines.fixed_gain_ipm``) against Clarabel (tight
     ``CLARABEL_OPTIONS``) on the same one-output min-trace SDPs at the unique gain (iterations, CPU
     ms (median of 3), relative trace-Q difference), and the whole design with the IPM on and off
     (``ONE_OUTPUT_IPM_MIN_DIM`` huge): verified, same status, objective difference, CPU.  Targets:
     the main run's one-output ones and ``count`` random ones (n = 2..20, seed 123, as
     ``--first-try``), the two settings interleaved per target (a shared machine)."""
-    import optdesign.solvers.inverse_kalman_engine as eng
-    from optdesign.solvers.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain
-    from optdesign.solvers.fixed_gain_ipm import solve_fixed_gain_ipm
+    import optdesign.engines.inverse_kalman_engine as eng
+    from optdesign.backends.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain
+    from optdesign.engines.fixed_gain_ipm import solve_fixed_gain_ipm
 
     rng = np.random.default_rng(0)
     targets = [t for size in SIZES[:3] for t in (random_target(rng, *size) for _ in range(3))]
@@ -916,7 +916,7 @@ def main() -> None:
             "known gain, not a design: its point is not polished).  'engine vs nlp objective': trace Q of "
             "the engine vs the NLP's (both local optima over L; 1e-7 relative is 'equal').  With one output "
             "the poles fix L: the engine is the fixed-gain SDP in its n-constraint form "
-            "(optdesign.solvers.one_output_sdp: Clarabel, a Newton polish, a KKT certificate), and where "
+            "(optdesign.engines.one_output_sdp: Clarabel, a Newton polish, a KKT certificate), and where "
             "that certifies nothing its direct form (the dense IPM or Clarabel); the engine column "
             "includes its own verification with a scipy re-solve, the verb's is the lean one.  Last "
             "column, per target: the rounding floor of the poles "

@@ -22,7 +22,7 @@ import _common  # noqa: F401  (single-threaded BLAS before numpy)
 import numpy as np
 import scipy.optimize
 
-import optdesign.solvers.normal_search as ns
+import optdesign.engines.normal_search as ns
 from optdesign.design.well_conditioned.normal_probe import normal_closed_loop
 from optdesign.regions import Disk, HalfPlane, Sector
 

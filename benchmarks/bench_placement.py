@@ -6,8 +6,8 @@ Observer form throughout (``L = place(A', C', poles)'``).  Peers, each timed in 
 * scipy ``place_poles`` YT at its defaults (``rtol=1e-3, maxiter=30``) and at the tight settings of
   ``optdesign.classical.place_observer`` (``rtol=1e-6, maxiter=100``), and KNV0 (real poles only);
 * python-control ``place`` (scipy's YT) and ``place_varga`` (SLICOT SB01BD through slycot);
-* the engine: ``optdesign.solvers.eigenstructure_fixed.place_fixed`` (fixed poles) and
-  ``optdesign.solvers.eigenstructure_region.place_region`` (poles in a region);
+* the engine: ``optdesign.engines.eigenstructure_fixed.place_fixed`` (fixed poles) and
+  ``optdesign.engines.eigenstructure_region.place_region`` (poles in a region);
 * with ``--with-verb``, the public verb ``well_conditioned_observer`` at its defaults on a subset;
 * an independent multi-start search (default on for n <= 10; ``--no-search``): scipy's L-BFGS-B from
   12 random eigenvector coordinates and the YT start, on the smooth kappa2 bound (k = 16, 4096, then
@@ -49,9 +49,9 @@ from optdesign.classical.placement import pole_error
 from optdesign.design.well_conditioned import naive_poles, suggested_region
 from optdesign.regions import Disk, HalfPlane, Sector
 from optdesign.riccati import filter_are
-from optdesign.solvers.eigenstructure import EigenstructureEngine
-from optdesign.solvers.eigenstructure_fixed import peer_start, place_fixed
-from optdesign.solvers.eigenstructure_region import RegionStart, place_region
+from optdesign.engines.eigenstructure import EigenstructureEngine
+from optdesign.engines.eigenstructure_fixed import peer_start, place_fixed
+from optdesign.engines.eigenstructure_region import RegionStart, place_region
 
 HERE = Path(__file__).resolve().parent
 #: the public verb's row (default settings: the engine's default starts, engine route for fixed poles)

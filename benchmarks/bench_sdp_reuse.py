@@ -11,7 +11,7 @@ prescribed-pole targets solves the same plant's SDP for many gains; what can be 
 * ``cvxpy re-used``      -- the same problem built once per plant, the gain re-bound through its cvxpy
                             Parameters (``set_gain``, DPP: no re-canonicalization), per gain the solve;
 * ``Clarabel direct``    -- the engine's smallest conic form (``P = P0 + N X N'``, one PSD cone, no
-                            equality; :mod:`optdesign.solvers.clarabel_fixed_gain`), the plant's map
+                            equality; :mod:`optdesign.backends.clarabel_fixed_gain`), the plant's map
                             built once, per gain the family and the Clarabel call (with the engine's
                             settings: the QDLDL KKT solver);
 * ``engine``             -- ``solve_inverse_kalman`` with a setup prepared once per plant: the unique gain,
@@ -42,10 +42,10 @@ import numpy as np  # noqa: E402
 from optdesign import Plant, kalman_for_poles, problems  # noqa: E402
 from optdesign.classical.riccati import filter_are  # noqa: E402
 from optdesign.formulate.inverse_kalman import build_fixed_gain_sdp, spectral_terms  # noqa: E402
-from optdesign.solvers.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain  # noqa: E402
-from optdesign.solvers.cvxpy_backend import solve_cvxpy  # noqa: E402
-from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
-from optdesign.solvers.spectral_factor import spectral_blocks  # noqa: E402
+from optdesign.backends.clarabel_fixed_gain import family_map, fixed_gain_family, solve_fixed_gain  # noqa: E402
+from optdesign.backends.cvxpy_backend import solve_cvxpy  # noqa: E402
+from optdesign.engines.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman  # noqa: E402
+from optdesign.engines.spectral_factor import spectral_blocks  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "sdp_reuse.md"
 

@@ -143,7 +143,7 @@ def part_a(problem: str, points: list[dict], which: list[int] | None = None) -> 
               flush=True)
     # build + configure cost on its own
     from optdesign.formulate.well_conditioned import NLPScaling, PoleStructure, build_observer_nlp
-    from optdesign.solvers.casadi_backend import solve_opti
+    from optdesign.backends.casadi_backend import solve_opti
 
     plant = problems.load(problem).plant
     tb = []

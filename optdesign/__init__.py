@@ -2,8 +2,10 @@
 
 Observers and Kalman filters that are well conditioned, with poles where you want them;
 the inverse Kalman question (which Q >= 0 gives these poles?), Riccati solvers, Kalman
-filter robustness, and constraint studies.  NLPs are solved with CasADi/IPOPT, SDPs with
-cvxpy (Clarabel, SCS); every answer is verified independently.
+filter robustness, and constraint studies.  NLPs are solved with CasADi/IPOPT; SDPs with Clarabel
+(directly, or through cvxpy with Clarabel or SCS) or our dense interior-point method; our own engines
+(:mod:`optdesign.engines`) where a benchmark shows them faster at the same optimum.  Every answer is
+verified independently (:mod:`optdesign.design.verification`).
 
 Public names are imported lazily, so ``import optdesign`` is cheap and the optional
 backends are loaded only when a design needs them.
@@ -105,7 +107,7 @@ _LAZY: dict[str, str] = {
 }
 
 _SUBMODULES = ("metrics", "regions", "riccati", "problems", "noise", "classical", "studies",
-               "analysis", "model", "formulate", "solvers", "design", "compat", "plot")
+               "analysis", "model", "formulate", "backends", "engines", "design", "compat", "plot")
 
 __all__ = [
     "Plant",

@@ -115,7 +115,7 @@ class DefectivePolesError(ValidationError):
     The eigenspace of ``A - L C`` for a pole has dimension at most ``rank(C)`` (more at an
     unobservable mode), so a larger multiplicity forces a Jordan block: kappa2 is infinite for
     every gain.  The eigenstructure engine raises it; with a separation
-    (:func:`optdesign.solvers.eigenstructure.spread_poles`) it designs for the nearest
+    (:func:`optdesign.engines.eigenstructure.spread_poles`) it designs for the nearest
     distinct-pole set instead.
 
     Attributes

@@ -23,9 +23,9 @@ def rng() -> np.random.Generator:
 @pytest.fixture
 def general_one_output_route(monkeypatch):
     """The one-output engine without its first route, the n-constraint form
-    (:mod:`optdesign.solvers.one_output_sdp`): for the tests of what runs when that form certifies
+    (:mod:`optdesign.engines.one_output_sdp`): for the tests of what runs when that form certifies
     nothing (the dense IPM, Clarabel on the direct form, the first try, the repair)."""
-    from optdesign.solvers import inverse_kalman_engine as engine
+    from optdesign.engines import inverse_kalman_engine as engine
 
     monkeypatch.setattr(engine, "_one_output_form", lambda *a, **k: None)
 

@@ -21,14 +21,14 @@ from optdesign.analysis.metrics import eigenvalue_rounding_floor
 from optdesign.classical.placement import pole_error
 from optdesign.errors import DimensionError, NotConjugateClosedError, ValidationError
 from optdesign.results import Status
-from optdesign.solvers.eigenstructure import (
+from optdesign.engines.eigenstructure import (
     DefectivePolesError,
     EigenstructureEngine,
     FixedPoleModel,
     pole_multiplicities,
     spread_poles,
 )
-from optdesign.solvers.eigenstructure_fixed import default_starts, place_fixed
+from optdesign.engines.eigenstructure_fixed import default_starts, place_fixed
 
 EPS = float(np.finfo(float).eps)
 
@@ -419,7 +419,7 @@ def test_structural_zeros_by_augmented_lagrangian():
 def test_left_measure_gradient_matches_finite_differences(poles, objective, k):
     """measure="left": cond of the unit-norm LEFT eigenvectors of A - L C (= the right eigenvectors
     of the state-feedback loop (A - L C)'); analytic gradient against central differences."""
-    from optdesign.solvers.eigenstructure import EigenstructureEngine, FixedPoleModel
+    from optdesign.engines.eigenstructure import EigenstructureEngine, FixedPoleModel
 
     rng = np.random.default_rng(7)
     A, C = rng.standard_normal((5, 5)), rng.standard_normal((2, 5))
@@ -440,7 +440,7 @@ def test_left_measure_gradient_matches_finite_differences(poles, objective, k):
 
 
 def test_place_fixed_left_measure_minimizes_cond_of_the_transpose():
-    from optdesign.solvers.eigenstructure_fixed import place_fixed
+    from optdesign.engines.eigenstructure_fixed import place_fixed
 
     prob = problems.load("pp_byers5")
     A, C, P = prob.plant.A, prob.plant.C, np.asarray(prob.targets["poles"])

@@ -19,15 +19,15 @@ from optdesign.design.well_conditioned import naive_poles, suggested_region
 from optdesign.errors import DimensionError, ValidationError
 from optdesign.regions import Disk, Ellipse, HalfPlane, HorizontalStrip, Sector, VerticalStrip
 from optdesign.results import Status
-from optdesign.solvers.eigenstructure import EigenstructureEngine, FixedPoleModel
-from optdesign.solvers.eigenstructure_fixed import peer_start
-from optdesign.solvers.eigenstructure_region import (
+from optdesign.engines.eigenstructure import EigenstructureEngine, FixedPoleModel
+from optdesign.engines.eigenstructure_fixed import peer_start
+from optdesign.engines.eigenstructure_region import (
     QuadraticConstraints,
     RegionModel,
     RegionStart,
     place_region,
 )
-from optdesign.solvers.quasi_newton import bfgs_minimize, bfgs_minimize_batch
+from optdesign.engines.quasi_newton import bfgs_minimize, bfgs_minimize_batch
 
 
 def region_model(name, frac, seed=0):

@@ -1,4 +1,4 @@
-"""The dense interior-point method for the one-output fixed-gain SDP (optdesign.solvers.fixed_gain_ipm).
+"""The dense interior-point method for the one-output fixed-gain SDP (optdesign.engines.fixed_gain_ipm).
 
 It is an accelerator of the Clarabel route: its optimum must be Clarabel's on well-conditioned
 random families (continuous and discrete, n = 2..20), a failure must hand the design back to
@@ -11,18 +11,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import optdesign.solvers.inverse_kalman_engine as engine
+import optdesign.engines.inverse_kalman_engine as engine
 from optdesign import Plant, kalman_for_poles
 from optdesign.classical.riccati import filter_are
 from optdesign.errors import RiccatiError, ValidationError
-from optdesign.solvers.clarabel_fixed_gain import (
+from optdesign.backends.clarabel_fixed_gain import (
     CLARABEL_OPTIONS,
     family_map,
     fixed_gain_family,
     solve_fixed_gain,
     svec,
 )
-from optdesign.solvers.fixed_gain_ipm import IPM_TOL, solve_fixed_gain_ipm, symmetric_basis
+from optdesign.engines.fixed_gain_ipm import IPM_TOL, solve_fixed_gain_ipm, symmetric_basis
 
 EPS = float(np.finfo(float).eps)
 #: both solvers stop at a relative duality gap: their optima agree to the sum (with a margin of 10)

@@ -6,9 +6,9 @@ import numpy as np
 
 import optdesign as od
 from optdesign._deadline import Deadline, dense_kkt_refusal
-from optdesign.solvers.clarabel_fixed_gain import _triangle_map, family_map
-from optdesign.solvers.inverse_kalman_setup import prepare_inverse_kalman
-from optdesign.solvers.one_output_sdp import one_output_form, one_output_form_of_plant
+from optdesign.backends.clarabel_fixed_gain import _triangle_map, family_map
+from optdesign.engines.inverse_kalman_setup import prepare_inverse_kalman
+from optdesign.engines.one_output_sdp import one_output_form, one_output_form_of_plant
 
 
 def _plant(n, seed=0):

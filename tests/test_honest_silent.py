@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from optdesign.errors import ValidationError
-from optdesign.solvers.casadi_backend import solve_nlpsol
-from optdesign.solvers.cvxpy_backend import solve_cvxpy
-from optdesign.solvers.report import captured_output
+from optdesign.backends.casadi_backend import solve_nlpsol
+from optdesign.backends.cvxpy_backend import solve_cvxpy
+from optdesign.backends.report import captured_output
 
 
 def test_captured_output_takes_python_native_and_warnings(capfd):
@@ -60,7 +60,7 @@ def test_bogus_clarabel_option_is_a_typed_error():
 def test_bogus_option_through_a_verb():
     import optdesign as od
     di = od.Plant([[0, 1], [0, 0]], [[1, 0]], R=[[1]])
-    from optdesign.solvers.cvxpy_backend import check_solver_options
+    from optdesign.backends.cvxpy_backend import check_solver_options
     with pytest.raises(ValidationError, match="unknown SCS option 'eps'"):
         check_solver_options("SCS", {"eps": 1e-3})
     assert od.is_kalman_optimal(di, [[4], [3]]).status.is_solved

@@ -45,7 +45,7 @@ from optdesign.formulate.inverse_kalman import (
     fixed_gain_maps,
     spectral_terms,
 )
-from optdesign.solvers.polish import face_polish as _face_polish
+from optdesign.engines.polish import face_polish as _face_polish
 
 #: random targets of the cross-validation: the issue's 200 (about 55 s of CPU on the reference
 #: machine, 70 s wall under load -- within budget, so it is not reduced by default)
@@ -440,7 +440,7 @@ def test_spectral_identity_is_singular_at_the_filter_poles(rng, dt):
 def test_parametric_sdp_rebound_equals_a_fresh_build(objective):
     """One fixed-gain SDP re-bound to another gain (cvxpy parameters, DPP) solves the same
     problem as one built for that gain; a solve of the re-bound problem leaves no stale values."""
-    from optdesign.solvers.cvxpy_backend import solve_cvxpy
+    from optdesign.backends.cvxpy_backend import solve_cvxpy
 
     rng = np.random.default_rng(7)
     dt = None
@@ -500,7 +500,7 @@ def test_same_call_same_answer_whatever_ran_before():
 def test_fixed_gain_sdp_parameters_rebind_to_a_new_gain():
     """The formulation's explicit re-use (cvxpy Parameters, DPP): one problem, several gains,
     the same Q as rebuilding for each gain."""
-    from optdesign.solvers.cvxpy_backend import solve_cvxpy
+    from optdesign.backends.cvxpy_backend import solve_cvxpy
 
     plant = _ex1_plant()
     gains = [np.array([[8.0], [-6.0]]), np.array([[12.0], [-4.0]])]
@@ -876,7 +876,7 @@ def test_one_output_engine_needs_no_cvxpy_solver_discovery():
 @pytest.mark.parametrize("method", ["sdp", "auto"])
 def test_missing_sdp_solver_names_the_package(monkeypatch, method):
     from optdesign.errors import BackendUnavailableError
-    from optdesign.solvers import cvxpy_backend
+    from optdesign.backends import cvxpy_backend
 
     monkeypatch.setattr(cvxpy_backend, "available_sdp_solvers", lambda: ())
     monkeypatch.setitem(sys.modules, "clarabel", None)   # `import clarabel` fails: the engine is off too
@@ -1054,7 +1054,7 @@ def test_uncomputable_one_output_target_returns_the_engine_design_and_skips_the_
     worse unverified design (trace Q ~1e9 against the engine's ~5)."""
     import optdesign.design.inverse_kalman.verb as verb
     from optdesign.design.verification import POLE_FLOOR_CAP
-    from optdesign.solvers.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman
+    from optdesign.engines.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman
 
     plant, target, Q = _uncomputable_target()
 

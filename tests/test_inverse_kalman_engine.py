@@ -1,5 +1,5 @@
 """The inverse Kalman engine without an NLP (issue 14, several outputs):
-optdesign.solvers.inverse_kalman_engine and the pieces it is built of (spectral_factor,
+optdesign.engines.inverse_kalman_engine and the pieces it is built of (spectral_factor,
 spectral_newton, clarabel_fixed_gain).
 
 Every design is checked by an *independent* Riccati re-solve with the returned Q (scipy's
@@ -18,8 +18,8 @@ import pytest
 import scipy.linalg as sl
 from conftest import FULL, random_observable_plant
 
-import optdesign.solvers.inverse_kalman_engine as engine_module
-import optdesign.solvers.one_output_sdp as oo
+import optdesign.engines.inverse_kalman_engine as engine_module
+import optdesign.engines.one_output_sdp as oo
 from optdesign import Plant, Status, kalman_for_poles, problems
 from optdesign._deadline import Deadline
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
@@ -35,8 +35,8 @@ from optdesign.errors import (
     ValidationError,
 )
 from optdesign.formulate.inverse_kalman import spectral_terms
-from optdesign.solvers import spectral_newton
-from optdesign.solvers.clarabel_fixed_gain import (
+from optdesign.engines import spectral_newton
+from optdesign.backends.clarabel_fixed_gain import (
     CLARABEL_OPTIONS,
     family_map,
     fixed_gain_family,
@@ -44,13 +44,13 @@ from optdesign.solvers.clarabel_fixed_gain import (
     solve_fixed_gain,
     svec,
 )
-from optdesign.solvers.inverse_kalman_engine import (
+from optdesign.engines.inverse_kalman_engine import (
     engine_applies,
     prepare_inverse_kalman,
     solve_inverse_kalman,
 )
-from optdesign.solvers.spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
-from optdesign.solvers.spectral_newton import find_feasible, newton
+from optdesign.engines.spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
+from optdesign.engines.spectral_newton import find_feasible, newton
 
 EPS = float(np.finfo(float).eps)
 #: two optima of the same convex family agree to 1000x the certificate SDP's relative gap
@@ -212,7 +212,7 @@ def test_clarabel_fixed_gain_sdp_agrees_with_the_cvxpy_formulation(rng, dt, stru
     """The smallest conic form (P = P0 + N X N', no equality for "full") has the optimum of the
     formulate module's cvxpy SDP in (P, Q), and its P satisfies the gain relation exactly."""
     from optdesign.formulate.inverse_kalman import build_fixed_gain_sdp
-    from optdesign.solvers.cvxpy_backend import solve_cvxpy
+    from optdesign.backends.cvxpy_backend import solve_cvxpy
 
     G = rng.standard_normal((5, 3))
     plant, are, _ = _kalman_target(rng, 5, 2, dt=dt, G=None if structure == "full" else G,

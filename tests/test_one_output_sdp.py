@@ -1,4 +1,4 @@
-"""The one-output fixed-gain SDP in its n-constraint form (optdesign.solvers.one_output_sdp), the lean
+"""The one-output fixed-gain SDP in its n-constraint form (optdesign.engines.one_output_sdp), the lean
 one-output gain, and the engine's use of them.
 
 The form's optimum must be the general route's (the direct form on Clarabel or the dense IPM,
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from test_fixed_gain_ipm import _bench_targets, _family
 
-import optdesign.solvers.inverse_kalman_engine as engine
-import optdesign.solvers.one_output_sdp as oo
+import optdesign.engines.inverse_kalman_engine as engine
+import optdesign.engines.one_output_sdp as oo
 from optdesign import InverseKalmanProblem, Plant, kalman_for_poles
 from optdesign._validate import as_poles
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
@@ -25,9 +25,9 @@ from optdesign.errors import ValidationError
 from optdesign.formulate.inverse_kalman import spectral_terms
 from optdesign.formulate.inverse_kalman.common import single_output_gain
 from optdesign.results import Status
-from optdesign.solvers.clarabel_fixed_gain import fixed_gain_family, riccati_of_gain, smat, svec
-from optdesign.solvers.fixed_gain_ipm import standard_form_ipm
-from optdesign.solvers.spectral_factor import spectral_blocks
+from optdesign.backends.clarabel_fixed_gain import fixed_gain_family, riccati_of_gain, smat, svec
+from optdesign.engines.fixed_gain_ipm import standard_form_ipm
+from optdesign.engines.spectral_factor import spectral_blocks
 
 EPS = float(np.finfo(float).eps)
 #: two exact (polished, KKT-certified) optima of the same convex problem: equal to rounding, with

@@ -17,7 +17,7 @@ from optdesign.analysis.robustness import circle_condition
 from optdesign.classical.placement import place_observer, pole_error
 from optdesign.classical.riccati import filter_are
 from optdesign.errors import ValidationError
-from optdesign.solvers.status import map_status
+from optdesign.backends.status import map_status
 
 DATA = Path(__file__).parent / "data"
 

@@ -9,9 +9,9 @@ import pytest
 
 from optdesign.errors import BackendUnavailableError, ValidationError
 from optdesign.results import Status
-from optdesign.solvers.casadi_backend import solve_nlpsol, solve_opti
-from optdesign.solvers.cvxpy_backend import available_sdp_solvers, default_sdp_solver, solve_cvxpy
-from optdesign.solvers.status import map_status
+from optdesign.backends.casadi_backend import solve_nlpsol, solve_opti
+from optdesign.backends.cvxpy_backend import available_sdp_solvers, default_sdp_solver, solve_cvxpy
+from optdesign.backends.status import map_status
 
 
 def test_status_tables():
@@ -102,7 +102,7 @@ def test_default_solver_and_bad_name():
 
 
 def test_missing_solver_message(monkeypatch):
-    import optdesign.solvers.cvxpy_backend as cb
+    import optdesign.backends.cvxpy_backend as cb
 
     monkeypatch.setattr(cb, "available_sdp_solvers", lambda: ())
     with pytest.raises(BackendUnavailableError, match="pip install clarabel"):

@@ -1,7 +1,7 @@
 """The lean verification of designs that come from no Riccati solver (``avoid="none"``,
 :func:`optdesign.design.verification.lean_riccati_checks`), the shared-Schur forward error estimate
 (:func:`optdesign.classical.riccati.are_error_of_terms`) and the one-output engine's first, looser
-Clarabel solve (:data:`optdesign.solvers.inverse_kalman_engine.ONE_OUTPUT_FIRST_TRY`): the same
+Clarabel solve (:data:`optdesign.engines.inverse_kalman_engine.ONE_OUTPUT_FIRST_TRY`): the same
 checks, tolerances and verdicts as the full path, on random systems with fixed seeds."""
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from optdesign.design.verification import (
 )
 from optdesign.errors import RiccatiError, ValidationError
 from optdesign.results import Status
-from optdesign.solvers import inverse_kalman_engine as engine
+from optdesign.engines import inverse_kalman_engine as engine
 
 EPS = float(np.finfo(float).eps)
 

@@ -51,8 +51,8 @@ from optdesign.formulate.well_conditioned import (
     real_modal_basis,
 )
 from optdesign.regions import Disk, HalfPlane, Sector
-from optdesign.solvers.casadi_backend import solve_opti
-from optdesign.solvers.eigenstructure_fixed import default_starts
+from optdesign.backends.casadi_backend import solve_opti
+from optdesign.engines.eigenstructure_fixed import default_starts
 
 
 def _yt(plant, poles, method="YT"):
@@ -1020,7 +1020,7 @@ class _SolveCountingDeadline(Deadline):
 
 
 def _count_solves(monkeypatch, after: int):
-    import optdesign.solvers.casadi_backend as cb
+    import optdesign.backends.casadi_backend as cb
 
     class Budget(_SolveCountingDeadline):
         solves = 0

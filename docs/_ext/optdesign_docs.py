@@ -57,7 +57,7 @@ __all__ = [
 
 PACKAGE = "optdesign"
 #: layer order of the sub-packages (imports flow downward; the reference follows it)
-LAYERS = ("model", "analysis", "classical", "formulate", "solvers", "design", "studies")
+LAYERS = ("model", "analysis", "classical", "formulate", "backends", "engines", "design", "compat", "plot", "studies")
 #: data reprs longer than this are not shown in the signature line
 MAX_VALUE_REPR = 80
 HEADING = "=-~^"

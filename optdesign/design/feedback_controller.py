@@ -1,7 +1,7 @@
 r"""State feedback on its own measure: the controller mode of the fixed-pole placement engine.
 
 ``A - B K`` with prescribed poles is placed by the eigenstructure engine built on the dual pair
-``(A', B')`` (:class:`~optdesign.solvers.eigenstructure.EigenstructureEngine`), but with
+``(A', B')`` (:class:`~optdesign.engines.eigenstructure.EigenstructureEngine`), but with
 ``measure="left"``: the engine's left eigenvectors of ``A' - K' B'`` are the right eigenvectors of
 ``A - B K``, so it minimizes ``cond(X)`` of the unit-column right eigenvector matrix ``X`` of the
 closed loop -- the measure of scipy's ``place_poles`` (its ``X``), MATLAB's ``place`` and the
@@ -38,8 +38,8 @@ from ..classical.placement import acker
 from ..classical.riccati import sort_poles
 from ..errors import DefectivePolesError
 from ..results import Check, Route, SolverStats, Stage, Status, Verification
-from ..solvers.eigenstructure import EigenstructureEngine, pole_multiplicities
-from ..solvers.eigenstructure_fixed import place_fixed
+from ..engines.eigenstructure import EigenstructureEngine, pole_multiplicities
+from ..engines.eigenstructure_fixed import place_fixed
 from .verification import (
     eig_residual_check,
     eigen_spread,
@@ -90,7 +90,7 @@ def needs_ackermann(target: NDArray, rank: int, *, matrix: str = "B", loop: str 
         f"poles: {complex(v):.6g} is requested {m} times but rank({matrix}) = {rank}: every eigenvalue of "
         f"{loop} has at most rank({matrix}) independent eigenvectors, so {loop} would be defective; with "
         f"rank({matrix}) >= 2 this request is refused (scipy's place_poles refuses it too); repeat a pole "
-        f"at most {rank} times, or spread it (optdesign.solvers.eigenstructure.spread_poles)",
+        f"at most {rank} times, or spread it (optdesign.engines.eigenstructure.spread_poles)",
         pole=v, multiplicity=m, rank=rank)
 
 
@@ -121,7 +121,7 @@ def controller_fields(A: NDArray, B: NDArray, target: NDArray, *, objective: str
     kappa2 (= cond(X)), X, ...) with the verification on ``A - B K``.
 
     ``gain_mask`` (m, n) of bool: free entries of K.  ``max_iter`` and ``final_ftol`` as
-    :func:`~optdesign.solvers.eigenstructure_fixed.place_fixed` (the drop-in's ``maxiter``, ``rtol``).
+    :func:`~optdesign.engines.eigenstructure_fixed.place_fixed` (the drop-in's ``maxiter``, ``rtol``).
     """
     t0 = time.process_time()
     eng = EigenstructureEngine(A.T, B.T)

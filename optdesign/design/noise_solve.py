@@ -23,7 +23,7 @@ from .._deadline import Deadline
 from ..errors import ValidationError
 from ..formulate import als
 from ..results import Check, Stage, Status, Verification
-from ..solvers.status import CVXPY_STATUS
+from ..backends.status import CVXPY_STATUS
 from .verification import psd_check
 
 __all__: list[str] = []

@@ -67,7 +67,7 @@ from ..formulate.robust_nlp import KAPPA2_ORDERS, RobustNLP, build_robust_nlp
 from ..model.model_set import ModelSet, as_model_set
 from ..model.regions import Region
 from ..results import Certificate, Check, SolverStats, Status, Verification
-from ..solvers.casadi_backend import solve_nlpsol
+from ..backends.casadi_backend import solve_nlpsol
 from .robust_lmi import certify_gain, lmi_design
 from .robust_result import (
     RobustObserverDesign,

@@ -39,7 +39,7 @@ from ..formulate.robust_lmi import build_robust_lmi, default_margin
 from ..model.model_set import ModelSet, as_model_set
 from ..model.regions import Region
 from ..results import Certificate, Check, SolverStats, Status, Verification
-from ..solvers.cvxpy_backend import solve_cvxpy
+from ..backends.cvxpy_backend import solve_cvxpy
 from .robust_result import (
     RobustObserverDesign,
     as_regions,

@@ -332,7 +332,7 @@ def build_robust_lmi(
     Returns
     -------
     RobustLMI
-        Built, not solved (solve with :func:`optdesign.solvers.cvxpy_backend.solve_cvxpy`).
+        Built, not solved (solve with :func:`optdesign.backends.cvxpy_backend.solve_cvxpy`).
 
     Raises
     ------

@@ -22,7 +22,7 @@ from ...formulate.inverse_kalman import (
 )
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
-from ...solvers.polish import refine_gain, sym
+from ...engines.polish import refine_gain, sym
 from ..verification import (
     check_violation,
     newton_kalman_checks,

@@ -1,5 +1,5 @@
 """The inverse Kalman engine as the first route of :func:`kalman_for_poles` (``method="sdp"`` /
-``"auto"``): :mod:`optdesign.solvers.inverse_kalman_engine` finds L and Q together (one output: the
+``"auto"``): :mod:`optdesign.engines.inverse_kalman_engine` finds L and Q together (one output: the
 fixed-gain SDP at the gain the poles fix; several outputs: the eigenvector parametrization of the
 gains with the target poles and a Newton method on the feasible set, certified by the fixed-gain SDP
 at the final gain).  Its answer is verified here like every design; a target it does not apply to,
@@ -16,7 +16,7 @@ from ..._deadline import Deadline
 from ...errors import RiccatiError
 from ...model.plant import Plant
 from ...results import Status
-from ...solvers.inverse_kalman_engine import EngineSetup, prepare_inverse_kalman, solve_inverse_kalman
+from ...engines.inverse_kalman_engine import EngineSetup, prepare_inverse_kalman, solve_inverse_kalman
 from .common import empty_result, make_stats, objective_of, verify_design
 from .results import InverseKalmanResult
 

@@ -20,7 +20,7 @@ from ...formulate.inverse_kalman import (
     tril_index,
 )
 from ...model.plant import Plant
-from ...solvers.casadi_backend import solve_nlpsol, solve_opti
+from ...backends.casadi_backend import solve_nlpsol, solve_opti
 from .common import noise_of, placed_gain, project_psd, stable_poles, sym
 from .sdp_stage import feasibility_margin
 

@@ -19,7 +19,7 @@ from ...errors import ValidationError
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
-from ...solvers.polish import min_norm_lstsq
+from ...engines.polish import min_norm_lstsq
 from ..verification import riccati_checks
 from .common import EPS, make_stats, project_psd, quiet, stable_poles, sym
 from .results import InfeasibilityCertificate, KalmanOptimalityResult

@@ -14,8 +14,8 @@ from ...formulate.inverse_kalman import (
     spectral_terms,
 )
 from ...results import Status
-from ...solvers.cvxpy_backend import solve_cvxpy
-from ...solvers.polish import spectral_polish
+from ...backends.cvxpy_backend import solve_cvxpy
+from ...engines.polish import spectral_polish
 from .certificates import infeasible_fixed_gain, one_output_verdict
 from .common import (
     design_from_Q,

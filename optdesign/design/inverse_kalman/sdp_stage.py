@@ -17,10 +17,10 @@ from ...formulate.inverse_kalman import (
 )
 from ...model.plant import Plant
 from ...results import Status
-from ...solvers import cvxpy_backend
-from ...solvers.clarabel_fixed_gain import riccati_of_gain
-from ...solvers.cvxpy_backend import default_sdp_solver, solve_cvxpy
-from ...solvers.polish import face_polish
+from ...backends import cvxpy_backend
+from ...backends.clarabel_fixed_gain import riccati_of_gain
+from ...backends.cvxpy_backend import default_sdp_solver, solve_cvxpy
+from ...engines.polish import face_polish
 from .common import sym
 
 

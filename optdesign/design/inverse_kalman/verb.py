@@ -24,7 +24,7 @@ from ...formulate.inverse_kalman import (
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Status
-from ...solvers.inverse_kalman_engine import EngineSetup
+from ...engines.inverse_kalman_engine import EngineSetup
 from ..verification import POLE_FLOOR_CAP, pole_tolerance
 from .certificates import identity_certificate
 from .common import (
@@ -83,7 +83,7 @@ def kalman_for_poles(
         Target error poles, closed under conjugation.
     method : {"auto", "sdp", "nlp", "sequential"}
         ``"sdp"`` (= ``"auto"``): the inverse Kalman engine
-        (:mod:`optdesign.solvers.inverse_kalman_engine`) -- one output: L is fixed by the poles and
+        (:mod:`optdesign.engines.inverse_kalman_engine`) -- one output: L is fixed by the poles and
         the fixed-gain SDP (on Clarabel, polished) gives Q, globally; several outputs: L and Q
         together (the eigenvector parametrization of the gains with the target poles, Newton on
         the feasible set), certified by the fixed-gain SDP at the final L.  Where the engine does

@@ -18,7 +18,7 @@ metric (trade-off: minimize eta subject to ``kappa2 <= kappa2_max``, or the reve
 the design variable and the filter Riccati equation is a constraint.
 
 Every design follows validate -> problem (:class:`WellConditionedProblem`, held by the caller) ->
-solve (the placement engine of :mod:`optdesign.solvers.eigenstructure`; IPOPT on the NLPs of
+solve (the placement engine of :mod:`optdesign.engines.eigenstructure`; IPOPT on the NLPs of
 :mod:`optdesign.formulate.well_conditioned` where the engine does not handle a constraint or its
 design does not verify) -> verify (numpy/scipy, independently of the solver) -> result.
 
@@ -40,7 +40,7 @@ Lewis, A. S. & Overton, M. L., "Nonsmooth optimization via quasi-Newton methods"
 Programming 141 (2013) 135-163.
 """
 
-from ...solvers.casadi_backend import check_ipopt_options
+from ...backends.casadi_backend import check_ipopt_options
 from ..verification import kappa2_agreement_tol
 from .evaluation import (
     POLE_TOL,

@@ -1,5 +1,5 @@
 """The engine route of the well-conditioned observer: the dedicated eigenstructure placement engine
-(:mod:`optdesign.solvers.eigenstructure`) for fixed poles (:func:`place_fixed`, every start in
+(:mod:`optdesign.engines.eigenstructure`) for fixed poles (:func:`place_fixed`, every start in
 lockstep) and for poles free in a region (:func:`place_region`, one call per start so that the
 time budget, the lower bound of the objective and the progress report act between starts).
 
@@ -20,9 +20,9 @@ from ..._deadline import Deadline
 from ...errors import ValidationError
 from ...model.regions import Region
 from ...results import Status
-from ...solvers.eigenstructure import EigenstructureEngine, Objective
-from ...solvers.eigenstructure_fixed import PlacementOutcome, place_fixed
-from ...solvers.eigenstructure_region import RegionStart, place_region
+from ...engines.eigenstructure import EigenstructureEngine, Objective
+from ...engines.eigenstructure_fixed import PlacementOutcome, place_fixed
+from ...engines.eigenstructure_region import RegionStart, place_region
 from .evaluation import Candidate, Evaluated, attains, metric_of, start_record
 from .results import StartRecord
 

@@ -82,9 +82,9 @@ def ipopt_options(options: Any, defaults: dict[str, Any] | None = None) -> dict[
     ------
     ValidationError
         ``options`` is not a dict (or None), has a key that is not a string, or an option IPOPT does
-        not accept (:func:`optdesign.solvers.casadi_backend.check_ipopt_options`).
+        not accept (:func:`optdesign.backends.casadi_backend.check_ipopt_options`).
     """
-    from ...solvers.casadi_backend import check_ipopt_options
+    from ...backends.casadi_backend import check_ipopt_options
 
     user = as_options("options", options)
     if user:
@@ -108,7 +108,7 @@ def solve_nlp(nlp, options: dict[str, Any], deadline: Deadline):
     sweep of ``benchmarks/results/sweep.md``): the same iterates; a J = 0 solve from a YT start (32
     iterations) 30 -> 18 ms CPU, its exact Hessian 0.31 -> 0.07 ms per iteration.
     """
-    from ...solvers.casadi_backend import ipopt_solver, run_solver, setup_error_report
+    from ...backends.casadi_backend import ipopt_solver, run_solver, setup_error_report
 
     configure = not nlp.solver_ready
     opts = options

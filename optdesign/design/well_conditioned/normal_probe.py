@@ -34,7 +34,7 @@ from ..._validate import as_int, as_matrix, as_rng, as_square
 from ...analysis import metrics
 from ...errors import DimensionError, ValidationError
 from ...model.regions import Region
-from ...solvers.normal_search import normal_freedom, search_normal_closed_loop
+from ...engines.normal_search import normal_freedom, search_normal_closed_loop
 from ..verification import eigen_spread, kappa2_agreement_tol
 
 __all__ = ["normal_closed_loop", "normal_freedom"]

@@ -31,8 +31,8 @@ from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...model.regions import Disk, HalfPlane, Intersection, Region, Sector, stability_region
 from ...results import Certificate, SolverStats, Status
-from ...solvers.eigenstructure import EigenstructureEngine
-from ...solvers.eigenstructure_fixed import default_starts
+from ...engines.eigenstructure import EigenstructureEngine
+from ...engines.eigenstructure_fixed import default_starts
 from .engine_route import ENGINE, engine_fixed, engine_region
 from .evaluation import (
     Evaluated,
@@ -56,7 +56,7 @@ __all__ = ["WellConditionedProblem", "LocalOptimum", "local_optima", "warm_start
 Objective = Literal["kappa2", "kappa_fro", "eta"]
 
 #: starts of a solve when none are given (region mode, the NLP route); fixed poles on the placement
-#: engine use :func:`~optdesign.solvers.eigenstructure_fixed.default_starts`
+#: engine use :func:`~optdesign.engines.eigenstructure_fixed.default_starts`
 DEFAULT_STARTS = 8
 
 #: route "fast" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
@@ -228,7 +228,7 @@ class WellConditionedProblem:
         change their values).
     starts : int, optional
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
-        structural zeros): :func:`~optdesign.solvers.eigenstructure_fixed.default_starts` (6 up to
+        structural zeros): :func:`~optdesign.engines.eigenstructure_fixed.default_starts` (6 up to
         n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
         ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros): :data:`AUTO_REGION_STARTS`.
     seed : int, default 0

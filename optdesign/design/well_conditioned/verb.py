@@ -71,7 +71,7 @@ def well_conditioned_observer(
     starts : int, optional
         Number of multi-start runs; default 8, except fixed poles on the placement engine (no
         bounds, no structural zeros): 6 up to n = 12, 2 up to 24, then 1
-        (:func:`~optdesign.solvers.eigenstructure_fixed.default_starts`: measured enough for the
+        (:func:`~optdesign.engines.eigenstructure_fixed.default_starts`: measured enough for the
         engine, whose starts run in lockstep).  Fixed poles: scipy YT, KNV0 (real poles) and random
         eigenvector coordinates, run in lockstep by the placement engine.  Region: start 0 is
         scipy YT at :func:`naive_poles` (the open-loop poles moved into the region), start 1 the
@@ -142,7 +142,7 @@ def well_conditioned_observer(
 
     Notes
     -----
-    The placement engine (:mod:`optdesign.solvers.eigenstructure`) is the default inner loop:
+    The placement engine (:mod:`optdesign.engines.eigenstructure`) is the default inner loop:
     the left eigenvectors of ``A - L C`` are parametrized in the subspace of each pole, so every
     point places the poles exactly; kappa2 is minimized through smooth upper bounds tightened by
     continuation, then exactly, by BFGS with analytic gradients.  In a region the poles are

@@ -194,7 +194,7 @@ def build_fixed_gain_sdp(
     Returns
     -------
     FixedGainSDP
-        Built, not solved (solve with :func:`optdesign.solvers.cvxpy_backend.solve_cvxpy`).
+        Built, not solved (solve with :func:`optdesign.backends.cvxpy_backend.solve_cvxpy`).
 
     Raises
     ------

@@ -161,7 +161,7 @@ def build_pole_nlp(
     -------
     PoleNLP
         Built, not solved; the caller sets initial values and runs
-        :func:`optdesign.solvers.casadi_backend.solve_opti`.
+        :func:`optdesign.backends.casadi_backend.solve_opti`.
 
     Raises
     ------

@@ -71,7 +71,7 @@ GAIN_BOUND_STAGE = 10
 
 def casadi_module():
     """The CasADi module (imported lazily: CasADi is loaded only when an NLP is built)."""
-    from ...solvers.casadi_backend import import_casadi
+    from ...backends.casadi_backend import import_casadi
 
     return import_casadi()
 

@@ -1,6 +1,6 @@
 r"""Newton methods on the Kalman spectral conditions (the problem of
-:mod:`optdesign.solvers.spectral_factor`): the smooth local solver behind
-:mod:`optdesign.solvers.inverse_kalman_engine`.
+:mod:`optdesign.engines.spectral_factor`): the smooth local solver behind
+:mod:`optdesign.engines.inverse_kalman_engine`.
 
 Methods
 -------

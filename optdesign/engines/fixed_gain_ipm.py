@@ -1,6 +1,6 @@
 r"""A dense primal-dual interior-point method for the one-output fixed-gain SDP (an accelerator).
 
-The fixed-gain SDP of :mod:`optdesign.solvers.clarabel_fixed_gain` for the structure ``"full"`` and
+The fixed-gain SDP of :mod:`optdesign.backends.clarabel_fixed_gain` for the structure ``"full"`` and
 the objective ``"min_trace"`` is one LMI in the variables ``x`` (``m = d(d + 1)/2``, ``d = n - p``):
 
 .. math::  \min_x\ c' x \quad \text{s.t.}\quad Z(x) = Q_0 + \sum_i x_i T_i \succeq 0,
@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from .._deadline import Deadline
 from .._validate import as_int, as_positive_float
 from ..results import Status
-from .clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
+from ..backends.clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
 
 __all__ = ["IPM_TOL", "IPM_MAX_ITER", "IpmReport", "symmetric_basis", "solve_fixed_gain_ipm",
            "standard_form_ipm"]
@@ -83,7 +83,7 @@ def symmetric_basis(T: NDArray, n: int) -> NDArray[np.float64]:
     Parameters
     ----------
     T : (n(n+1)/2, m) array_like
-        Columns in Clarabel's scaled triangle (:func:`~optdesign.solvers.clarabel_fixed_gain.svec`).
+        Columns in Clarabel's scaled triangle (:func:`~optdesign.backends.clarabel_fixed_gain.svec`).
     n : int
     """
     return smat(np.asarray(T, dtype=float).T, n)
@@ -146,7 +146,7 @@ def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_i
     -------
     solution : FixedGainSolution or None
         Status ``optimal`` (native ``"ipm: optimal"``) with P, Q of the returned x (physical units,
-        as :func:`~optdesign.solvers.clarabel_fixed_gain.solve_fixed_gain`); None when the method
+        as :func:`~optdesign.backends.clarabel_fixed_gain.solve_fixed_gain`); None when the method
         did not reach its stopping test or its answer fails its own checks -- solve on Clarabel then.
     report : IpmReport
 

@@ -1,8 +1,8 @@
-"""The per-plant state of the inverse Kalman engine (:mod:`optdesign.solvers.inverse_kalman_engine`):
+"""The per-plant state of the inverse Kalman engine (:mod:`optdesign.engines.inverse_kalman_engine`):
 what does not depend on the target poles, built by :func:`prepare_inverse_kalman` and held by the caller
 (a held :class:`~optdesign.InverseKalmanProblem` builds it once) -- the family map of the fixed-gain
 SDP, the eigenvalues of A and, in continuous time for a full Q and the minimal trace, the complement
-form of that SDP (:mod:`optdesign.solvers.one_output_sdp`)."""
+form of that SDP (:mod:`optdesign.engines.one_output_sdp`)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from .._validate import as_poles
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
-from .clarabel_fixed_gain import FamilyMap, family_map
+from ..backends.clarabel_fixed_gain import FamilyMap, family_map
 from .one_output_sdp import OneOutputForm, one_output_form, one_output_form_of_plant
 
 __all__ = ["EngineSetup", "prepare_inverse_kalman", "engine_applies"]
@@ -37,7 +37,7 @@ class EngineSetup:
         The plant-only part of the fixed-gain SDP (its constraint matrix in continuous time).
     complement_form : OneOutputForm or None
         ``"full"`` / ``"min_trace"``, continuous time: the complement form of the fixed-gain SDP
-        (:mod:`optdesign.solvers.one_output_sdp`; ``n p - p(p - 1)/2`` constraints: n for one
+        (:mod:`optdesign.engines.one_output_sdp`; ``n p - p(p - 1)/2`` constraints: n for one
         output, where it is the whole answer; with several outputs the certificate SDP at the
         engine's gain), built once (in discrete time it depends on the gain: built per target);
         None otherwise.
@@ -71,7 +71,7 @@ class EngineSetup:
 
 #: the family's direction matrix T (n(n+1)/2 x (n-p)(n-p+1)/2 doubles) is built for the complement
 #: form only below this many bytes (256 MiB: n ~ 80); above, the form of one output comes from
-#: Lyapunov solves (:func:`~optdesign.solvers.one_output_sdp.one_output_form_of_plant`) or not at all
+#: Lyapunov solves (:func:`~optdesign.engines.one_output_sdp.one_output_form_of_plant`) or not at all
 TRIANGLE_BYTES_MAX = 256 << 20
 
 

@@ -3,7 +3,7 @@ conditions.
 
 With one output the poles fix the gain L, and the process-noise covariances whose Kalman filter
 has that gain form the affine family ``Q(X) = Q0 + T(X)`` of
-:mod:`optdesign.solvers.clarabel_fixed_gain` (``T`` of dimension ``n(n - 1)/2``; in continuous time
+:mod:`optdesign.backends.clarabel_fixed_gain` (``T`` of dimension ``n(n - 1)/2``; in continuous time
 it depends on the plant only).  Its orthogonal complement in the symmetric matrices has dimension
 ``n``: with an orthonormal basis ``W_1 .. W_n`` of it, Q is in the family iff
 ``<W_k, Q> = b_k = <W_k, Q0>``.  So the min-trace SDP is the standard pair
@@ -12,7 +12,7 @@ it depends on the plant only).  Its orthogonal complement in the symmetric matri
            \qquad\qquad
            \max\ b' y \ \ \text{s.t.}\ \ Z = I - \textstyle\sum_k y_k W_k \succeq 0
 
--- n constraints, where the direct form of :func:`~optdesign.solvers.clarabel_fixed_gain.solve_fixed_gain`
+-- n constraints, where the direct form of :func:`~optdesign.backends.clarabel_fixed_gain.solve_fixed_gain`
 has ``n(n - 1)/2`` variables.  With p outputs and a given gain the family has dimension ``(n - p)(n -
 p + 1)/2`` and its complement ``n p - p(p - 1)/2``: the same form, the several-output engine's
 certificate SDP (measured at n = 40, p = 8: 0.6 s with the IPM and the polish, where Clarabel on the
@@ -22,7 +22,7 @@ whose tolerances are then relative to the wrong size (measured: traces 1e-5 apar
 solvers at n = 10, and garbage at n >= 15, where this form solves every target).
 
 :func:`solve_one_output` solves the dual on Clarabel (variables y, one PSD cone whose multiplier is
-Q; from n = :data:`IPM_MIN_N` the dense IPM of :mod:`optdesign.solvers.fixed_gain_ipm` on the pair,
+Q; from n = :data:`IPM_MIN_N` the dense IPM of :mod:`optdesign.engines.fixed_gain_ipm` on the pair,
 whose Schur matrix is n x n, and Clarabel when it fails) to :data:`POLISH_START_TOL`, then runs
 Newton's method on the optimality conditions
 
@@ -34,7 +34,7 @@ PSD: ``V V'``) and checks the KKT conditions: ``Z`` PSD, complementarity, feasib
 the answer the global optimum over the Q of the gain (weak duality: ``b'y <= tr Q' `` for every
 feasible ``Q'``).  Anything else -- a Clarabel status other than solved, a singular or stalling
 Newton system, a KKT test that fails -- returns no solution and the reason; the caller then runs
-the general route (:mod:`optdesign.solvers.inverse_kalman_engine`), the only source of
+the general route (:mod:`optdesign.engines.inverse_kalman_engine`), the only source of
 ``infeasible``.
 
 References
@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 
 from .._backends import import_clarabel
 from .._deadline import Deadline, dense_kkt_refusal
-from .clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec, svec_index
+from ..backends.clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec, svec_index
 from .fixed_gain_ipm import standard_form_ipm, symmetric_basis
 
 __all__ = ["POLISH_START_TOL", "KKT_TOL", "IPM_MIN_N", "OneOutputForm", "one_output_form",
@@ -69,7 +69,7 @@ _EPS = float(np.finfo(float).eps)
 #: data): the polish converges quadratically from there (measured: 2-3 Newton steps to rounding on
 #: 24 targets n = 2..20; Clarabel 9-14 iterations)
 POLISH_START_TOL = 1e-8
-#: the dense IPM (:func:`~optdesign.solvers.fixed_gain_ipm.standard_form_ipm`, n x n Schur matrix)
+#: the dense IPM (:func:`~optdesign.engines.fixed_gain_ipm.standard_form_ipm`, n x n Schur matrix)
 #: instead of Clarabel from this n (Clarabel's KKT system has a dense block of n(n+1)/2 rows).
 #: Measured (CPU per SDP with the polish, 2 targets each): Clarabel 1.0-2.4 ms at n = 2-6 (the IPM
 #: 3.3-5.9: Python per iteration), 5.3 / 7.1 ms at n = 10, equal at n = 12 (8.5 ms), 19-27 / 10-17
@@ -244,7 +244,7 @@ def _failed(reason: str, native: str = "", iterations: int = 0, newton: int = 0)
 
 
 def _settings(clarabel, deadline: Deadline | None):
-    """:func:`~optdesign.solvers.clarabel_fixed_gain.clarabel_settings` with the tolerances at
+    """:func:`~optdesign.backends.clarabel_fixed_gain.clarabel_settings` with the tolerances at
     :data:`POLISH_START_TOL` (the polish finishes the point)."""
     tol = {"tol_gap_abs": POLISH_START_TOL, "tol_gap_rel": POLISH_START_TOL, "tol_feas": POLISH_START_TOL}
     return clarabel_settings(clarabel, tol, deadline)
@@ -259,7 +259,7 @@ def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
     form : OneOutputForm
         Of ``family.T`` (:func:`one_output_form`).
     family : FixedGainFamily
-        The gain's family (:func:`~optdesign.solvers.clarabel_fixed_gain.fixed_gain_family`).
+        The gain's family (:func:`~optdesign.backends.clarabel_fixed_gain.fixed_gain_family`).
     deadline : Deadline, optional
         Its remaining time becomes Clarabel's ``time_limit``.
 
@@ -305,7 +305,7 @@ def solve_one_output(form: OneOutputForm, family: FixedGainFamily, *,
 
 def _interior_point(form: OneOutputForm, b: NDArray, deadline: Deadline | None):
     """``(q, y, "ipm: solved", iterations)`` from the dense IPM of
-    :func:`~optdesign.solvers.fixed_gain_ipm.standard_form_ipm` on the pair (C = I, A_k = W_k), to
+    :func:`~optdesign.engines.fixed_gain_ipm.standard_form_ipm` on the pair (C = I, A_k = W_k), to
     :data:`POLISH_START_TOL`; None when it did not meet its test (Clarabel then solves the SDP)."""
     out, rep = standard_form_ipm(form.basis, b, np.eye(form.n), tol=POLISH_START_TOL, deadline=deadline)
     if out is None:

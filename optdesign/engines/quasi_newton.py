@@ -1,6 +1,6 @@
 r"""Dense BFGS with a weak Wolfe line search, for smooth *and* nonsmooth objectives, on a batch of starts.
 
-The eigenstructure engine (:mod:`optdesign.solvers.eigenstructure`) minimizes ``log kappa2`` of
+The eigenstructure engine (:mod:`optdesign.engines.eigenstructure`) minimizes ``log kappa2`` of
 an eigenvector matrix, a function that is smooth almost everywhere but not where the largest
 or the smallest singular value is multiple -- which is typical at a minimizer.  BFGS with a
 *weak* Wolfe line search (Armijo decrease and a curvature condition on the directional

@@ -49,7 +49,7 @@ CVXPY_STATUS: dict[str, Status] = {
 }
 
 #: Clarabel's own ``SolverStatus`` names (the fixed-gain SDP solved on Clarabel directly,
-#: :mod:`optdesign.solvers.clarabel_fixed_gain`)
+#: :mod:`optdesign.backends.clarabel_fixed_gain`)
 CLARABEL_STATUS: dict[str, Status] = {
     "Solved": Status.OPTIMAL,
     "AlmostSolved": Status.OPTIMAL_INACCURATE,

@@ -1,9 +1,9 @@
 r"""Fixed-pole well-conditioned placement on the eigenstructure engine: starts, solve, outcome.
 
 :func:`place_fixed` is the functional entry point of the engine of
-:mod:`optdesign.solvers.eigenstructure` (issue 13): it takes scipy's robust placement (YT, KNV0:
+:mod:`optdesign.engines.eigenstructure` (issue 13): it takes scipy's robust placement (YT, KNV0:
 one sweep each) and random eigenvector coordinates as starts, minimizes the objective from all of
-them in lockstep (:func:`~optdesign.solvers.quasi_newton.bfgs_minimize_batch`) through the kappa2
+them in lockstep (:func:`~optdesign.engines.quasi_newton.bfgs_minimize_batch`) through the kappa2
 continuation, and returns a :class:`PlacementOutcome` -- not verified: the design layer verifies
 it independently (eigenvalues of ``A - L C``, the eigen-residual of ``V``, kappa2 agreement).
 
@@ -84,7 +84,7 @@ class StartRecord:
         BFGS steps of the last continuation stage (the exact objective).
     last_decrease : float
         Relative decrease of the objective over the last iterations of that stage
-        (``QNResult.decrease`` of :mod:`optdesign.solvers.quasi_newton`).
+        (``QNResult.decrease`` of :mod:`optdesign.engines.quasi_newton`).
     L : (n, p) ndarray or None
         The start's final gain (None when it has none), so that a caller can verify every start.
     V : (n, n) ndarray of complex or None
@@ -207,7 +207,7 @@ def run_starts(
 ) -> list[tuple[NDArray, int, int, str]]:
     """Minimize from every row of ``X0`` through the continuation ``stages``.
 
-    All starts run in lockstep (:func:`~optdesign.solvers.quasi_newton.bfgs_minimize_batch`), each
+    All starts run in lockstep (:func:`~optdesign.engines.quasi_newton.bfgs_minimize_batch`), each
     start's inverse-Hessian approximation carried from stage to stage.  After every stage, starts
     that reached the same point as an earlier one (same value to 1e-9, same normalized coordinates
     to 1e-6) stop there: they would follow the same path (measured on random n = 4..6 plants: of 8

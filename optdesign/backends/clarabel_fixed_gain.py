@@ -66,7 +66,7 @@ __all__ = [
 
 #: Clarabel's native statuses (``str(solution.status)``) in the one status set
 
-#: tight defaults (as :data:`optdesign.solvers.cvxpy_backend.DEFAULT_OPTIONS` for Clarabel), and the
+#: tight defaults (as :data:`optdesign.backends.cvxpy_backend.DEFAULT_OPTIONS` for Clarabel), and the
 #: QDLDL KKT solver: the constraint matrix of this form is dense (every X direction moves all of Q);
 #: QDLDL -- single-threaded, the same rounding on every run -- factors its KKT matrix in about half
 #: the CPU time of Clarabel's default choice at n = 15-25 and as fast below, with the same statuses

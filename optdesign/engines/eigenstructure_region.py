@@ -2,7 +2,7 @@ r"""Region mode of the eigenstructure engine: the poles are variables too (issue
 
 The well-conditioned observer with poles free in a convex region ``D`` (:mod:`optdesign.regions`)
 minimizes kappa2 jointly over the eigenvector coordinates ``c`` and the poles, on the machinery
-of :mod:`optdesign.solvers.eigenstructure`:
+of :mod:`optdesign.engines.eigenstructure`:
 
 * **Moving subspaces.**  The left eigenvector of pole ``lambda`` lies in ``S(lambda)``
   (``w (A - lambda I) Z = 0``).  When ``lambda`` moves, the basis moves by *parallel transport*:
@@ -114,7 +114,7 @@ class RegionModel:
     """Coordinates and free poles -> objective (with the region barrier) and gradient.
 
     The variable vector is ``[c, lambda_real, sigma, omega]``: the eigenvector coordinates in the
-    layout of :class:`~optdesign.solvers.eigenstructure.FixedPoleModel` (free real poles, pinned
+    layout of :class:`~optdesign.engines.eigenstructure.FixedPoleModel` (free real poles, pinned
     real poles, free pairs, pinned pairs), then the free real poles, the real and the imaginary
     parts of the free pairs' upper members.
 

@@ -24,7 +24,7 @@ class SolverReport:
     Attributes
     ----------
     status : Status
-        Mapped status (see :mod:`optdesign.solvers.status`).
+        Mapped status (see :mod:`optdesign.backends.status`).
     stats : SolverStats
         Backend name, native status, time, iterations.
     value : callable

@@ -1,7 +1,7 @@
 r"""The Kalman spectral conditions with the null vectors that fix the gain, as a smooth problem.
 
-The problem of the local methods of :mod:`optdesign.solvers.spectral_newton` (behind
-:mod:`optdesign.solvers.inverse_kalman_engine`): residuals, objective, closed-form derivatives.
+The problem of the local methods of :mod:`optdesign.engines.spectral_newton` (behind
+:mod:`optdesign.engines.inverse_kalman_engine`): residuals, objective, closed-form derivatives.
 
 The conditions
 --------------
@@ -33,7 +33,7 @@ Hessian of the Lagrangian ``f + sum_b Re(mu_b^H r_b)`` are in closed form: with 
 is the dual slack of the joint problem: at a first-order point ``S V = 0``, and ``S >= 0`` is what
 makes it a KKT point of the problem over all ``Qdec >= 0`` (else the eigenvector of a negative
 eigenvalue of S is a descent direction that raises the rank:
-:func:`optdesign.solvers.spectral_newton.escape_direction`).
+:func:`optdesign.engines.spectral_newton.escape_direction`).
 
 References
 ----------

@@ -1,4 +1,4 @@
-"""Starting points of the inverse Kalman engine (:mod:`optdesign.solvers.inverse_kalman_engine`): the
+"""Starting points of the inverse Kalman engine (:mod:`optdesign.engines.inverse_kalman_engine`): the
 decision covariances its SQP starts from (a scaled identity whose Kalman poles are closest to the targets,
 the scaled nominal, seeded random covariances, the rescue starts), and the scipy Kalman filter of a noise
 covariance they are measured by.

@@ -7,13 +7,13 @@ Given a plant ``(A, C, R[, G, dt])`` and stable target poles, find ``Q >= 0`` (i
 How
 ---
 The poles fix L only for one output.  With p outputs the gains with the target poles are
-parametrized by one null vector ``g_b`` per target block (:mod:`optdesign.solvers.spectral_factor`:
+parametrized by one null vector ``g_b`` per target block (:mod:`optdesign.engines.spectral_factor`:
 ``L' W = G`` with ``w_b = -G1_b^T g_b``), and a gain is a Kalman gain of ``Q`` iff every
 ``(R + G2_b Q G1_b^T) g_b = 0`` -- bilinear in ``(Q, g)``, linear in Q for fixed g (the fixed-gain
-SDP: :mod:`optdesign.solvers.clarabel_fixed_gain`).  With ``Qdec = V V'`` (``Q = Gd Qdec Gd'``)
+SDP: :mod:`optdesign.backends.clarabel_fixed_gain`).  With ``Qdec = V V'`` (``Q = Gd Qdec Gd'``)
 :func:`solve_inverse_kalman` runs, from each of a few starts (a scaled identity whose Kalman poles
 are closest to the targets, the nominal for ``"nearest"``, seeded random covariances, a caller's
-warm start; :mod:`optdesign.solvers.inverse_kalman_starts`):
+warm start; :mod:`optdesign.engines.inverse_kalman_starts`):
 
 1. *Feasibility* -- SQP over ``(V, g)`` (V of ``min(k, 2p + 2)`` columns) with a filter line search
    until nearly feasible, the objective reduced on the way, then Gauss-Newton onto the feasible
@@ -30,7 +30,7 @@ warm start; :mod:`optdesign.solvers.inverse_kalman_starts`):
 and keeps the best local optimum, then
 
 3. *Certificate* -- the fixed-gain SDP at that L: for a full Q and the minimal trace first in its
-   complement form (``n p - p(p - 1)/2`` constraints, :mod:`optdesign.solvers.one_output_sdp`: the
+   complement form (``n p - p(p - 1)/2`` constraints, :mod:`optdesign.engines.one_output_sdp`: the
    dense IPM or Clarabel, a Newton polish, a KKT test), else on Clarabel in the direct form: the
    objective's global optimum over the Q of that gain; a better SDP point restarts step 2 from it,
    else the Newton point (exact to rounding) is the answer.  The status is ``optimal`` only when
@@ -41,7 +41,7 @@ What optimum: a local optimum over L of the objective (several starts, the best 
 the returned Q is the global optimum of the convex family of Q of the returned L.
 
 One output: L is fixed by the poles (``g_b = 1``) and step 3 alone answers, globally -- for a full Q
-and the minimal trace first in the SDP's n-constraint form (:mod:`optdesign.solvers.one_output_sdp`:
+and the minimal trace first in the SDP's n-constraint form (:mod:`optdesign.engines.one_output_sdp`:
 Clarabel, a Newton polish, a KKT certificate), and where that certifies nothing in the direct form
 (the dense IPM or Clarabel, polished on its face, repaired if need be) -- an infeasible SDP (or a
 negative maximal margin) is a certificate that no ``Q >= 0`` of the structure reaches the targets
@@ -49,7 +49,7 @@ negative maximal margin) is a certificate that no ``Q >= 0`` of the structure re
 status is ``not_found`` (a local method: feasibility unknown), never ``infeasible``.
 
 The state that depends only on the plant and the fixed choices (structure, objective) is built
-once by :func:`prepare_inverse_kalman` (:mod:`optdesign.solvers.inverse_kalman_setup`) -- in
+once by :func:`prepare_inverse_kalman` (:mod:`optdesign.engines.inverse_kalman_setup`) -- in
 continuous time the SDP's constraint matrix and (full Q, minimal trace) its complement form -- and
 re-used for every target, as a caller-held problem object would.
 
@@ -78,7 +78,7 @@ from ..errors import ValidationError
 from ..formulate.inverse_kalman import spectral_terms
 from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Check, DesignResult, SolverStats, Status, Verification
-from .clarabel_fixed_gain import (
+from ..backends.clarabel_fixed_gain import (
     GAIN_RELATION_RTOL,
     FixedGainFamily,
     FixedGainSolution,
@@ -303,7 +303,7 @@ def _complement_form_at(setup: EngineSetup, fam: FixedGainFamily,
                         deadline: Deadline) -> tuple[OneOutputSolution, NDArray, NDArray] | None:
     """``(solution, Q, P)``: the min-trace Q of ``fam`` in the complement form of the fixed-gain SDP (the
     setup's, else the gain's; ``n p - p(p - 1)/2`` constraints:
-    :func:`~optdesign.solvers.one_output_sdp.solve_one_output`), Newton-polished and KKT-certified,
+    :func:`~optdesign.engines.one_output_sdp.solve_one_output`), Newton-polished and KKT-certified,
     and its Riccati solution; None when the form certifies nothing."""
     if fam.gain_residual > GAIN_RELATION_RTOL or deadline.expired:
         return None
@@ -671,7 +671,7 @@ def _sdp_record(sol: FixedGainSolution | None) -> dict[str, Any]:
 #: refinement steps per KKT solve.  The polish finishes the point on its face, and the answer is kept
 #: only when the final point is ``optimal`` and its own KKT test passes (the dual slack of the Newton
 #: point PSD: a certificate that does not depend on Clarabel's accuracy); otherwise the SDP is solved
-#: again at :data:`~optdesign.solvers.clarabel_fixed_gain.CLARABEL_OPTIONS` and the design decided as
+#: again at :data:`~optdesign.backends.clarabel_fixed_gain.CLARABEL_OPTIONS` and the design decided as
 #: before.  Measured (``benchmarks/results/inverse_kalman_one_output_tolerances.md``): 5 Clarabel
 #: iterations instead of 8-9 at n = 20, the same statuses and optima (to 3e-13 relative) on 49 targets.
 ONE_OUTPUT_FIRST_TRY: dict[str, Any] = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-6,
@@ -693,11 +693,11 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
     test, or (as ``optimal_inaccurate``) when the unique gain misses the targets beyond the
     verification's cap (not computable): for ``"full"`` / ``"min_trace"`` with ``n - p >=``
     :data:`ONE_OUTPUT_IPM_MIN_DIM` and computable targets the dense IPM
-    (:func:`~optdesign.solvers.fixed_gain_ipm.solve_fixed_gain_ipm`, an accelerator: when it does
+    (:func:`~optdesign.engines.fixed_gain_ipm.solve_fixed_gain_ipm`, an accelerator: when it does
     not converge to its own test, the next try); for ``"min_trace"`` with ``n - p >=``
     :data:`ONE_OUTPUT_FIRST_TRY_MIN_DIM` Clarabel at :data:`ONE_OUTPUT_FIRST_TRY`; finally (and
     for the other objectives and smaller systems) Clarabel at
-    :data:`~optdesign.solvers.clarabel_fixed_gain.CLARABEL_OPTIONS` -- the only source of
+    :data:`~optdesign.backends.clarabel_fixed_gain.CLARABEL_OPTIONS` -- the only source of
     ``infeasible``."""
     plant = setup.plant
     R = np.asarray(plant.R, dtype=float)
@@ -752,7 +752,7 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     n-constraint form (:func:`_complement_form_at`); None when that does not certify a solution (the
     general one-output route then runs: the dense IPM, Clarabel on the direct form, a repair, and
     every verdict).  A unique gain that misses the targets beyond the verification's cap is first
-    refined by Newton steps on its poles (:func:`~optdesign.solvers.polish.refine_gain`: the same
+    refined by Newton steps on its poles (:func:`~optdesign.engines.polish.refine_gain`: the same
     gain in exact arithmetic, its poles placed better in floating point; measured: an n = 15
     target's 1.4e-6 -> 7.5e-7); ``optimal_inaccurate`` when it still does (not computable)."""
     plant = setup.plant

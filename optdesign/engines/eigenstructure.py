@@ -16,7 +16,7 @@ whose error dynamics have exactly the prescribed poles and the right eigenvector
   :func:`optdesign.analysis.metrics.kappa2` measures, nonsmooth where the extreme singular values
   are multiple.  Minimized by continuation on the smooth upper bound
   ``phi_k = [log sum sigma_i^{2k} + log sum sigma_i^{-2k}] / (2k)`` (``0 <= phi_k - log kappa2 <=
-  log(n) / k``), then by BFGS on the exact function (:mod:`optdesign.solvers.quasi_newton`);
+  log(n) / k``), then by BFGS on the exact function (:mod:`optdesign.engines.quasi_newton`);
 * ``kappa_fro``: ``log ||V~||_F ||V~^{-1}||_F`` (smooth);
 * ``eta``: ``(||A - LC||_F^2 - sum |lambda|^2) / gap^2 = eta^2`` for fixed poles (smooth).
 
@@ -36,8 +36,8 @@ than ``rank C`` times has no diagonalizable design (:class:`DefectivePolesError`
 
 The engine holds everything that does not depend on the poles (``Z``, ``C^+``) and caches the
 null-space bases per pole value, so a caller-held problem object re-solves cheaply
-(:class:`EigenstructureEngine`); :func:`optdesign.solvers.eigenstructure_fixed.place_fixed` and
-:func:`optdesign.solvers.eigenstructure_region.place_region` are the functional entry points.
+(:class:`EigenstructureEngine`); :func:`optdesign.engines.eigenstructure_fixed.place_fixed` and
+:func:`optdesign.engines.eigenstructure_region.place_region` are the functional entry points.
 
 References
 ----------
