@@ -19,8 +19,6 @@ from optdesign import metrics, problems
 from optdesign._deadline import Deadline
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
 from optdesign.classical.placement import pole_error
-from optdesign.errors import DimensionError, NotConjugateClosedError, ValidationError
-from optdesign.results import Status
 from optdesign.engines.eigenstructure import (
     DefectivePolesError,
     EigenstructureEngine,
@@ -29,6 +27,8 @@ from optdesign.engines.eigenstructure import (
     spread_poles,
 )
 from optdesign.engines.eigenstructure_fixed import default_starts, place_fixed
+from optdesign.errors import DimensionError, NotConjugateClosedError, ValidationError
+from optdesign.results import Status
 
 EPS = float(np.finfo(float).eps)
 

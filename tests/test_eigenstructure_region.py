@@ -16,9 +16,6 @@ from optdesign import metrics, problems
 from optdesign._deadline import Deadline
 from optdesign._validate import as_poles
 from optdesign.design.well_conditioned import naive_poles, suggested_region
-from optdesign.errors import DimensionError, ValidationError
-from optdesign.regions import Disk, Ellipse, HalfPlane, HorizontalStrip, Sector, VerticalStrip
-from optdesign.results import Status
 from optdesign.engines.eigenstructure import EigenstructureEngine, FixedPoleModel
 from optdesign.engines.eigenstructure_fixed import peer_start
 from optdesign.engines.eigenstructure_region import (
@@ -28,6 +25,9 @@ from optdesign.engines.eigenstructure_region import (
     place_region,
 )
 from optdesign.engines.quasi_newton import bfgs_minimize, bfgs_minimize_batch
+from optdesign.errors import DimensionError, ValidationError
+from optdesign.regions import Disk, Ellipse, HalfPlane, HorizontalStrip, Sector, VerticalStrip
+from optdesign.results import Status
 
 
 def region_model(name, frac, seed=0):

@@ -13,8 +13,6 @@ import pytest
 
 import optdesign.engines.inverse_kalman_engine as engine
 from optdesign import Plant, kalman_for_poles
-from optdesign.classical.riccati import filter_are
-from optdesign.errors import RiccatiError, ValidationError
 from optdesign.backends.clarabel_fixed_gain import (
     CLARABEL_OPTIONS,
     family_map,
@@ -22,7 +20,9 @@ from optdesign.backends.clarabel_fixed_gain import (
     solve_fixed_gain,
     svec,
 )
+from optdesign.classical.riccati import filter_are
 from optdesign.engines.fixed_gain_ipm import IPM_TOL, solve_fixed_gain_ipm, symmetric_basis
+from optdesign.errors import RiccatiError, ValidationError
 
 EPS = float(np.finfo(float).eps)
 #: both solvers stop at a relative duality gap: their optima agree to the sum (with a margin of 10)

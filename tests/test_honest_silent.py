@@ -4,10 +4,10 @@ result's ``solver_stats.extra``); a bogus solver option is a typed error naming 
 import numpy as np
 import pytest
 
-from optdesign.errors import ValidationError
 from optdesign.backends.casadi_backend import solve_nlpsol
 from optdesign.backends.cvxpy_backend import solve_cvxpy
 from optdesign.backends.report import captured_output
+from optdesign.errors import ValidationError
 
 
 def test_captured_output_takes_python_native_and_warnings(capfd):

@@ -31,6 +31,7 @@ from optdesign.classical.placement import place_observer, pole_error
 from optdesign.classical.riccati import filter_are, filter_are_residual
 from optdesign.design.inverse_kalman.sdp_stage import sdp_fixed_gain as _sdp_fixed_gain
 from optdesign.design.verification import pole_tolerance as _pole_tolerance
+from optdesign.engines.polish import face_polish as _face_polish
 from optdesign.errors import (
     DimensionError,
     NotConjugateClosedError,
@@ -45,7 +46,6 @@ from optdesign.formulate.inverse_kalman import (
     fixed_gain_maps,
     spectral_terms,
 )
-from optdesign.engines.polish import face_polish as _face_polish
 
 #: random targets of the cross-validation: the issue's 200 (about 55 s of CPU on the reference
 #: machine, 70 s wall under load -- within budget, so it is not reduced by default)
@@ -875,8 +875,8 @@ def test_one_output_engine_needs_no_cvxpy_solver_discovery():
 
 @pytest.mark.parametrize("method", ["sdp", "auto"])
 def test_missing_sdp_solver_names_the_package(monkeypatch, method):
-    from optdesign.errors import BackendUnavailableError
     from optdesign.backends import cvxpy_backend
+    from optdesign.errors import BackendUnavailableError
 
     monkeypatch.setattr(cvxpy_backend, "available_sdp_solvers", lambda: ())
     monkeypatch.setitem(sys.modules, "clarabel", None)   # `import clarabel` fails: the engine is off too

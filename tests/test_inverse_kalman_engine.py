@@ -23,8 +23,24 @@ import optdesign.engines.one_output_sdp as oo
 from optdesign import Plant, Status, kalman_for_poles, problems
 from optdesign._deadline import Deadline
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
+from optdesign.backends.clarabel_fixed_gain import (
+    CLARABEL_OPTIONS,
+    family_map,
+    fixed_gain_family,
+    smat,
+    solve_fixed_gain,
+    svec,
+)
 from optdesign.classical.placement import pole_error
 from optdesign.classical.riccati import filter_are, filter_are_error
+from optdesign.engines import spectral_newton
+from optdesign.engines.inverse_kalman_engine import (
+    engine_applies,
+    prepare_inverse_kalman,
+    solve_inverse_kalman,
+)
+from optdesign.engines.spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
+from optdesign.engines.spectral_newton import find_feasible, newton
 from optdesign.errors import (
     DimensionError,
     NotConjugateClosedError,
@@ -35,22 +51,6 @@ from optdesign.errors import (
     ValidationError,
 )
 from optdesign.formulate.inverse_kalman import spectral_terms
-from optdesign.engines import spectral_newton
-from optdesign.backends.clarabel_fixed_gain import (
-    CLARABEL_OPTIONS,
-    family_map,
-    fixed_gain_family,
-    smat,
-    solve_fixed_gain,
-    svec,
-)
-from optdesign.engines.inverse_kalman_engine import (
-    engine_applies,
-    prepare_inverse_kalman,
-    solve_inverse_kalman,
-)
-from optdesign.engines.spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
-from optdesign.engines.spectral_newton import find_feasible, newton
 
 EPS = float(np.finfo(float).eps)
 #: two optima of the same convex family agree to 1000x the certificate SDP's relative gap
@@ -211,8 +211,8 @@ def test_svec_is_clarabels_scaled_triangle(rng):
 def test_clarabel_fixed_gain_sdp_agrees_with_the_cvxpy_formulation(rng, dt, structure, objective):
     """The smallest conic form (P = P0 + N X N', no equality for "full") has the optimum of the
     formulate module's cvxpy SDP in (P, Q), and its P satisfies the gain relation exactly."""
-    from optdesign.formulate.inverse_kalman import build_fixed_gain_sdp
     from optdesign.backends.cvxpy_backend import solve_cvxpy
+    from optdesign.formulate.inverse_kalman import build_fixed_gain_sdp
 
     G = rng.standard_normal((5, 3))
     plant, are, _ = _kalman_target(rng, 5, 2, dt=dt, G=None if structure == "full" else G,

@@ -20,14 +20,14 @@ import optdesign.engines.one_output_sdp as oo
 from optdesign import InverseKalmanProblem, Plant, kalman_for_poles
 from optdesign._validate import as_poles
 from optdesign.analysis.metrics import eigenvalue_rounding_floor
+from optdesign.backends.clarabel_fixed_gain import fixed_gain_family, riccati_of_gain, smat, svec
 from optdesign.classical.placement import pole_error
+from optdesign.engines.fixed_gain_ipm import standard_form_ipm
+from optdesign.engines.spectral_factor import spectral_blocks
 from optdesign.errors import ValidationError
 from optdesign.formulate.inverse_kalman import spectral_terms
 from optdesign.formulate.inverse_kalman.common import single_output_gain
 from optdesign.results import Status
-from optdesign.backends.clarabel_fixed_gain import fixed_gain_family, riccati_of_gain, smat, svec
-from optdesign.engines.fixed_gain_ipm import standard_form_ipm
-from optdesign.engines.spectral_factor import spectral_blocks
 
 EPS = float(np.finfo(float).eps)
 #: two exact (polished, KKT-certified) optima of the same convex problem: equal to rounding, with

@@ -14,10 +14,10 @@ import scipy.linalg
 
 from optdesign import Plant, Status, is_kalman_optimal, kalman_for_poles
 from optdesign.analysis.robustness import circle_condition
+from optdesign.backends.status import map_status
 from optdesign.classical.placement import place_observer, pole_error
 from optdesign.classical.riccati import filter_are
 from optdesign.errors import ValidationError
-from optdesign.backends.status import map_status
 
 DATA = Path(__file__).parent / "data"
 

@@ -17,9 +17,9 @@ from hypothesis import strategies as st
 
 import optdesign
 from optdesign import Plant, RiccatiTrajectory, Status, problems, riccati_de
-from optdesign.design.riccati_de import DEFAULT_TOL
 from optdesign.classical.bpf import bpf_riccati, davison_maki, filter_hamiltonian
 from optdesign.classical.riccati import filter_are
+from optdesign.design.riccati_de import DEFAULT_TOL
 from optdesign.errors import (
     DimensionError,
     NotFiniteError,
@@ -28,7 +28,6 @@ from optdesign.errors import (
     RiccatiError,
     ValidationError,
 )
-
 
 #: the post-processing that runs only when asked (issue 26): the error estimate and the ARE
 POST = dict(estimate_error=True, steady_state=True)

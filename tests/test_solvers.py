@@ -7,11 +7,11 @@ import cvxpy as cp
 import numpy as np
 import pytest
 
-from optdesign.errors import BackendUnavailableError, ValidationError
-from optdesign.results import Status
 from optdesign.backends.casadi_backend import solve_nlpsol, solve_opti
 from optdesign.backends.cvxpy_backend import available_sdp_solvers, default_sdp_solver, solve_cvxpy
 from optdesign.backends.status import map_status
+from optdesign.errors import BackendUnavailableError, ValidationError
+from optdesign.results import Status
 
 
 def test_status_tables():

@@ -26,9 +26,9 @@ from optdesign.design.verification import (
     pole_check,
     riccati_checks,
 )
+from optdesign.engines import inverse_kalman_engine as engine
 from optdesign.errors import RiccatiError, ValidationError
 from optdesign.results import Status
-from optdesign.engines import inverse_kalman_engine as engine
 
 EPS = float(np.finfo(float).eps)
 

@@ -29,6 +29,7 @@ from optdesign import (
     well_conditioned_observer,
 )
 from optdesign._deadline import Deadline
+from optdesign.backends.casadi_backend import solve_opti
 from optdesign.classical import kalman_2x2_eta, kalman_2x2_gain, observer_2x2_kappa2
 from optdesign.classical.placement import place_observer, pole_error
 from optdesign.design import well_conditioned as wc
@@ -41,6 +42,7 @@ from optdesign.design.well_conditioned import (
     suggested_region,
 )
 from optdesign.design.well_conditioned.problem import DEFAULT_STARTS
+from optdesign.engines.eigenstructure_fixed import default_starts
 from optdesign.formulate.well_conditioned import (
     KAPPA2_STAGES,
     NLPScaling,
@@ -51,8 +53,6 @@ from optdesign.formulate.well_conditioned import (
     real_modal_basis,
 )
 from optdesign.regions import Disk, HalfPlane, Sector
-from optdesign.backends.casadi_backend import solve_opti
-from optdesign.engines.eigenstructure_fixed import default_starts
 
 
 def _yt(plant, poles, method="YT"):

@@ -41,8 +41,8 @@ from ..model.regions import Disk, HalfPlane, Sector
 from ..plot.figures import FIGURE_FORMATS
 from ..results import Verification
 from ..studies.designers import gain_values, place_baseline
-from ..studies.reproduce import PAPERS, paper_id, reproduce_all
 from ..studies.output import output_folder
+from ..studies.reproduce import PAPERS, paper_id, reproduce_all
 from ..studies.spec import format_region, load_spec, parse_poles, parse_region, require_matplotlib, run_spec
 from .common import (
     PROBLEM_HELP,

@@ -47,8 +47,15 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
-from ..errors import (ArgumentTypeError, DimensionError, InfeasibleError, NotControllableError,
-                      NotObservableError, OptDesignError, RiccatiError)
+from ..errors import (
+    ArgumentTypeError,
+    DimensionError,
+    InfeasibleError,
+    NotControllableError,
+    NotObservableError,
+    OptDesignError,
+    RiccatiError,
+)
 from ..model.plant import Plant
 
 __all__ = ["place", "lqe", "dlqe", "lqr", "dlqr", "create_estimator_iosystem", "ControlArgumentError",

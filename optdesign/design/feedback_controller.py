@@ -36,10 +36,10 @@ from .._deadline import Deadline
 from ..analysis import metrics
 from ..classical.placement import acker
 from ..classical.riccati import sort_poles
-from ..errors import DefectivePolesError
-from ..results import Check, Route, SolverStats, Stage, Status, Verification
 from ..engines.eigenstructure import EigenstructureEngine, pole_multiplicities
 from ..engines.eigenstructure_fixed import place_fixed
+from ..errors import DefectivePolesError
+from ..results import Check, Route, SolverStats, Stage, Status, Verification
 from .verification import (
     eig_residual_check,
     eigen_spread,

@@ -62,8 +62,13 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline
 from .._validate import as_int, as_matrix, as_positive_float, as_square, check_psd, sym_tol
 from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_error, filter_are_residual, sort_poles
-from ..errors import (ArgumentTypeError, NotPositiveDefiniteError, NotPositiveSemidefiniteError, RiccatiError,
-                      ValidationError)
+from ..errors import (
+    ArgumentTypeError,
+    NotPositiveDefiniteError,
+    NotPositiveSemidefiniteError,
+    RiccatiError,
+    ValidationError,
+)
 from ..model.coerce import SystemData, as_system
 from ..model.plant import Plant
 from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification

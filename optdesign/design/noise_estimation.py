@@ -55,14 +55,14 @@ from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import DesignResult, Route, SolverStats, Stage, Status, Verification
 from .noise_solve import (
-    run_bootstrap,
-    estimate_checks,
-    als_coords,
     AlsFit,
-    identifiability_check,
-    weight_optimally,
     AlsSetup,
     AlsSolver,
+    als_coords,
+    estimate_checks,
+    identifiability_check,
+    run_bootstrap,
+    weight_optimally,
 )
 
 __all__ = ["NoiseEstimate", "estimate_noise", "simulate_outputs"]

@@ -20,10 +20,10 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from .._deadline import Deadline
+from ..backends.status import CVXPY_STATUS
 from ..errors import ValidationError
 from ..formulate import als
 from ..results import Check, Stage, Status, Verification
-from ..backends.status import CVXPY_STATUS
 from .verification import psd_check
 
 __all__: list[str] = []

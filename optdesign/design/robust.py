@@ -61,13 +61,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_gain_mask, as_int, as_matrix, as_positive_float
+from ..backends.casadi_backend import solve_nlpsol
 from ..classical.riccati import filter_are
 from ..errors import ValidationError
 from ..formulate.robust_nlp import KAPPA2_ORDERS, RobustNLP, build_robust_nlp
 from ..model.model_set import ModelSet, as_model_set
 from ..model.regions import Region
 from ..results import Certificate, Check, SolverStats, Status, Verification
-from ..backends.casadi_backend import solve_nlpsol
 from .robust_lmi import certify_gain, lmi_design
 from .robust_result import (
     RobustObserverDesign,

@@ -34,12 +34,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, as_time_limit, memory_budget
 from .._validate import as_gain_mask, as_int, as_positive_float
+from ..backends.cvxpy_backend import solve_cvxpy
 from ..errors import ValidationError
 from ..formulate.robust_lmi import build_robust_lmi, default_margin
 from ..model.model_set import ModelSet, as_model_set
 from ..model.regions import Region
 from ..results import Certificate, Check, SolverStats, Status, Verification
-from ..backends.cvxpy_backend import solve_cvxpy
 from .robust_result import (
     RobustObserverDesign,
     as_regions,

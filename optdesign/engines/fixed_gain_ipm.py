@@ -37,8 +37,8 @@ from numpy.typing import NDArray
 
 from .._deadline import Deadline
 from .._validate import as_int, as_positive_float
-from ..results import Status
 from ..backends.clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
+from ..results import Status
 
 __all__ = ["IPM_TOL", "IPM_MAX_ITER", "IpmReport", "symmetric_basis", "solve_fixed_gain_ipm",
            "standard_form_ipm"]

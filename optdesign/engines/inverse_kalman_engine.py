@@ -72,12 +72,6 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, dense_kkt_refusal
 from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
 from ..analysis.metrics import eigenvalue_rounding_floor
-from ..classical.placement import pole_error
-from ..classical.riccati import filter_are_error, filter_are_residual, filter_gain
-from ..errors import ValidationError
-from ..formulate.inverse_kalman import spectral_terms
-from ..formulate.inverse_kalman.common import single_output_gain
-from ..results import Check, DesignResult, SolverStats, Status, Verification
 from ..backends.clarabel_fixed_gain import (
     GAIN_RELATION_RTOL,
     FixedGainFamily,
@@ -86,6 +80,12 @@ from ..backends.clarabel_fixed_gain import (
     riccati_of_gain,
     solve_fixed_gain,
 )
+from ..classical.placement import pole_error
+from ..classical.riccati import filter_are_error, filter_are_residual, filter_gain
+from ..errors import ValidationError
+from ..formulate.inverse_kalman import spectral_terms
+from ..formulate.inverse_kalman.common import single_output_gain
+from ..results import Check, DesignResult, SolverStats, Status, Verification
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_setup import EngineSetup, engine_applies, prepare_inverse_kalman
 from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask

@@ -13,10 +13,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
 from .._validate import as_poles
+from ..backends.clarabel_fixed_gain import FamilyMap, family_map
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
-from ..backends.clarabel_fixed_gain import FamilyMap, family_map
 from .one_output_sdp import OneOutputForm, one_output_form, one_output_form_of_plant
 
 __all__ = ["EngineSetup", "prepare_inverse_kalman", "engine_applies"]

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._validate import as_vector
 from ..errors import ValidationError
 from .figures import new_axes
-from .regions import Box, region_of, draw_region, region_extent
+from .regions import Box, draw_region, region_extent, region_of
 
 __all__ = ["pole_map", "robust_pole_map", "plot_result", "view_box"]
 

@@ -91,9 +91,9 @@ from ..errors import BackendUnavailableError, OptDesignError, OutputPathError, V
 from ..model.regions import Region
 from ..plot.studies import LABELS, SYMBOLS, plot_table  # the figures live in optdesign.plot
 from .designers import DESIGNERS
-from .syntax import REGION_SHAPES, format_region, parse_poles, parse_region
 from .output import atomic_path, check_targets, file_name, output_folder
 from .sweep import MAX_GRID_POINTS, SweepTable, grid, sweep
+from .syntax import REGION_SHAPES, format_region, parse_poles, parse_region
 
 __all__ = [
     "SpecError",

@@ -15,6 +15,7 @@ from ..._validate import as_square, check_symmetric
 from ...analysis.metrics import eigenvalue_rounding_floor
 from ...classical.placement import place_observer, pole_error
 from ...classical.riccati import filter_are
+from ...engines.polish import refine_gain, sym
 from ...errors import ValidationError
 from ...formulate.inverse_kalman import (
     noise_input,
@@ -22,7 +23,6 @@ from ...formulate.inverse_kalman import (
 )
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
-from ...engines.polish import refine_gain, sym
 from ..verification import (
     check_violation,
     newton_kalman_checks,

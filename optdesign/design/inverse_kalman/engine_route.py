@@ -13,10 +13,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._deadline import Deadline
+from ...engines.inverse_kalman_engine import EngineSetup, prepare_inverse_kalman, solve_inverse_kalman
 from ...errors import RiccatiError
 from ...model.plant import Plant
 from ...results import Status
-from ...engines.inverse_kalman_engine import EngineSetup, prepare_inverse_kalman, solve_inverse_kalman
 from .common import empty_result, make_stats, objective_of, verify_design
 from .results import InverseKalmanResult
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ...backends.casadi_backend import solve_nlpsol, solve_opti
 from ...classical.placement import pole_error
 from ...classical.riccati import filter_are
 from ...classical.solheim import solheim
@@ -20,7 +21,6 @@ from ...formulate.inverse_kalman import (
     tril_index,
 )
 from ...model.plant import Plant
-from ...backends.casadi_backend import solve_nlpsol, solve_opti
 from .common import noise_of, placed_gain, project_psd, stable_poles, sym
 from .sdp_stage import feasibility_margin
 

@@ -15,11 +15,11 @@ from ..._deadline import Deadline
 from ..._validate import as_frequencies, as_matrix, as_positive_float, renamed
 from ...analysis.robustness import circle_condition, resolve_R
 from ...classical.riccati import format_pole as _fmt
+from ...engines.polish import min_norm_lstsq
 from ...errors import ValidationError
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Check, SolverStats, Status, Verification
-from ...engines.polish import min_norm_lstsq
 from ..verification import riccati_checks
 from .common import EPS, make_stats, project_psd, quiet, stable_poles, sym
 from .results import InfeasibilityCertificate, KalmanOptimalityResult

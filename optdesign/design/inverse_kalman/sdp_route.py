@@ -8,14 +8,14 @@ from typing import Any
 
 import numpy as np
 
+from ...backends.cvxpy_backend import solve_cvxpy
+from ...engines.polish import spectral_polish
 from ...errors import OptDesignError, RiccatiError
 from ...formulate.inverse_kalman import (
     build_spectral_sdp,
     spectral_terms,
 )
 from ...results import Status
-from ...backends.cvxpy_backend import solve_cvxpy
-from ...engines.polish import spectral_polish
 from .certificates import infeasible_fixed_gain, one_output_verdict
 from .common import (
     design_from_Q,

@@ -11,16 +11,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._deadline import Deadline
+from ...backends import cvxpy_backend
+from ...backends.clarabel_fixed_gain import riccati_of_gain
+from ...backends.cvxpy_backend import default_sdp_solver, solve_cvxpy
+from ...engines.polish import face_polish
 from ...errors import SolverError
 from ...formulate.inverse_kalman import (
     build_fixed_gain_sdp,
 )
 from ...model.plant import Plant
 from ...results import Status
-from ...backends import cvxpy_backend
-from ...backends.clarabel_fixed_gain import riccati_of_gain
-from ...backends.cvxpy_backend import default_sdp_solver, solve_cvxpy
-from ...engines.polish import face_polish
 from .common import sym
 
 

@@ -15,6 +15,7 @@ from ..._validate import as_int, as_poles, as_positive_float, renamed
 from ...classical.placement import pole_error
 from ...classical.riccati import format_pole as _fmt
 from ...classical.solheim import solheim
+from ...engines.inverse_kalman_engine import EngineSetup
 from ...errors import BackendUnavailableError, OptDesignError, RiccatiError, ValidationError
 from ...formulate.inverse_kalman import (
     OBJECTIVES,
@@ -24,7 +25,6 @@ from ...formulate.inverse_kalman import (
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...results import Status
-from ...engines.inverse_kalman_engine import EngineSetup
 from ..verification import POLE_FLOOR_CAP, pole_tolerance
 from .certificates import identity_certificate
 from .common import (

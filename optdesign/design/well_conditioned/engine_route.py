@@ -17,12 +17,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..._deadline import Deadline
-from ...errors import ValidationError
-from ...model.regions import Region
-from ...results import Status
 from ...engines.eigenstructure import EigenstructureEngine, Objective
 from ...engines.eigenstructure_fixed import PlacementOutcome, place_fixed
 from ...engines.eigenstructure_region import RegionStart, place_region
+from ...errors import ValidationError
+from ...model.regions import Region
+from ...results import Status
 from .evaluation import Candidate, Evaluated, attains, metric_of, start_record
 from .results import StartRecord
 

@@ -32,9 +32,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..._validate import as_int, as_matrix, as_rng, as_square
 from ...analysis import metrics
+from ...engines.normal_search import normal_freedom, search_normal_closed_loop
 from ...errors import DimensionError, ValidationError
 from ...model.regions import Region
-from ...engines.normal_search import normal_freedom, search_normal_closed_loop
 from ..verification import eigen_spread, kappa2_agreement_tol
 
 __all__ = ["normal_closed_loop", "normal_freedom"]

@@ -25,14 +25,14 @@ from numpy.typing import ArrayLike, NDArray
 from ..._deadline import Deadline, as_time_limit
 from ..._progress import Progress, as_progress
 from ..._validate import as_bool, as_gain_mask, as_int, as_poles, as_positive_float, as_str
+from ...engines.eigenstructure import EigenstructureEngine
+from ...engines.eigenstructure_fixed import default_starts
 from ...errors import DimensionError, ValidationError
 from ...formulate.well_conditioned import NLPScaling, PoleStructure, build_observer_nlp, check_objective
 from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...model.regions import Disk, HalfPlane, Intersection, Region, Sector, stability_region
 from ...results import Certificate, SolverStats, Status
-from ...engines.eigenstructure import EigenstructureEngine
-from ...engines.eigenstructure_fixed import default_starts
 from .engine_route import ENGINE, engine_fixed, engine_region
 from .evaluation import (
     Evaluated,
