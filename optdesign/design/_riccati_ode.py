@@ -58,7 +58,7 @@ NOISE_FLOOR = 10.0
 STIFF_RHO_T = 3e3
 
 #: Python overhead of one right-hand-side call, in flops (~20 us at a few Gflop/s; measured)
-_RHS_OVERHEAD_FLOPS = 1e5
+RHS_OVERHEAD_FLOPS = 1e5
 
 _EPS = float(np.finfo(float).eps)
 
@@ -167,7 +167,7 @@ def ode_integrator(M: ArrayLike, t_final: float) -> tuple[str, dict]:
     N = n * n
     rho_t = float(np.max(np.abs(np.linalg.eigvals(M)))) * as_positive_float("t_final", t_final) if n else 0.0
     stiff = rho_t > STIFF_RHO_T
-    affordable = 10.0 * N**2 + N**3 / 3.0 <= 6.0 * n**3 + _RHS_OVERHEAD_FLOPS
+    affordable = 10.0 * N**2 + N**3 / 3.0 <= 6.0 * n**3 + RHS_OVERHEAD_FLOPS
     integrator = "Radau" if stiff and affordable else "DOP853"
     return integrator, {"rho_t": rho_t, "stiff": stiff, "implicit_affordable": affordable}
 

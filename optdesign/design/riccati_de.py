@@ -95,7 +95,7 @@ from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 from ._riccati_ode import (
-    _RHS_OVERHEAD_FLOPS,
+    RHS_OVERHEAD_FLOPS,
     ATOL_PER_RTOL,
     RTOL_PER_TOL,
     STIFF_RHO_T,
@@ -128,7 +128,7 @@ _EPS = float(np.finfo(float).eps)
 MAX_TRAJECTORY_BYTES = 2 * 1024**3
 
 #: largest estimated run time (seconds) accepted without a ``time_limit``: ``steps`` intervals,
-#: blocks or recursion steps of ``10 n^3`` flops plus ``_RHS_OVERHEAD_FLOPS`` each, at ``_FLOPS``
+#: blocks or recursion steps of ``10 n^3`` flops plus ``RHS_OVERHEAD_FLOPS`` each, at ``_FLOPS``
 MAX_SECONDS_UNLIMITED = 3600.0
 
 #: sustained flop rate assumed by the run-time estimate (one core, n^3 BLAS-3 work; conservative)
@@ -471,7 +471,7 @@ def _check_size(n: int, p: int, outputs: int, work_steps: int, name: str, time_l
             f"{need / 2**30:.3g} GiB, "
             f"more than the {MAX_TRAJECTORY_BYTES / 2**30:g} GiB allowed (MAX_TRAJECTORY_BYTES); ask for fewer "
             f"output times (steps or t_eval)")
-    seconds = work_steps * (10.0 * n**3 + _RHS_OVERHEAD_FLOPS) / _FLOPS
+    seconds = work_steps * (10.0 * n**3 + RHS_OVERHEAD_FLOPS) / _FLOPS
     if time_limit is None and seconds > MAX_SECONDS_UNLIMITED:
         raise ValidationError(
             f"{work_name or name} asks for {work_steps:,} steps of n = {n}: about {seconds:.3g} s, more than the "
