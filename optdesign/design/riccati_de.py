@@ -95,8 +95,8 @@ from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 from ._riccati_ode import (
-    RHS_OVERHEAD_FLOPS,
     ATOL_PER_RTOL,
+    RHS_OVERHEAD_FLOPS,
     RTOL_PER_TOL,
     STIFF_RHO_T,
     gain_factor,
