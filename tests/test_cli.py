@@ -163,3 +163,19 @@ def test_study_help_names_overwrite_and_allow_outside(capsys):
         main(["study", "--help"])
     out = capsys.readouterr().out
     assert "--overwrite" in out and "--allow-outside" in out
+
+
+@pytest.mark.parametrize("args", [
+    ["kalman"],
+    ["design", "chang_lee_1984_ex1", "--method", "well_conditioned", "--region",
+     "halfplane:1 & sector:0.7 & disk:20"],
+    ["design", "chang_lee_1984_ex1", "--method", "inverse", "--poles", "-3, -4"],
+])
+def test_commands_are_silent_on_stderr(args):
+    """Issue 26 item 3: solver chatter (IPOPT banners, CasADi warnings, cvxpy's inaccuracy warnings) never
+    reaches the terminal; a successful command writes nothing to stderr (a fresh process, so that a
+    native library's own output would show)."""
+    proc = subprocess.run([sys.executable, "-m", "optdesign", *args], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.stderr == "", proc.stderr[-2000:]
+    assert "Ipopt" not in proc.stdout and "WARNING" not in proc.stdout
