@@ -136,9 +136,9 @@ class FamilyMap:
     ``T`` of :math:`\\mathcal{T}` (None in discrete time, where it depends on the gain).
 
     ``T`` has ``n(n+1)/2 x (n-p)(n-p+1)/2`` entries (3.2 GB at n = 200): it is built on first
-    use (:attr:`T`, by :func:`continuous_triangle_map`, with no larger intermediate), and only
+    use (:attr:`T`, by ``continuous_triangle_map``, with no larger intermediate), and only
     the routes that need it (the direct form of the fixed-gain SDP, the dense IPM) use it; the
-    one-output complement form is built without it (:func:`complement_basis_one_output`).
+    one-output complement form is built without it (``complement_basis_one_output``).
     """
 
     A: NDArray[np.float64]
@@ -239,7 +239,10 @@ class FixedGainFamily:
     def T(self) -> NDArray[np.float64]:  # noqa: N802
         """The family's directions: the plant's map in continuous time (built on first use),
         the gain's own in discrete time."""
-        return self.map.T if self.T_gain is None else self.T_gain
+        T = self.map.T if self.T_gain is None else self.T_gain
+        if T is None:  # discrete time has no plant map; its gains always carry their own directions
+            raise ValueError("the family's directions are undefined: discrete time without the gain's T")
+        return T
 
     def P_of(self, x: NDArray) -> NDArray[np.float64]:
         N = self.map.N

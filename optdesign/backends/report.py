@@ -65,12 +65,12 @@ class Captured:
 
     @property
     def lines(self) -> list[str]:
-        """The non-empty lines of :attr:`text`."""
+        """The non-empty lines of ``text``."""
         return [ln for ln in self.text.splitlines() if ln.strip()]
 
     def as_extra(self) -> dict[str, Any]:
         """``{"solver_output": [...], "solver_warnings": [...]}`` with what is non-empty (for
-        :attr:`SolverStats.extra`)."""
+        ``SolverStats.extra``)."""
         out: dict[str, Any] = {}
         if self.lines:
             out["solver_output"] = self.lines[-MAX_CAPTURED_LINES:]

@@ -44,7 +44,7 @@ Methods
     scipy's DOP853 on the ``n^2`` entries of P (the right-hand side ``H + H' + W - B B'``,
     ``B = P C' R^-1/2``, is exactly symmetric, so P stays exactly symmetric), stepped directly;
     tolerances from the accuracy asked, ``rtol = 1e-3 tol`` and an absolute tolerance that follows
-    the size of P (:func:`~optdesign.design._riccati_ode.ode_tolerances`: a fixed absolute
+    the size of P (``ode_tolerances``: a fixed absolute
     tolerance below the right-hand side's rounding floor made the step collapse, issue 26);
     Radau with the analytic Jacobian only when the horizon spans more than
     ``STIFF_RHO_T`` time constants of the Hamiltonian *and* Radau's ``n^2 x n^2`` linear algebra
@@ -313,7 +313,7 @@ def riccati_de(
         Relative error asked of P, ``max_k ||P_k - P(t_k)||_F / max_k ||P(t_k)||_F`` (default
         1e-8; bpf 1e-2): the ``error_estimate`` check demands it, and for ``"ode"`` it sets the
         integrator's tolerances (``rtol = 1e-3 tol``: measured to meet ``tol``, see
-        :func:`~optdesign.design._riccati_ode.ode_tolerances`).
+        ``ode_tolerances``).
     rtol : float, optional
         ``"ode"`` only: relative error allowed per integrator step on each entry of P, in
         ``[100 eps, 1)`` (overrides the default ``1e-3 tol``).  The error delivered is a

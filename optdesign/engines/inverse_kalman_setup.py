@@ -124,7 +124,8 @@ def prepare_inverse_kalman(plant: Plant, *, q_structure: str = "full",
         form = one_output_form_of_plant(plant.A, plant.C, deadline) if plant.p == 1 else None
         if form is None and fmap.triangle_bytes <= TRIANGLE_BYTES_MAX and not (
                 deadline is not None and deadline.expired):
-            form = one_output_form(fmap.T)
+            T = fmap.T  # continuous time (this branch): the plant's map, never None
+            form = None if T is None else one_output_form(T)
     return EngineSetup(plant=plant, structure=q_structure, objective=objective, Gd=Gd, family=fmap,
                        complement_form=form, eig_A=np.linalg.eigvals(plant.A).astype(complex),
                        verify=bool(verify))

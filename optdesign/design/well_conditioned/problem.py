@@ -67,7 +67,7 @@ DEFAULT_STARTS = 8
 AUTO_REGION_STARTS = 8
 AUTO_NLP_STARTS = 2
 
-#: the routes of region mode (:meth:`WellConditionedProblem._region_plan`)
+#: the routes of region mode (``WellConditionedProblem._region_plan``)
 ROUTES = ("auto", "fast", "nlp", "engine")
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
@@ -230,7 +230,7 @@ class WellConditionedProblem:
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
         structural zeros): :func:`~optdesign.engines.eigenstructure_fixed.default_starts` (6 up to
         n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
-        ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros): :data:`AUTO_REGION_STARTS`.
+        ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros): ``AUTO_REGION_STARTS``.
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -247,12 +247,12 @@ class WellConditionedProblem:
         (one NLP for every region of that shape), without it each region's constraints are built as
         they are.
     route : {"auto", "fast", "nlp", "engine"}, default "auto"
-        Region mode (:meth:`_region_plan`; what ran is ``result.route``).  ``"auto"``: IPOPT (the NLPs'
+        Region mode (``_region_plan``; what ran is ``result.route``).  ``"auto"``: IPOPT (the NLPs'
         continuation) from every start, then -- for kappa2 / kappa_fro without bounds or structural
         zeros -- one placement-engine start from IPOPT's best design, the better of the two kept (never
         worse than IPOPT alone).  ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros):
-        the placement engine from the starts (default :data:`AUTO_REGION_STARTS` = 8: the naive poles
-        with YT, the Kalman gain, region samples), IPOPT from the first :data:`AUTO_NLP_STARTS` (2)
+        the placement engine from the starts (default ``AUTO_REGION_STARTS`` = 8: the naive poles
+        with YT, the Kalman gain, region samples), IPOPT from the first ``AUTO_NLP_STARTS`` (2)
         of them with the light polish (``region_polish="last"``), then one engine start from IPOPT's
         best when it beats the engine's; IPOPT alone for eta, bounds and gain masks.  Measured against
         ``"auto"`` (issue 28, ``benchmarks/results/region.md``): 2-4x less CPU at n = 4-10 and the same
@@ -677,7 +677,7 @@ class WellConditionedProblem:
 
         ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine from the
         ``n_starts`` first starts, IPOPT (light polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``)
-        from the first :data:`AUTO_NLP_STARTS` of them, then the engine from IPOPT's best when it
+        from the first ``AUTO_NLP_STARTS`` of them, then the engine from IPOPT's best when it
         is better than the engine's; IPOPT alone otherwise.  ``"auto"``: IPOPT from every start,
         then the engine from the best (the engine only for kappa2 / kappa_fro without bounds or
         structural zeros).  ``"nlp"``: IPOPT only.  ``"engine"``: the engine from every start (IPOPT as
