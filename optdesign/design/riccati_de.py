@@ -94,7 +94,7 @@ from ..errors import NotObservableError, RiccatiError, ValidationError
 from ..model.coerce import as_plant
 from ..model.plant import Plant
 from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
-from ._riccati_ode import (
+from .riccati_ode import (
     ATOL_PER_RTOL,
     RHS_OVERHEAD_FLOPS,
     RTOL_PER_TOL,

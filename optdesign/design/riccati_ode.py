@@ -178,7 +178,7 @@ def integrate(M: NDArray, K: NDArray | None, P0: NDArray, t: NDArray, tols: dict
     The integrator object is stepped directly (as ``solve_ivp`` does) so that, after every
     step, its absolute tolerance follows the size of P: ``atol = atol_rel * max(|P_ij|)``
     (the running maximum), at least the rounding floor of the right-hand side
-    (:func:`_rounding_floor`), unless a fixed ``atol`` was given.  ``K`` (``p x n``, ``K' K = S``)
+    (``_rounding_floor``), unless a fixed ``atol`` was given.  ``K`` (``p x n``, ``K' K = S``)
     writes the quadratic term as ``(P K')(P K')'`` (``3 n^2 p`` flops instead of ``4 n^3``).
     """
     from scipy.integrate import DOP853, Radau
