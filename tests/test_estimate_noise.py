@@ -435,3 +435,29 @@ def test_bartlett_covariance_matches_monte_carlo():
     corr_e = emp / np.sqrt(np.outer(np.diag(emp), np.diag(emp)))
     corr_s = S / np.sqrt(np.outer(np.diag(S), np.diag(S)))
     assert np.max(np.abs(corr_e - corr_s)) < 4 / np.sqrt(records)
+
+
+# ------------------------------------------------------------------ the trace-penalty study (issue 31)
+def test_trace_penalty_front_finds_the_number_of_disturbances():
+    """Rajamani & Rawlings 2009, sec. 4: sweeping the trace penalty, the residual grows and tr(Q) falls,
+    and the rank of Q at the knee is the number of independent disturbances -- here one (Q = diag(0.1,
+    0) through G = I, one output; full Q is not identifiable, so the smallest penalty already picks
+    the smallest-trace fit).  Large penalties drive Q to zero (rank 0) at a much worse residual."""
+    from optdesign.studies import noise_penalty_front
+
+    plant = Plant([[0.5, 0.2], [0.7, 0.4]], [[1.0, 1.0]], Q=np.diag([0.1, 0.0]), R=[[0.1]], dt=1.0)
+    y = simulate_outputs(plant, 4000, seed=1)
+    front = noise_penalty_front(plant, y, penalties=[1e-6, 1e-4, 1e-2, 1.0, 10.0], lags=10)
+    recs = front.table.records
+    assert all(r["success"] for r in recs)
+    res = [r["residual"] for r in recs]
+    tr = [r["trace_Q"] for r in recs]
+    assert all(b >= a * (1 - 1e-9) for a, b in zip(res, res[1:]))       # the fit worsens with rho
+    assert all(b <= a * (1 + 1e-9) for a, b in zip(tr, tr[1:]))         # tr(Q) falls
+    assert [r["rank_Q"] for r in recs[:3]] == [1, 1, 1] and recs[-1]["rank_Q"] == 0
+    assert abs(tr[0] - 0.1) < 0.05                                       # the one disturbance's variance
+    assert front.nondominated[:3].all() and front.objectives == ("residual", "trace_Q")
+    with pytest.raises(ValidationError, match="penalties must hold at least two values"):
+        noise_penalty_front(plant, y, penalties=[1e-3], lags=10)
+    with pytest.raises(ValidationError, match="trace_penalty is the swept argument"):
+        noise_penalty_front(plant, y, penalties=[1e-3, 1e-2], lags=10, trace_penalty=1.0)

@@ -22,12 +22,14 @@ from .designers import (
     RegionSweepDesigner,
     place_baseline,
 )
+from .noise_front import noise_penalty_front
 from .pareto import ParetoFront, nondominated, pareto, plot_pareto
 from .reproduce import PaperOutcome, PaperReproduction, ReproductionSummary, ReproRow, reproduce_all
 from .spec import SpecError, StudySpec, load_spec, parse_region, plot_table, run_spec
 from .sweep import InlineExecutor, SweepTable, grid, record_of, sweep
 
 __all__ = [
+    "noise_penalty_front",
     "sweep",
     "grid",
     "SweepTable",
