@@ -102,7 +102,7 @@ _LAZY: dict[str, str] = {
     # robustness (seed 002)
     "return_difference": "optdesign.analysis.robustness",
     "circle_condition": "optdesign.analysis.robustness",
-    "filter_margins": "optdesign.analysis.robustness",
+    "filter_margins": "optdesign.analysis.margins",
     "output_delay_kalman": "optdesign.design.output_delay",
 }
 

@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from .. import problems
-from ..analysis.robustness import circle_condition, filter_margins, return_difference
+from ..analysis.margins import filter_margins
+from ..analysis.robustness import circle_condition, return_difference
 from ..design.kalman import kalman
 from ..design.output_delay import output_delay_convergence, output_delay_kalman
 from ..model.plant import Plant
