@@ -64,8 +64,8 @@ _LAZY: dict[str, str] = {
     "EstimatorArrays": "optdesign.design.estimator",
     # robust design for many plant models (issue 15)
     "robust_observer": "optdesign.design.robust",
-    "per_model_designs": "optdesign.design.robust",
-    "evaluate_gain": "optdesign.design.robust",
+    "per_model_designs": "optdesign.design.robust_gain",
+    "evaluate_gain": "optdesign.design.robust_gain",
     "robust_lmi_observer": "optdesign.design.robust_lmi",
     "RobustObserverDesign": "optdesign.design.robust_result",
     "ModelSet": "optdesign.model.model_set",

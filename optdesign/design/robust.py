@@ -60,7 +60,7 @@ import scipy.optimize
 from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, as_time_limit
-from .._validate import as_gain_mask, as_int, as_matrix, as_positive_float
+from .._validate import as_gain_mask, as_int, as_positive_float
 from ..backends.casadi_backend import solve_nlpsol
 from ..classical.riccati import filter_are
 from ..errors import ValidationError
@@ -68,6 +68,7 @@ from ..formulate.robust_nlp import KAPPA2_ORDERS, RobustNLP, build_robust_nlp
 from ..model.model_set import ModelSet, as_model_set
 from ..model.regions import Region
 from ..results import Certificate, Check, SolverStats, Status, Verification
+from .robust_gain import evaluate_gain, per_model_designs  # noqa: F401  (their old home: still importable here)
 from .robust_lmi import certify_gain, lmi_design
 from .robust_result import (
     RobustObserverDesign,
@@ -81,7 +82,7 @@ from .robust_result import (
 )
 from .robust_verify import DenseCheck, ModelMetrics, dense_check, evaluate_models, gain_checks
 
-__all__ = ["robust_observer", "per_model_designs", "evaluate_gain", "NLP_DEFAULTS"]
+__all__ = ["robust_observer", "NLP_DEFAULTS"]
 
 #: default NLP options (per continuation stage)
 NLP_DEFAULTS: dict[str, Any] = {"maxiter": 200, "ftol": 1e-10, "orders": KAPPA2_ORDERS}
@@ -747,71 +748,3 @@ def polytope_claim(ms: ModelSet, verification: Verification, cert, dense: DenseC
     return (verification + Verification.of([check]),
             f"; no certificate for the polytope, all {dense.count} random interior plants in the region",
             True)
-
-
-# --------------------------------------------------------------------------- helpers for users
-
-
-def per_model_designs(models: ModelSet | list, **kwargs: Any) -> list[RobustObserverDesign]:
-    """Each model's own robust-observer design (one model at a time): what one gain can do for that
-    model alone -- the reference a gain for all models is measured against.
-
-    Parameters
-    ----------
-    models : ModelSet or sequence of Plant
-    **kwargs
-        As for :func:`robust_observer` (``region`` may be per model); ``per_model_starts`` is off.
-
-    Returns
-    -------
-    list of RobustObserverDesign
-        One per model (local optima: the NLP is non-convex, so these are not proven bounds).
-    """
-    ms = as_model_set(models)
-    regions = as_regions(kwargs.pop("region", None), ms, "region", default=True)
-    kwargs.pop("per_model_starts", None)
-    return [
-        robust_observer(ModelSet((ms[i],)), region=regions[i], per_model_starts=False, **kwargs)
-        for i in range(len(ms))
-    ]
-
-
-def evaluate_gain(
-    models: ModelSet | list,
-    L: ArrayLike,
-    *,
-    region: Region | list | None = None,
-    dense_points: int = 0,
-    seed: int = 0,
-) -> tuple[ModelMetrics, Verification, DenseCheck]:
-    """Any gain on every model of a set (e.g. the nominal design on the others).
-
-    Returns
-    -------
-    metrics : ModelMetrics
-    verification : Verification
-        Stability and region membership on every model.
-    dense : DenseCheck
-        At ``dense_points`` random interior plants.
-
-    Raises
-    ------
-    ValidationError, DimensionError
-        Bad models, regions or gain.
-    """
-    ms = as_model_set(models)
-    regions = as_regions(region, ms, "region", default=True)
-    L = as_matrix("L", L, (ms.n, ms.p))
-    mm = evaluate_models(ms, L, regions)
-    v = gain_checks(ms, L, mm, regions)
-    return (
-        mm,
-        v,
-        dense_check(
-            ms,
-            L,
-            regions[ms.nominal if ms.nominal is not None else 0],
-            as_int("dense_points", dense_points, 0),
-            as_int("seed", seed, 0),
-        ),
-    )
