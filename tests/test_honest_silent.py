@@ -77,3 +77,28 @@ def test_region_design_on_dis1_prints_nothing(capfd):
     out, err = capfd.readouterr()
     assert out == "" and err == ""
     assert res.L is not None
+
+
+def test_captured_output_on_a_thread_pool_restores_the_streams():
+    """Overlapping captures on several threads (a study on the threads executor) share one redirect: the
+    streams are restored whatever order the threads finish in, and nothing captured is lost (before:
+    each block saved the streams another thread had already redirected, so after the pool the process's
+    stdout stayed redirected and the CLI's next print vanished)."""
+    import sys
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+
+    from optdesign.backends.report import captured_output
+
+    out_before, err_before = sys.stdout, sys.stderr
+
+    def work(i):
+        with captured_output() as cap:
+            print("inside", i)
+            time.sleep(0.002 * (i % 3))
+        return cap.text
+
+    with ThreadPoolExecutor(4) as pool:
+        texts = list(pool.map(work, range(24)))
+    assert sys.stdout is out_before and sys.stderr is err_before
+    assert sum(t.count("inside") for t in texts) == 24

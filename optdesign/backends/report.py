@@ -6,6 +6,7 @@ import io
 import os
 import sys
 import tempfile
+import threading
 import warnings
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -93,6 +94,54 @@ def _flush_c_stdio() -> None:
         pass
 
 
+#: the one process-wide redirect of :func:`captured_output`: nested or concurrent blocks (a sweep on a
+#: thread pool) share it -- the first to enter redirects, the last to leave restores and reads
+_CAPTURE_LOCK = threading.Lock()
+_CAPTURE: dict[str, Any] = {"depth": 0}
+
+
+def _redirect() -> dict[str, Any]:
+    """Start the process-wide redirect (called under the lock by the first block)."""
+    state: dict[str, Any] = {"py": (sys.stdout, sys.stderr), "saved": [], "buf": io.StringIO()}
+    for stream in state["py"]:
+        try:
+            stream.flush()
+        except (AttributeError, ValueError, OSError):  # pragma: no cover - closed / odd streams
+            pass
+    _flush_c_stdio()
+    state["tmp"] = tempfile.TemporaryFile(mode="w+b")
+    state["warn"] = warnings.catch_warnings(record=True)
+    state["caught"] = state["warn"].__enter__()
+    warnings.simplefilter("always")
+    try:
+        for fd in (1, 2):
+            state["saved"].append(os.dup(fd))
+            os.dup2(state["tmp"].fileno(), fd)
+    except OSError:  # pragma: no cover - no descriptors 1/2 (embedded interpreters)
+        for fd, old in zip((1, 2), state["saved"], strict=False):
+            os.dup2(old, fd)
+            os.close(old)
+        state["saved"] = []
+    sys.stdout = sys.stderr = state["buf"]
+    return state
+
+
+def _restore(state: dict[str, Any]) -> tuple[str, list[str]]:
+    """End the redirect (called under the lock by the last block): (text, warnings) captured."""
+    sys.stdout, sys.stderr = state["py"]
+    _flush_c_stdio()
+    for fd, old in zip((1, 2), state["saved"], strict=False):
+        os.dup2(old, fd)
+        os.close(old)
+    tmp = state["tmp"]
+    tmp.seek(0)
+    text = state["buf"].getvalue() + tmp.read().decode("utf-8", errors="replace")
+    tmp.close()
+    caught = [str(w.message) for w in state["caught"]]
+    state["warn"].__exit__(None, None, None)
+    return text, caught
+
+
 @contextmanager
 def captured_output() -> Iterator[Captured]:
     """Capture what native solvers print and warn: library code never prints (issue 26).
@@ -104,8 +153,10 @@ def captured_output() -> Iterator[Captured]:
     are in the yielded :class:`Captured` after the block; the backends put them in
     ``SolverStats.extra`` (:meth:`Captured.as_extra`).
 
-    The redirect is process-wide while the block runs: output of other threads in that time is
-    captured too (the design verbs run their solves in the calling thread).
+    The redirect is process-wide and shared: blocks that overlap -- nested, or on several threads at
+    once (a sweep on a thread pool) -- use one redirect, set up by the first to enter and undone by
+    the last to leave, which receives everything captured meanwhile (the others' ``text`` is empty).
+    So the streams are always restored, whatever order the threads finish in.
 
     Examples
     --------
@@ -115,35 +166,14 @@ def captured_output() -> Iterator[Captured]:
     ['IPOPT banner']
     """
     cap = Captured()
-    py_out, py_err = sys.stdout, sys.stderr
-    for stream in (py_out, py_err):
-        try:
-            stream.flush()
-        except (AttributeError, ValueError, OSError):  # pragma: no cover - closed / odd streams
-            pass
-    _flush_c_stdio()
-    saved: list[int] = []
-    buf = io.StringIO()
-    with tempfile.TemporaryFile(mode="w+b") as tmp, warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            for fd in (1, 2):
-                saved.append(os.dup(fd))
-                os.dup2(tmp.fileno(), fd)
-        except OSError:  # pragma: no cover - no descriptors 1/2 (embedded interpreters)
-            for fd, old in zip((1, 2), saved, strict=False):
-                os.dup2(old, fd)
-                os.close(old)
-            saved = []
-        sys.stdout = sys.stderr = buf
-        try:
-            yield cap
-        finally:
-            sys.stdout, sys.stderr = py_out, py_err
-            _flush_c_stdio()
-            for fd, old in zip((1, 2), saved, strict=False):
-                os.dup2(old, fd)
-                os.close(old)
-            tmp.seek(0)
-            cap.text = buf.getvalue() + tmp.read().decode("utf-8", errors="replace")
-            cap.warnings = [str(w.message) for w in caught]
+    with _CAPTURE_LOCK:
+        if _CAPTURE["depth"] == 0:
+            _CAPTURE["state"] = _redirect()
+        _CAPTURE["depth"] += 1
+    try:
+        yield cap
+    finally:
+        with _CAPTURE_LOCK:
+            _CAPTURE["depth"] -= 1
+            if _CAPTURE["depth"] == 0:
+                cap.text, cap.warnings = _restore(_CAPTURE.pop("state"))
