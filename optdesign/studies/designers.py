@@ -704,6 +704,8 @@ class PoleTargetDesigner:
     def __call__(self, *, scale: float = 1.0, shift: float = 0.0) -> DesignPoint:
         plant = _plant_of(self.problem, self.plant, "PoleTargetDesigner")
         target = self.target(scale=scale, shift=shift)
+        res: Any
+        kw: dict[str, Any]
         if self.method == "place":
             res = place_baseline(plant, target)
             vals = gain_values(plant, res.L)
