@@ -92,7 +92,7 @@ def _tqdm_class(notebook: bool = False):
             import ipywidgets  # type: ignore[import-not-found, import-untyped, unused-ignore]  # noqa: F401
             from tqdm.auto import tqdm  # type: ignore[import-untyped]
         else:
-            from tqdm import tqdm  # type: ignore[import-untyped]  # optional: optdesign[progress]
+            from tqdm import tqdm  # type: ignore[import-untyped]  # optional: optdesign-control[progress]
     except ImportError:
         return None
     return tqdm

@@ -479,7 +479,7 @@ def test_reproduce_and_study_out_folder_errors_name_the_flag(tmp_path, capsys, m
     # without matplotlib, reproduce says what to install instead of failing every paper
     monkeypatch.setitem(sys.modules, "matplotlib", None)
     code, _, err = run(["reproduce", "000", "--out", str(tmp_path / "r")], capsys)
-    assert_one_line_error(code, err, "needs matplotlib: pip install 'optdesign[plot]'")
+    assert_one_line_error(code, err, "needs matplotlib: pip install 'optdesign-control[plot]'")
 
 
 # ------------------------------------------------------------------ issue 17, part 2: study
@@ -527,7 +527,7 @@ def test_study_refuses_up_front_without_matplotlib(tmp_path, capsys, monkeypatch
     monkeypatch.setattr(spec_module, "sweep", no_sweep)
     code, _, err = run(["study", "tiny.toml"], capsys)
     assert_one_line_error(code, err, "the figures of tiny.toml need matplotlib, which is not installed: "
-                                     "pip install 'optdesign[plot]' (or skip the figures: optdesign study "
+                                     "pip install 'optdesign-control[plot]' (or skip the figures: optdesign study "
                                      "--no-figures")
     assert not (tmp_path / "tiny_results" / "tiny.csv").exists()
     with pytest.raises(BackendUnavailableError, match="need matplotlib"):

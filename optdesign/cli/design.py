@@ -557,7 +557,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         import matplotlib  # noqa: F401
     except ImportError:
         raise CLIError("reproduce writes figures and needs matplotlib: "
-                       "pip install 'optdesign[plot]'") from None
+                       "pip install 'optdesign-control[plot]'") from None
     _check_out_dir(args.out)
     _headless()
     ids = papers or list(PAPERS)

@@ -1,6 +1,6 @@
 """Pictures of designs: pole maps with regions, model clouds, Pareto fronts and sweeps.
 
-matplotlib is optional and imported lazily (``pip install 'optdesign[plot]'``); no function here
+matplotlib is optional and imported lazily (``pip install 'optdesign-control[plot]'``); no function here
 selects a backend -- matplotlib's own choice stands (``inline`` in Jupyter, ``Agg`` without a display).
 Every function draws on ``ax`` when given, else on a new figure, and returns the Axes (or the
 Figure, for the multi-panel study plots).

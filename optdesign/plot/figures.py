@@ -33,7 +33,7 @@ def pyplot() -> Any:
         import matplotlib.pyplot as plt
     except ImportError as exc:  # pragma: no cover - exercised only without matplotlib
         raise BackendUnavailableError("figures need matplotlib, which is not installed: "
-                                      "pip install 'optdesign[plot]'") from exc
+                                      "pip install 'optdesign-control[plot]'") from exc
     return plt
 
 

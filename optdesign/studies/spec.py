@@ -536,7 +536,7 @@ def _dask_client(spec: StudySpec, workers: int | None):
         from distributed import Client, LocalCluster
     except ImportError:
         raise BackendUnavailableError("executor 'dask' needs dask.distributed: pip install "
-                                      "'optdesign[dask]'") from None
+                                      "'optdesign-control[dask]'") from None
     if spec.scheduler:
         return Client(spec.scheduler, timeout=60), None
     import logging
@@ -559,7 +559,7 @@ def require_matplotlib(what: str = "figures") -> None:
         import matplotlib  # noqa: F401
     except ImportError:
         raise BackendUnavailableError(f"{what} need matplotlib, which is not installed: pip install "
-                                      "'optdesign[plot]' (or skip the figures: optdesign study "
+                                      "'optdesign-control[plot]' (or skip the figures: optdesign study "
                                       "--no-figures, run_spec(..., figures=False))") from None
 
 
