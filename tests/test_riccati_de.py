@@ -19,7 +19,7 @@ import optdesign
 from optdesign import Plant, RiccatiTrajectory, Status, problems, riccati_de
 from optdesign.classical.bpf import bpf_riccati, davison_maki, filter_hamiltonian
 from optdesign.classical.riccati import filter_are
-from optdesign.design.riccati_de import DEFAULT_TOL
+from optdesign.design.riccati_de import DEFAULT_TOL, RTOL_PER_TOL
 from optdesign.errors import (
     DimensionError,
     NotFiniteError,
@@ -105,7 +105,8 @@ def test_paper_example_long_horizon_matches_ode(paper):
 @pytest.mark.parametrize("name", ["carex_1.2", "carex_2.1", "carex_2.4", "carex_2.3", "carex_4.2_n8"])
 def test_carex_filter_plants_match_ode_and_davison_maki(name):
     """Unstable (1.2, 2.1, 2.4: eigenvalues 1, 1, 2), stiff (2.3: Hamiltonian radius 1e3) and a
-    small-covariance plant (4.2: ||P_ss|| = 7e-3) in filter form, P0 = 0 and P0 = I."""
+    small-covariance plant (4.2: ||P_ss|| = 7e-3) in filter form, P0 = 0 and P0 = I.  (4.2 from P0 = 0
+    under OpenBLAS's Haswell kernel: 1.21e-8 at the tolerance rule rtol = 1e-3 tol, now 1e-4 tol: 2.2e-9.)"""
     plant = problems.load(name).plant
     n = plant.n
     M = filter_hamiltonian(plant.A, plant.C, plant.process_noise(), plant.R)
@@ -697,7 +698,7 @@ def test_ode_defaults_meet_the_documented_accuracy(n, seed, shift, tf):
     err = _rel(tr.P, _exact(plant, P0, tr.t))
     assert tr.success and err <= DEFAULT_TOL["ode"], err
     assert tr.error_estimate <= DEFAULT_TOL["ode"] and "error_estimate" in tr.verification
-    assert tr.solver_stats.extra["rtol"] == pytest.approx(1e-3 * DEFAULT_TOL["ode"])
+    assert tr.solver_stats.extra["rtol"] == pytest.approx(RTOL_PER_TOL * DEFAULT_TOL["ode"])
     loose = riccati_de(plant, P0, tf, method="ode", tol=1e-5)          # a looser ask, a looser answer
     assert _rel(loose.P, _exact(plant, P0, tr.t)) <= 1e-5
     assert loose.solver_stats.extra["nfev"] < tr.solver_stats.extra["nfev"]

@@ -45,7 +45,7 @@ __all__ = ["ode_tolerances", "ode_integrator", "integrate", "gain_factor", "RTOL
            "ATOL_PER_RTOL", "NOISE_FLOOR", "STIFF_RHO_T"]
 
 #: the default ``rtol = RTOL_PER_TOL * tol`` (measured; see :func:`ode_tolerances`)
-RTOL_PER_TOL = 1e-3
+RTOL_PER_TOL = 1e-4
 
 #: the default ``atol = ATOL_PER_RTOL * rtol * max|P_ij|`` (the running maximum over the steps)
 ATOL_PER_RTOL = 1e-3
@@ -74,7 +74,7 @@ def ode_tolerances(tol: float, *, rtol: float | None = None, atol: float | None 
     the error of each step, per entry: ``|local error of P_ij| <= atol + rtol |P_ij|``; the global
     error is that, propagated and summed over the steps.
 
-    Defaults: ``rtol = RTOL_PER_TOL tol = 1e-3 tol`` (at least ``100 eps``, at most 1e-3) and
+    Defaults: ``rtol = RTOL_PER_TOL tol = 1e-4 tol`` (at least ``100 eps``, at most 1e-3) and
     ``atol = ATOL_PER_RTOL rtol max_ij |P_ij|`` (``1e-3 rtol`` times the largest entry of P met so
     far, updated after every step): an absolute error of each entry a thousandth of the relative
     one, measured on the size of P -- a norm-wise relative control -- and never below ``NOISE_FLOOR
