@@ -20,7 +20,7 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from .._deadline import Deadline
-from ..backends.status import CVXPY_STATUS
+from ..backends.cvxpy_backend import solve_cvxpy
 from ..errors import ValidationError
 from ..formulate import als
 from ..results import Check, Stage, Status, Verification
@@ -140,17 +140,19 @@ class AlsSolver:
                                           self.rho, sq, sr, so, reusable=self.reusable)
         t0 = time.process_time()
         opts = dict(_SDP_ACCURACY.get(self.sdp_solver, {}), **deadline.sdp_options(self.sdp_solver))
-        status, Q, R, info = self.program.solve(z, self.sdp_solver, opts)
-        mapped = CVXPY_STATUS.get(status, Status.SOLVER_ERROR)
+        # the backend runs it: solver output captured, options checked, a solver failure a status
+        report = solve_cvxpy(self.program.at(z), self.sdp_solver, opts)
+        status, mapped = report.stats.native_status, report.status
+        Q, R = (None, None) if status == "solver_error" else self.program.covariances()
         if Q is None or R is None:
             nan = np.full(len(self.c), np.nan)
             return AlsFit(nan, *_matrices(nan, self.st),
                         Stage(self.sdp_solver.lower(), "backend", mapped.value, status,
                               time.process_time() - t0),
-                        mapped, status, info["iterations"])
+                        mapped, status, report.stats.iterations)
         fit = AlsFit(als_coords(Q, R, self.st), Q, R,
                    Stage(self.sdp_solver.lower(), "backend", "answered", status, time.process_time() - t0),
-                   mapped, status, info["iterations"])
+                   mapped, status, report.stats.iterations)
         return self._polish(fit, z)
 
     def _objective(self, th: NDArray, z: NDArray) -> float:

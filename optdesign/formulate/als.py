@@ -385,23 +385,24 @@ class ALSProgram:
             obj = obj + (self.rho * self.scale_q / self.scale_obj) * trq
         return cp.Problem(cp.Minimize(obj), cons)
 
-    def solve(self, z: NDArray, solver: str,
-              options: dict) -> tuple[str, NDArray | None, NDArray | None, dict]:
-        """``(cvxpy status, Q, R, info)``; Q and R None when no solution is present."""
+    def at(self, z: NDArray) -> Any:
+        """The cvxpy problem for the data ``z`` (its parameter set, or rebuilt when not reusable): built
+        here, solved by the caller through the backend
+        (:func:`optdesign.backends.cvxpy_backend.solve_cvxpy`)."""
         if self.reusable:
             self.z.value = z
         else:
             self.problem = self._build(z)
-        self.problem.solve(solver=solver, **options)
-        status = str(self.problem.status)
-        info = {"iterations": getattr(self.problem.solver_stats, "num_iters", None),
-                "solve_time": getattr(self.problem.solver_stats, "solve_time", None)}
+        return self.problem
+
+    def covariances(self) -> tuple[NDArray | None, NDArray | None]:
+        """``(Q, R)`` of the last solve, unscaled; None when no solution is present."""
         if self.Qv.value is None or self.Rv.value is None:
-            return status, None, None, info
+            return None, None
         Qv = np.asarray(self.Qv.value, dtype=float)
         Q = np.diag(Qv) if Qv.ndim == 1 else 0.5 * (Qv + Qv.T)
         R = np.asarray(self.Rv.value, dtype=float)
-        return status, Q * self.scale_q, 0.5 * (R + R.T) * self.scale_r, info
+        return Q * self.scale_q, 0.5 * (R + R.T) * self.scale_r
 
 
 def _upper_selector(k: int) -> NDArray:
