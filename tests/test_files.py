@@ -178,7 +178,13 @@ def test_plot_table_never_loses_a_file(work, plt):
 def _paper(calls: list):
     """A fake seed paper: one figure through the papers' save_figure, its reproduce decorated as
     the real ones."""
-    from optdesign.studies.reproduce import PaperReproduction, ReproRow, paper_reproduction, pyplot, save_figure
+    from optdesign.studies.reproduce import (
+        PaperReproduction,
+        ReproRow,
+        paper_reproduction,
+        pyplot,
+        save_figure,
+    )
 
     @paper_reproduction
     def reproduce(outdir, *, quick=False, progress=None):
@@ -205,7 +211,7 @@ def test_a_papers_figures_are_never_overwritten_unasked(work, plt):
     assert rep.figures == (here / "seed000_fake.png",) and f.read_bytes().startswith(b"\x89PNG")
     with pytest.raises(ValidationError, match="overwrite must be True or False"):
         paper.reproduce(here, overwrite=1)
-    assert leftovers(here) == [] and victim.read_bytes() == PRECIOUS
+    assert len(calls) == 2 and leftovers(here) == [] and victim.read_bytes() == PRECIOUS
 
 
 def test_reproduce_all_checks_every_output_before_any_paper_runs(work, plt, monkeypatch):
