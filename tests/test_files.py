@@ -114,6 +114,8 @@ def test_save_figure_never_loses_a_file(work, plt):
     assert save_figure(fig, "link.svg", overwrite=True, close=False) == Path("link.svg")
     assert not Path("link.svg").is_symlink() and Path("link.svg").read_bytes().lstrip().startswith(b"<?xml")
     assert victim.read_bytes() == PRECIOUS
+    assert save_figure(fig, "plain", close=False) == Path("plain.png")  # as fig.savefig("plain")
+    assert Path("plain.png").read_bytes().startswith(b"\x89PNG")
     save_figure(fig, f, overwrite=True)
     assert f.read_bytes().startswith(b"\x89PNG") and not plt.fignum_exists(fig.number)
     assert leftovers(here) == []

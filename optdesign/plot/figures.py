@@ -58,7 +58,8 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = FIGURE_DPI, layout: bo
                 close: bool = True, overwrite: bool = False, **savefig_kw: Any) -> Path:
     """Lay out (``tight_layout`` unless ``layout=False``), write and (by default) close ``fig``.
 
-    The format follows the file's suffix (``.png``, ``.svg``, ``.pdf``); ``dpi`` (default 300) sets
+    The format follows the file's suffix (``.png``, ``.svg``, ``.pdf``; a name without one gets
+    matplotlib's default, ``savefig.format``, as ``fig.savefig`` does); ``dpi`` (default 300) sets
     the resolution of raster output.  The file is drawn into a temporary file next to ``path`` and
     renamed onto it (:func:`optdesign._files.atomic_path`).
 
@@ -89,6 +90,8 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = FIGURE_DPI, layout: bo
         A folder at ``path``; a folder that cannot be written.
     """
     path = Path(path)
+    if not path.suffix and "format" not in savefig_kw:  # matplotlib's own rule: add the default suffix
+        path = path.with_name(path.name + "." + str(pyplot().rcParams["savefig.format"]))
     with atomic_path(path, overwrite=overwrite) as tmp:
         if layout:
             fig.tight_layout()
