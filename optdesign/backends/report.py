@@ -10,17 +10,22 @@ logs).  Some of it means the answer is less trustworthy than its status says -- 
 :data:`DOUBT_PATTERNS`: cvxpy's "Solution may be inaccurate", CasADi's "Failed to calculate
 multipliers", IPOPT's restoration failure.  The rule:
 
+* the matched lines of a call are recorded, counted, in its result's
+  ``solver_stats.extra["solver_doubts"]``;
 * a design call (a verb, a problem object's ``solve``, or a backend function called directly) that
-  returns a **successful** answer while such a line was captured during the call emits exactly
-  **one** :class:`~optdesign.errors.OptDesignWarning`, whose text names the solver(s) and what the
-  line means, and points to ``result.solver_stats.extra["solver_doubts"]`` (the matched lines, also
-  recorded there); the solver's own text is never printed;
-* a call that does not return a success emits none: its status and message already say so;
+  returns a **successful** answer with status ``optimal`` or ``solved`` while such a line of the
+  solver that produced it (the family of its ``solver_stats.backend``: CasADi/IPOPT for ``ipopt``,
+  cvxpy for ``clarabel`` and ``scs``) was captured during the call emits exactly **one**
+  :class:`~optdesign.errors.OptDesignWarning`, whose text names the solver(s) and what the line
+  means, and points to ``solver_doubts``; the solver's own text is never printed;
+* a call that does not succeed, or whose status is ``optimal_inaccurate``, emits none: its status
+  and message already say so; nor does an answer of another solver (an inaccurate warm-start SDP
+  before an NLP, an SLSQP answer after an IPOPT stage);
 * nested calls (a verb calling a problem's ``solve`` calling a backend; ``lqr_for_poles`` calling
   ``kalman_for_poles``) count as one: the outermost decides (:func:`one_warning_per_call`).
 
-The doubts of a call are those of every solve it ran (a discarded start's included: the result
-does not keep each start's output).  Calls on threads of one pool share the process-wide redirect,
+The doubts of a call are those of every solve of the answering solver it ran (a discarded
+start's included: a multi-start result does not keep each start's output).  Calls on threads of one pool share the process-wide redirect,
 so a doubt may be counted in the call that finished last.
 """
 
@@ -242,16 +247,11 @@ def captured_output() -> Iterator[Captured]:
             doubts.extend(cap.doubts)
 
 
-def _answered(result: Any) -> bool:
-    """Whether ``result`` is returned as a success: a design result's ``success``, a backend
-    report's solved status."""
-    if hasattr(result, "success"):
-        return bool(result.success)
-    status = getattr(result, "status", None)
-    try:
-        return Status(status).is_solved
-    except ValueError:
-        return False
+#: which captured solvers' doubts concern an answer, by (a part of) its ``solver_stats.backend``
+_FAMILIES: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("ipopt", ("casadi", "ipopt")), ("casadi", ("casadi", "ipopt")),
+    ("clarabel", ("cvxpy",)), ("scs", ("cvxpy",)), ("cvxpy", ("cvxpy",)),
+)
 
 
 def _stats(result: Any) -> SolverStats | None:
@@ -259,21 +259,45 @@ def _stats(result: Any) -> SolverStats | None:
     return stats if isinstance(stats, SolverStats) else None
 
 
-def _warn(where: str, result: Any, doubts: list[tuple[str, str, str]], stacklevel: int) -> None:
+def _doubts_of_answer(result: Any, doubts: list[tuple[str, str, str]]) -> list[tuple[str, str, str]]:
+    """The doubts that concern ``result``: none unless it is returned as a success with a status
+    claiming full accuracy (``optimal`` or ``solved``: ``optimal_inaccurate`` already says it), and
+    only those of the solver family that produced it (its ``solver_stats.backend``: an IPOPT answer
+    is not doubted by an inaccurate warm-start SDP, nor an SLSQP answer by either)."""
+    if not (getattr(result, "success", None) is True or not hasattr(result, "success")):
+        return []
+    try:
+        status = Status(getattr(result, "status", None))
+    except ValueError:
+        return []
+    if status not in (Status.OPTIMAL, Status.SOLVED):
+        return []
     stats = _stats(result)
-    if stats is not None:  # the matched lines, where the warning points (extra is a plain dict)
-        lines: dict[str, int] = {}
-        for solver, _, line in doubts:
-            lines[f"{solver}: {line}"] = lines.get(f"{solver}: {line}", 0) + 1
-        stats.extra["solver_doubts"] = [text + (f" (x{k})" if k > 1 else "")
-                                        for text, k in list(lines.items())[:MAX_CAPTURED_LINES]]
+    backend = stats.backend.lower() if stats is not None else ""
+    families = {f for key, fams in _FAMILIES if key in backend for f in fams}
+    return [d for d in doubts if d[0] in families]
+
+
+def _record(result: Any, doubts: list[tuple[str, str, str]]) -> None:
+    """The matched lines of a call, counted, in its result's ``solver_stats.extra["solver_doubts"]``
+    (``extra`` is a plain dict)."""
+    stats = _stats(result)
+    if stats is None:
+        return
+    lines: dict[str, int] = {}
+    for solver, _, line in doubts:
+        lines[f"{solver}: {line}"] = lines.get(f"{solver}: {line}", 0) + 1
+    stats.extra["solver_doubts"] = [text + (f" (x{k})" if k > 1 else "")
+                                    for text, k in list(lines.items())[:MAX_CAPTURED_LINES]]
+
+
+def _warn(where: str, doubts: list[tuple[str, str, str]], stacklevel: int) -> None:
     said: dict[tuple[str, str], int] = {}
     for solver, meaning, _ in doubts:
         said[(solver, meaning)] = said.get((solver, meaning), 0) + 1
     what = "; ".join(f"{solver} {meaning}" + (f" ({k} times)" if k > 1 else "")
                      for (solver, meaning), k in said.items())
-    how = "a success" if hasattr(result, "success") else f"solved ({getattr(result, 'status', '')})"
-    warnings.warn(f"{where}: the answer is returned as {how}, but during this call {what}. Check "
+    warnings.warn(f"{where}: the answer is returned as a success, but during this call {what}. Check "
                   f"it before relying on it: the solver's lines are in "
                   f"result.solver_stats.extra['solver_doubts']", OptDesignWarning, stacklevel=stacklevel)
 
@@ -296,8 +320,11 @@ def one_warning_per_call(fn: F) -> F:
             result = fn(*args, **kwargs)
         finally:
             _DOUBTS.reset(token)
-        if doubts and _answered(result):
-            _warn(where, result, doubts, stacklevel=3)
+        if doubts:
+            _record(result, doubts)
+            concern = _doubts_of_answer(result, doubts)
+            if concern:
+                _warn(where, concern, stacklevel=3)
         return result
 
     return call  # type: ignore[return-value]
