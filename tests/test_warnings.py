@@ -160,3 +160,14 @@ def test_a_verb_warns_once_for_all_its_solves(monkeypatch, capfd):
     (line,) = res.solver_stats.extra["solver_doubts"]
     assert re.fullmatch(r"ipopt: EXIT: Optimal Solution Found\. \(x\d+\)", line)
     assert capfd.readouterr() == ("", "")
+
+
+def test_deprecations_still_point_at_the_callers_line():
+    """The verbs' wrapper adds a frame: a renamed argument's DeprecationWarning must still name the
+    caller's line, not the wrapper's."""
+    import optdesign as od
+
+    plant = od.problems.load("compleib_nn2").plant
+    with pytest.warns(DeprecationWarning, match="solver= is deprecated: use nlp_solver=") as rec:
+        od.well_conditioned_observer(plant, poles=[-1.0, -2.0], solver="ipopt")
+    assert [w.filename for w in rec if issubclass(w.category, DeprecationWarning)] == [__file__]
