@@ -25,8 +25,9 @@ multipliers", IPOPT's restoration failure.  The rule:
   ``kalman_for_poles``) count as one: the outermost decides (:func:`one_warning_per_call`).
 
 The doubts of a call are those of every solve of the answering solver it ran (a discarded
-start's included: a multi-start result does not keep each start's output).  Calls on threads of one pool share the process-wide redirect,
-so a doubt may be counted in the call that finished last.
+start's included: a multi-start result does not keep each start's output).  Calls on threads of
+one pool share the process-wide redirect, so a doubt may be counted in the call that finished
+last.
 """
 
 from __future__ import annotations

@@ -542,9 +542,9 @@ def _cfg_reproduce(sp: argparse.ArgumentParser) -> None:
                     help="folder for the figures and summary.md / summary.csv (default "
                          "./optdesign-reproduction, in the current directory)")
     sp.add_argument("--overwrite", action="store_true",
-                    help="replace the figures and summary already in --out (or symbolic links in their place: "
-                         "the link, never its target); without it an existing one is an error, before any paper "
-                         "runs")
+                    help="replace the figures and summary already in --out (or symbolic links in their "
+                         "place: the link, never its target); without it an existing one is an error, before "
+                         "any paper runs")
     sp.add_argument("--quick", action="store_true", help="smaller grids and fewer starts (CI)")
     sp.add_argument("--format", choices=FIGURE_FORMATS, default="png", dest="figure_format",
                     help="file format of the figures (default png, at 300 dpi)")
