@@ -449,13 +449,28 @@ def as_poles(
 _UNSET: Any = object()
 
 
+def _outside_level() -> int:
+    """The ``stacklevel`` (for a ``warnings.warn`` in the function calling this one) of the first
+    frame outside the optdesign package: a verb's wrapper (``one_warning_per_call``) adds a frame."""
+    import os
+    import sys
+
+    package = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *, stacklevel: int = 4) -> Any:
     """An argument renamed in the one vocabulary of the verbs (``structure`` -> ``q_structure``,
     ``solver`` -> ``sdp_solver``, ...): the old spelling is accepted for one release with a
     :class:`DeprecationWarning`; both at once is an error.
 
     ``new_value`` / ``old_value`` are what the caller passed (``None`` = not given); returns the value
-    to use (``default`` when neither was given).
+    to use (``default`` when neither was given).  The warning points at the first caller outside
+    optdesign, however many frames of ours are between (``stacklevel``, kept for the callers, is
+    the least level used).
 
     Raises
     ------
@@ -469,7 +484,7 @@ def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *,
     if new_value is not None:
         raise ValidationError(f"give {new}= or its old spelling {old}=, not both")
     warnings.warn(f"{old}= is deprecated: use {new}= (the old spelling goes in the next release)",
-                  DeprecationWarning, stacklevel=stacklevel)
+                  DeprecationWarning, stacklevel=max(stacklevel, _outside_level()))
     return old_value
 
 

@@ -37,6 +37,7 @@ __all__ = [
     "ProblemFileError",
     "OutputPathError",
     "OutputExistsError",
+    "OptDesignWarning",
 ]
 
 
@@ -214,3 +215,14 @@ class OutputExistsError(OptDesignError, FileExistsError):
 
     def __str__(self) -> str:  # OSError's str of one argument is the message; keep it so
         return str(self.args[0]) if self.args else ""
+
+
+class OptDesignWarning(UserWarning):
+    """The one warning optdesign emits of its own (library code never prints): a design call
+    returned a *successful* answer while a solver's captured output cast doubt on it -- cvxpy's
+    "Solution may be inaccurate", CasADi's "Failed to calculate multipliers", IPOPT's restoration
+    failure.  At most one per call, naming the solver and pointing to
+    ``result.solver_stats.extra["solver_doubts"]``; the solver's own text is never printed (rule and
+    patterns: :mod:`optdesign.backends.report`).  Silence it with
+    ``warnings.filterwarnings("ignore", category=optdesign.OptDesignWarning)``, or make it an error
+    with ``"error"``."""

@@ -204,8 +204,8 @@ def test_study_cli_never_replaces_results_silently(work, capsys):
     Path("o").mkdir()
     Path("o/s.csv").write_text("precious")
     code, _, err = run(["study", "s.toml", "--no-progress", "--out", "o"], capsys)
-    one_line_error(code, err, "o/s.csv: exists; not overwritten (overwrite=True, or optdesign study "
-                              "--overwrite replaces it)")
+    one_line_error(code, err, "o/s.csv: exists; not overwritten (overwrite=True, or --overwrite on "
+                              "the command line replaces it)")
     assert Path("o/s.csv").read_text() == "precious" and not Path("o/s.json").exists()
     code, _, err = run(["study", "s.toml", "--no-progress", "--out", "o", "--overwrite"], capsys)
     assert code == 0, err

@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from .._backends import import_casadi
 from ..errors import ValidationError
 from ..results import SolverStats, Status
-from .report import Captured, SolverReport, captured_output
+from .report import Captured, SolverReport, captured_output, one_warning_per_call
 from .status import map_status
 
 __all__ = ["import_casadi", "solve_opti", "solve_nlpsol", "ipopt_solver", "run_solver", "setup_error_report",
@@ -69,6 +69,7 @@ def check_ipopt_options(options: dict[str, Any]) -> None:
         ) from None
 
 
+@one_warning_per_call
 def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool = True) -> SolverReport:
     """Solve ``opti`` with IPOPT; never raises on solver failure.
 
@@ -122,6 +123,7 @@ def solve_opti(opti, options: dict[str, Any] | None = None, *, configure: bool =
     return _report(status, native, st, _wall(st, elapsed), obj, error, value, cap)
 
 
+@one_warning_per_call
 def solve_nlpsol(problem: dict[str, Any], x0, lbg, ubg, options: dict[str, Any] | None = None, *,
                  plugin: dict[str, Any] | None = None, extra: dict[str, Any] | None = None,
                  name: str = "nlp") -> SolverReport:
@@ -246,6 +248,7 @@ def ipopt_solver(problem: dict[str, Any], options: dict[str, Any] | None = None,
     return ca.nlpsol(name, "ipopt", problem, _plugin_options(options))
 
 
+@one_warning_per_call
 def run_solver(solver, x0: NDArray, p: NDArray, lbg: NDArray, ubg: NDArray,
                value_of: Callable[[NDArray], Callable[[Any], Any]]) -> SolverReport:
     """Run an :func:`ipopt_solver` Function from ``x0`` with parameters ``p`` and constraint bounds

@@ -11,7 +11,7 @@ import numpy as np
 from .._backends import import_cvxpy
 from ..errors import BackendUnavailableError, ValidationError
 from ..results import SolverStats
-from .report import SolverReport, captured_output
+from .report import SolverReport, captured_output, one_warning_per_call
 from .status import map_status
 
 __all__ = ["import_cvxpy", "available_sdp_solvers", "default_sdp_solver", "solve_cvxpy", "SDP_SOLVERS",
@@ -99,6 +99,7 @@ def check_solver_options(name: str, options: dict[str, Any]) -> None:
                               f"{', '.join(sorted(known))}")
 
 
+@one_warning_per_call
 def solve_cvxpy(problem, solver: str | None = None, options: dict[str, Any] | None = None) -> SolverReport:
     """Solve a cvxpy problem; never raises on solver failure (status says what happened).
 

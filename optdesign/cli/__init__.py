@@ -7,7 +7,8 @@
     optdesign kalman [PROBLEM] [--json]          steady-state Kalman filter of a problem's plant
     optdesign design PROBLEM --method M [...]    any design verb
     optdesign study SPEC.toml                    a sweep described in a file
-    optdesign reproduce [PAPER] [--out DIR]      every seed paper's examples and figures
+    optdesign reproduce [PAPER] [--out DIR]      every seed paper's examples and figures (existing
+                                                 files kept unless --overwrite)
 
 PROBLEM is a library name (``optdesign list``) or a problem file of the user's (JSON/TOML with the
 matrices, ``.npz``, MATLAB ``.mat``; :func:`optdesign.problems.load_file`).  Every command is

@@ -5,7 +5,7 @@
     optdesign design PROBLEM --method METHOD [--poles ...] [--region ...] [--json] [--progress]
     optdesign study SPEC.toml [--executor ...] [--workers N] [--out DIR] [--allow-failures]
                               [--no-figures] [--progress | --no-progress]
-    optdesign reproduce [PAPER ...] [--out DIR] [--quick] [--progress | --no-progress]
+    optdesign reproduce [PAPER ...] [--out DIR] [--overwrite] [--quick] [--progress | --no-progress]
 
 PROBLEM is a library name or a problem file (JSON/TOML, .npz, MATLAB .mat:
 :func:`optdesign.problems.load_file`).  Every user error is a one-line message with exit code 2
@@ -541,6 +541,10 @@ def _cfg_reproduce(sp: argparse.ArgumentParser) -> None:
     sp.add_argument("--out", default="optdesign-reproduction",
                     help="folder for the figures and summary.md / summary.csv (default "
                          "./optdesign-reproduction, in the current directory)")
+    sp.add_argument("--overwrite", action="store_true",
+                    help="replace the figures and summary already in --out (or symbolic links in their "
+                         "place: the link, never its target); without it an existing one is an error, before "
+                         "any paper runs")
     sp.add_argument("--quick", action="store_true", help="smaller grids and fewer starts (CI)")
     sp.add_argument("--format", choices=FIGURE_FORMATS, default="png", dest="figure_format",
                     help="file format of the figures (default png, at 300 dpi)")
@@ -565,7 +569,7 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
           f"{Path(args.out)}{os.sep}")
     flush()
     summary = reproduce_all(args.out, papers=papers, quick=args.quick, progress=args.progress,
-                            figure_format=args.figure_format)
+                            figure_format=args.figure_format, overwrite=args.overwrite)
     print(summary.overview())
     print(f"summary: {summary.markdown}")
     print(f"         {summary.csv}")

@@ -50,6 +50,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_int, as_matrix, as_poles, as_square, as_str, check_pd
 from ..analysis import metrics
+from ..backends.report import one_warning_per_call
 from ..classical.placement import pole_error as classical_pole_error
 from ..classical.riccati import sort_poles
 from ..errors import NotControllableError, ValidationError
@@ -234,6 +235,7 @@ def _feedback_from_observer(obs: Any, A: NDArray, B: NDArray, *, plant: Plant | 
                           extra={"dual": "observer of (A', B'), K = L'"})
 
 
+@one_warning_per_call
 def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, region: Region | None = None,
                               structure: ArrayLike | None = None, allow_unstable: bool = False,
                               **options: Any) -> FeedbackDesign:
@@ -598,6 +600,7 @@ def _lqr_structure(structure: str, pl: Plant) -> tuple[NDArray | None, Literal["
     return Ct, "input" if structure == "output" else "diagonal"
 
 
+@one_warning_per_call
 def lqr_for_poles(plant: Any, poles: ArrayLike, *, R: ArrayLike | None = None,
                   structure: Literal["full", "diagonal", "output", "output_diagonal"] = "full",
                   objective: Literal["min_trace", "nearest", "feasibility"] = "min_trace",

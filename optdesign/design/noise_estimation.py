@@ -49,6 +49,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
 from .._validate import as_int, as_matrix, as_positive_float, as_rng, as_str
+from ..backends.report import one_warning_per_call
 from ..errors import NotFiniteError, ValidationError
 from ..formulate import als
 from ..model.coerce import as_plant
@@ -306,6 +307,7 @@ def _stream(filt: als.InnovationFilter, acc: als.AutocovAccumulator, y: NDArray,
 
 
 # ------------------------------------------------------------------ the verb
+@one_warning_per_call
 def estimate_noise(
     plant: Plant | Any,
     y: ArrayLike,

@@ -62,6 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_gain_mask, as_int, as_positive_float
 from ..backends.casadi_backend import solve_nlpsol
+from ..backends.report import one_warning_per_call
 from ..classical.riccati import filter_are
 from ..errors import ValidationError
 from ..formulate.robust_nlp import KAPPA2_ORDERS, RobustNLP, build_robust_nlp
@@ -137,6 +138,7 @@ def _value_of(objective: str, aggregate: str, mm: ModelMetrics, L: NDArray, w: N
     return float(np.max(v)) if aggregate == "max" else float(w @ v)
 
 
+@one_warning_per_call
 def robust_observer(
     models: ModelSet | list,
     *,

@@ -35,6 +35,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, as_time_limit, memory_budget
 from .._validate import as_gain_mask, as_int, as_positive_float
 from ..backends.cvxpy_backend import solve_cvxpy
+from ..backends.report import one_warning_per_call
 from ..errors import ValidationError
 from ..formulate.robust_lmi import build_robust_lmi, default_margin
 from ..model.model_set import ModelSet, as_model_set
@@ -62,6 +63,7 @@ from .robust_verify import (
 __all__ = ["robust_lmi_observer", "lmi_design", "certify_gain"]
 
 
+@one_warning_per_call
 def robust_lmi_observer(
     models: ModelSet | list,
     *,

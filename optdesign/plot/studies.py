@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from .._files import check_targets
 from ..errors import ValidationError
 from .figures import FIGURE_DPI, new_axes, pyplot, save_figure
 
@@ -83,7 +84,7 @@ def _title(text: str, note: str) -> str:
 
 
 def plot_table(table: Any, fig: Any, path: str | Path | None = None, *, title: str = "",
-               dpi: int = FIGURE_DPI) -> Any:
+               dpi: int = FIGURE_DPI, overwrite: bool = False) -> Any:
     """Draw one figure of a sweep table (successful points only); save it when ``path`` is given.
 
     Line figures: one curve per value of ``fig.series`` (legend), one panel per ``y`` column,
@@ -101,11 +102,21 @@ def plot_table(table: Any, fig: Any, path: str | Path | None = None, *, title: s
     title : str
     dpi : int, default 300
         Resolution of raster output.
+    overwrite : bool, default False
+        Replace a file already at ``path`` (as :func:`~optdesign.plot.save_figure`: written to a
+        temporary name and renamed, never through a symbolic link).
 
     Returns
     -------
     Path (the file written, the figure closed) when ``path`` is given, else the matplotlib Figure.
+
+    Raises
+    ------
+    OutputExistsError
+        A file or symbolic link at ``path`` and ``overwrite`` False (checked before drawing).
     """
+    if path is not None:
+        check_targets([path], overwrite=overwrite)
     plt = pyplot()
     ok = np.array([bool(r.get("success")) for r in table.records])
     n_fail = int((~ok).sum())
@@ -178,12 +189,12 @@ def plot_table(table: Any, fig: Any, path: str | Path | None = None, *, title: s
     if path is None:
         f.tight_layout()
         return f
-    return save_figure(f, path, dpi=dpi)
+    return save_figure(f, path, dpi=dpi, overwrite=overwrite)
 
 
 def plot_pareto(front: Any, path: str | Path | None = None, *, x: str | None = None,
                 y: str | None = None, color: str | None = None, title: str = "", ax: Any = None,
-                dpi: int = FIGURE_DPI) -> Any:
+                dpi: int = FIGURE_DPI, overwrite: bool = False) -> Any:
     """Scatter plot of a front: ``y`` (default the minimized objective) against ``x`` (default the
     second objective), colour = the third objective (if any); non-dominated points joined, dominated
     ones grey, anchors marked; axes labelled, legend.
@@ -198,6 +209,10 @@ def plot_pareto(front: Any, path: str | Path | None = None, *, x: str | None = N
     title : str
     ax : matplotlib Axes, optional
         Draw here (default a new figure).
+    dpi : int, default 300
+    overwrite : bool, default False
+        Replace a file already at ``path`` (as :func:`~optdesign.plot.save_figure`: written to a
+        temporary name and renamed, never through a symbolic link).
 
     Returns
     -------
@@ -207,7 +222,11 @@ def plot_pareto(front: Any, path: str | Path | None = None, *, x: str | None = N
     ------
     ValidationError
         ``x`` or ``y`` not one of the front's objectives.
+    OutputExistsError
+        A file or symbolic link at ``path`` and ``overwrite`` False (checked before drawing).
     """
+    if path is not None:
+        check_targets([path], overwrite=overwrite)
     objs = front.objectives
     y = y or objs[0]
     x = x or objs[1]
@@ -249,5 +268,5 @@ def plot_pareto(front: Any, path: str | Path | None = None, *, x: str | None = N
                  + (f"\n({n_fail} bound levels infeasible or failed)" if n_fail else ""), fontsize=10)
     fig.tight_layout()
     if path is not None:
-        save_figure(fig, path, dpi=dpi, layout=False, close=False)
+        save_figure(fig, path, dpi=dpi, layout=False, close=False, overwrite=overwrite)
     return fig

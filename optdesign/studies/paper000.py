@@ -45,7 +45,7 @@ from ..classical.placement import pole_error
 from ..classical.riccati import filter_are, hamiltonian_are
 from ..classical.solheim import solheim
 from ..design.inverse_kalman import kalman_for_poles
-from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, paper_reproduction, pyplot, save_figure
 
 __all__ = ["reproduce", "example1_family"]
 
@@ -88,6 +88,7 @@ def _loci(plant, steps, num: int):
     return out
 
 
+@paper_reproduction
 def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 000's examples, write the figures into ``outdir``, return the table.
 

@@ -53,7 +53,7 @@ from ..classical.jung_huh import (
 from ..classical.riccati import filter_are
 from ..design.well_conditioned import well_conditioned_kalman, well_conditioned_observer
 from ..model.regions import HalfPlane
-from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, paper_reproduction, pyplot, save_figure
 
 __all__ = ["reproduce", "real_schur_eta", "aircraft_design"]
 
@@ -90,6 +90,7 @@ def aircraft_design(starts: int = 3):
     return d, region, L_paper
 
 
+@paper_reproduction
 def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 001's examples, write Fig. 1-4 into ``outdir``, return the table.
 

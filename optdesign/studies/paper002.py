@@ -38,7 +38,7 @@ from ..analysis.robustness import circle_condition, return_difference
 from ..design.kalman import kalman
 from ..design.output_delay import output_delay_convergence, output_delay_kalman
 from ..model.plant import Plant
-from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, paper_reproduction, pyplot, save_figure
 
 __all__ = ["reproduce", "crossfeed_counterexample"]
 
@@ -75,6 +75,7 @@ def crossfeed_counterexample(R1: float = 16.0, R2: float = 1.0, *, seed: int = 0
     return None
 
 
+@paper_reproduction
 def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 002's results on the scalar example, write the figures, return the table.
 

@@ -48,7 +48,7 @@ from ..design.generalized import (
 )
 from ..errors import OptDesignError
 from ..model.noise import NoiseModel, Sinusoid, Step
-from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, paper_reproduction, pyplot, save_figure
 
 __all__ = ["reproduce", "example_cases", "STEP_LEVEL", "SINE_AMPLITUDE"]
 
@@ -107,6 +107,7 @@ def _well_conditioned_rows(cases, designed, quick: bool) -> list[ReproRow]:
     return rows
 
 
+@paper_reproduction
 def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 003's example, write its figures into ``outdir``, return the table.
 

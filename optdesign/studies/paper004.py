@@ -47,7 +47,7 @@ from ..classical.bpf import (
     riccati_flow,
 )
 from ..classical.riccati import filter_are
-from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, pyplot, save_figure
+from .reproduce import PaperReproduction, ReproRow, fmt, output_dir, paper_reproduction, pyplot, save_figure
 
 __all__ = ["reproduce", "convergence", "naive_error", "PROBLEM", "BLOCKS", "NAIVE_PROBLEMS"]
 
@@ -115,6 +115,7 @@ def naive_error(M, P0, times) -> np.ndarray:
     return err
 
 
+@paper_reproduction
 def reproduce(outdir: str | Path, *, quick: bool = False, progress=None) -> PaperReproduction:
     """Recompute seed 004's example, write its figures into ``outdir``, return the table.
 

@@ -7,19 +7,31 @@ paper's examples with the library, writes its figures (PNG) into ``outdir`` (eac
 of printed vs reproduced values.  :func:`reproduce_all` runs them all (a paper module that is
 missing or fails is reported, not raised) and writes a summary table of printed vs reproduced
 values (``summary.md`` and ``summary.csv``) next to the figures.
+
+Files are written as every file optdesign writes (:mod:`optdesign._files`): never over an existing
+file or symbolic link unless asked (``overwrite=True``; ``optdesign reproduce --overwrite``), to a
+temporary name renamed onto the name, never through a symbolic link.  :func:`reproduce_all` checks
+its outputs -- ``summary.md``, ``summary.csv`` and each requested paper's figures, named
+``seed<id>_*.<format>`` -- before any paper runs.
 """
 
 from __future__ import annotations
 
 import contextvars
 import csv
+import functools
 import importlib
 import inspect
+import io
 import math
+import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
+from .._files import as_overwrite, check_targets, write_text
 from .._progress import Progress, as_progress
 from ..errors import ValidationError
 from ..plot.figures import FIGURE_DPI, FIGURE_FORMATS
@@ -33,6 +45,7 @@ __all__ = [
     "pyplot",
     "output_dir",
     "save_figure",
+    "paper_reproduction",
     "format_table",
     "fmt",
     "PAPERS",
@@ -102,19 +115,62 @@ def output_dir(outdir: str | Path) -> Path:
 _FIGURE_FORMAT: contextvars.ContextVar[str | None] = contextvars.ContextVar("figure_format", default=None)
 
 
+#: whether the figures of a paper's ``reproduce(..., overwrite=...)`` call may replace existing files
+_OVERWRITE: contextvars.ContextVar[bool] = contextvars.ContextVar("overwrite_figures", default=False)
+
+
 def save_figure(fig, path: str | Path, *, dpi: int = FIGURE_DPI, layout: bool = True,
-                progress: Progress | None = None, **savefig_kw) -> Path:
+                progress: Progress | None = None, overwrite: bool | None = None, **savefig_kw) -> Path:
     """Lay out (``tight_layout`` unless ``layout=False``), write and close a figure; its path.
 
     Written at ``dpi`` (default 300) in the format of the path's suffix (``.png``, ``.svg``,
-    ``.pdf``) -- or, inside :func:`reproduce_all` with ``figure_format``, in that format.  ``progress`` (optional) gets one line naming the file."""
+    ``.pdf``) -- or, inside :func:`reproduce_all` with ``figure_format``, in that format -- by
+    :func:`optdesign.plot.save_figure` (a temporary file renamed onto ``path``, never through a
+    symbolic link).  ``overwrite`` (default: that of the paper's ``reproduce`` call, else False)
+    allows replacing an existing file.  ``progress`` (optional) gets one line naming the file.
+
+    Raises
+    ------
+    OutputExistsError
+        A file or symbolic link at ``path`` and overwriting not asked for."""
     fmt_ = _FIGURE_FORMAT.get()
     if fmt_ is not None:
         path = Path(path).with_suffix("." + fmt_)
-    path = _save(fig, path, dpi=dpi, layout=layout, **savefig_kw)
+    ow = _OVERWRITE.get() if overwrite is None else as_overwrite(overwrite)
+    path = _save(fig, path, dpi=dpi, layout=layout, overwrite=ow, **savefig_kw)
     if progress is not None:
         progress.line(f"wrote {path.name} (at {progress.elapsed:.1f} s)")
     return path
+
+
+def paper_reproduction(fn: Callable[..., PaperReproduction]) -> Callable[..., PaperReproduction]:
+    """Give a paper's ``reproduce(outdir, *, quick=False, progress=None)`` the keyword
+    ``overwrite: bool = False``: whether its figures (written by :func:`save_figure`) may replace
+    files already in ``outdir``.  Without it an existing figure is an
+    :class:`~optdesign.errors.OutputExistsError` naming it.
+
+    Raises
+    ------
+    ValidationError
+        ``overwrite`` not a bool.
+    """
+
+    @functools.wraps(fn)
+    def reproduce(*args: Any, overwrite: bool = False, **kwargs: Any) -> PaperReproduction:
+        token = _OVERWRITE.set(as_overwrite(overwrite))
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            _OVERWRITE.reset(token)
+
+    sig = inspect.signature(fn)
+    reproduce.__signature__ = sig.replace(parameters=[  # type: ignore[attr-defined]
+        *sig.parameters.values(),
+        inspect.Parameter("overwrite", inspect.Parameter.KEYWORD_ONLY, default=False, annotation="bool")])
+    reproduce.__doc__ = (fn.__doc__ or "").rstrip() + (
+        "\n\n    ``overwrite=True`` replaces figures already in ``outdir`` (default: an existing one is "
+        "an OutputExistsError).\n")
+    return reproduce
 
 
 def fmt(x, digits: int = 4) -> str:
@@ -263,8 +319,10 @@ def _run_paper(pid: str, outdir: Path, quick: bool, progress: Progress | None = 
     if not callable(fn):
         return PaperOutcome(pid, title, "missing", error=f"{modname} has no reproduce(outdir, *, quick) "
                                                          "function")
-    kw = {"progress": progress} if progress is not None and "progress" in inspect.signature(fn).parameters \
-        else {}
+    params = inspect.signature(fn).parameters
+    kw: dict[str, Any] = {"progress": progress} if progress is not None and "progress" in params else {}
+    if "overwrite" in params:  # else its figures follow reproduce_all's own (the context variable)
+        kw["overwrite"] = _OVERWRITE.get()
     try:
         rep = fn(outdir, quick=quick, **kw)
     except Exception as exc:  # noqa: BLE001 - a failing paper is reported, the others still run
@@ -289,8 +347,22 @@ def _close_figures() -> None:
         sys.modules["matplotlib.pyplot"].close("all")
 
 
+def _existing_outputs(out: Path, ids: list[str], figure_format: str) -> list[Path]:
+    """What :func:`reproduce_all` would write over in ``out``: the summary files and each paper's
+    figures (``seed<id>_*.<format>``, links included, dangling ones too)."""
+    found = [out / "summary.md", out / "summary.csv"]
+    try:
+        with os.scandir(out) as it:
+            names = sorted(e.name for e in it)
+    except OSError:
+        return found
+    prefixes = tuple(f"seed{pid}_" for pid in ids)
+    return found + [out / n for n in names if n.startswith(prefixes) and n.endswith("." + figure_format)]
+
+
 def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
-                  progress: bool | None = None, figure_format: str = "png") -> ReproductionSummary:
+                  progress: bool | None = None, figure_format: str = "png", *,
+                  overwrite: bool = False) -> ReproductionSummary:
     """Reproduce seed papers: every figure into ``outdir``, and a summary of printed vs reproduced values.
 
     Parameters
@@ -306,6 +378,11 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
         ``None`` (default) only when stderr is a terminal, ``True`` always, ``False`` never.
     figure_format : {"png", "svg", "pdf"}
         File format of every figure (raster figures at 300 dpi).
+    overwrite : bool, default False
+        Replace the summary and figures already in ``outdir``.  Without it, any of them there
+        (a file or a symbolic link) is an :class:`~optdesign.errors.OutputExistsError` before
+        any paper runs.  Files are written to a temporary name and renamed, never through a
+        symbolic link (:mod:`optdesign._files`).
 
     Returns
     -------
@@ -319,16 +396,22 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
     ------
     ValidationError
         An unknown paper id; ``progress`` not a bool or None; ``figure_format`` not one of
-        png, svg, pdf.
+        png, svg, pdf; ``overwrite`` not a bool.
+    OutputExistsError
+        A summary file or a requested paper's figure exists in ``outdir`` and ``overwrite`` is
+        False (nothing run, nothing written).
     """
     if figure_format not in FIGURE_FORMATS:
         raise ValidationError(f"figure_format must be one of {', '.join(FIGURE_FORMATS)}; found {figure_format!r}")
     ids = list(PAPERS) if papers is None else list(dict.fromkeys(paper_id(p) for p in papers))
     progress = as_progress(progress)
+    overwrite = as_overwrite(overwrite)
     out = Path(outdir)
+    check_targets(_existing_outputs(out, ids, figure_format), overwrite=overwrite)
     out.mkdir(parents=True, exist_ok=True)
     results = []
     token = _FIGURE_FORMAT.set(figure_format)
+    token_ow = _OVERWRITE.set(overwrite)
     try:
         with Progress(len(ids), "reproduce", enabled=progress, unit="paper") as bar:
             for i, pid in enumerate(ids):
@@ -337,6 +420,7 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
                 results.append(o)
                 bar.update(1, note=f"seed {pid} {o.status} in {o.time:.1f} s")
     finally:
+        _OVERWRITE.reset(token_ow)
         _FIGURE_FORMAT.reset(token)
     outcomes = tuple(results)
     md_path = out / "summary.md"
@@ -365,15 +449,16 @@ def reproduce_all(outdir: str | Path, papers=None, quick: bool = False,
                              f"{_md_cell(r.printed if r.printed is not None else '-')} | "
                              f"{_md_cell(r.reproduced)} | "
                              f"{agrees} | {_md_cell(r.note)} |")
-    md_path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-    with csv_path.open("w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(["paper", "status", "example", "quantity", "printed", "reproduced", "agrees", "note"])
-        for o in outcomes:
-            if o.reproduction is None or not o.reproduction.rows:
-                w.writerow([o.paper, o.status, "", "", "", "", "", o.error or ""])
-                continue
-            for r in o.reproduction.rows:
-                w.writerow([o.paper, o.status, r.example, r.quantity, "" if r.printed is None else r.printed,
-                            r.reproduced, {True: "yes", False: "no", None: ""}[r.agrees], r.note])
+    write_text(md_path, "\n".join(lines) + "\n", overwrite=overwrite)
+    fh = io.StringIO()
+    w = csv.writer(fh)
+    w.writerow(["paper", "status", "example", "quantity", "printed", "reproduced", "agrees", "note"])
+    for o in outcomes:
+        if o.reproduction is None or not o.reproduction.rows:
+            w.writerow([o.paper, o.status, "", "", "", "", "", o.error or ""])
+            continue
+        for r in o.reproduction.rows:
+            w.writerow([o.paper, o.status, r.example, r.quantity, "" if r.printed is None else r.printed,
+                        r.reproduced, {True: "yes", False: "no", None: ""}[r.agrees], r.note])
+    write_text(csv_path, fh.getvalue(), overwrite=overwrite, newline="")
     return ReproductionSummary(out, outcomes, md_path, csv_path)

@@ -91,7 +91,7 @@ from ..errors import BackendUnavailableError, OptDesignError, OutputPathError, V
 from ..model.regions import Region
 from ..plot.studies import LABELS, SYMBOLS, plot_table  # the figures live in optdesign.plot
 from .designers import DESIGNERS
-from .output import atomic_path, check_targets, file_name, output_folder
+from .output import check_targets, file_name, output_folder
 from .sweep import MAX_GRID_POINTS, SweepTable, grid, sweep
 from .syntax import REGION_SHAPES, format_region, parse_poles, parse_region
 
@@ -645,8 +645,6 @@ def run_spec(spec: StudySpec | str | Path, *, executor: str | None = None, worke
     table.to_json(json_path, overwrite=overwrite)
     title = spec.title or f"{spec.problem}: {spec.design}"
     figs = []
-    for fig in drawn:  # drawn into a temporary file, renamed (optdesign.studies.output)
-        with atomic_path(out / fig.file, overwrite=overwrite) as tmp:
-            plot_table(table, fig, tmp, title=title)
-        figs.append(out / fig.file)
+    for fig in drawn:  # drawn into a temporary file, renamed (optdesign._files)
+        figs.append(plot_table(table, fig, out / fig.file, title=title, overwrite=overwrite))
     return StudyOutput(spec=spec, table=table, csv=csv_path, json=json_path, figures=tuple(figs))

@@ -14,6 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._deadline import Deadline
 from ..._validate import as_frequencies, as_matrix, as_positive_float, renamed
 from ...analysis.robustness import circle_condition, resolve_R
+from ...backends.report import one_warning_per_call
 from ...classical.riccati import format_pole as _fmt
 from ...engines.polish import min_norm_lstsq
 from ...errors import ValidationError
@@ -27,6 +28,7 @@ from .route import optimality_route
 from .sdp_stage import feasibility_margin, polished_point, sdp_fixed_gain, whitening
 
 
+@one_warning_per_call
 def is_kalman_optimal(
     plant: Plant | Any,
     L: ArrayLike,

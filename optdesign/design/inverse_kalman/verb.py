@@ -12,6 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._backends import import_clarabel
 from ..._deadline import Deadline
 from ..._validate import as_int, as_poles, as_positive_float, renamed
+from ...backends.report import one_warning_per_call
 from ...classical.placement import pole_error
 from ...classical.riccati import format_pole as _fmt
 from ...classical.solheim import solheim
@@ -48,6 +49,7 @@ from .route import inverse_kalman_route
 from .sdp_route import fixed_gain_design, run_sdp
 
 
+@one_warning_per_call
 def kalman_for_poles(
     plant: Plant | Any,
     poles: ArrayLike,
@@ -218,6 +220,7 @@ class InverseKalmanProblem:
             self._engine = setup
         return setup
 
+    @one_warning_per_call
     def solve(self, poles: ArrayLike, *, method: str = "auto", seed: int = 0,
               time_limit: float | None = None, warm_start: Any = None) -> InverseKalmanResult:
         """Process noise ``Q >= 0`` whose steady-state Kalman filter has these poles.

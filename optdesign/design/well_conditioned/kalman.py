@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from ..._deadline import Deadline, as_time_limit
 from ..._progress import Progress, as_progress
 from ..._validate import as_int, as_positive_float, renamed
+from ...backends.report import one_warning_per_call
 from ...classical.riccati import filter_are, filter_are_residual
 from ...errors import ValidationError
 from ...formulate.well_conditioned import (
@@ -49,6 +50,7 @@ from .results import ObserverDesign, StartRecord
 __all__ = ["WellConditionedKalmanProblem", "well_conditioned_kalman"]
 
 
+@one_warning_per_call
 def well_conditioned_kalman(
     plant: Plant | Any,
     *,
@@ -185,6 +187,7 @@ class WellConditionedKalmanProblem:
                                                scaling=NLPScaling.identity(self.base.n, self.base.p))
         return self._nlps[key]
 
+    @one_warning_per_call
     def solve(self, region: Region | None = None, *, time_limit: float | Deadline | None = None,
               progress: bool | None = None) -> ObserverDesign:
         """The well-conditioned Kalman filter, optionally with its poles in ``region``.

@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..._deadline import Deadline, as_time_limit
 from ..._progress import Progress, as_progress
 from ..._validate import as_bool, as_gain_mask, as_int, as_poles, as_positive_float, as_str
+from ...backends.report import one_warning_per_call
 from ...engines.eigenstructure import EigenstructureEngine
 from ...engines.eigenstructure_fixed import default_starts
 from ...errors import DimensionError, ValidationError
@@ -418,6 +419,7 @@ class WellConditionedProblem:
         return get
 
     # ------------------------------------------------------------------ solving
+    @one_warning_per_call
     def solve(self, poles: ArrayLike | None = None, region: Region | None = None, *, warm_start: Any = None,
               warm_starts: Sequence[Any] | None = None, time_limit: float | Deadline | None = None,
               progress: bool | None = None,

@@ -8,6 +8,7 @@ from numpy.typing import ArrayLike
 
 from ..._deadline import Deadline, as_time_limit
 from ..._validate import renamed
+from ...backends.report import one_warning_per_call
 from ...model.plant import Plant
 from ...model.regions import Region
 from .problem import Objective, WellConditionedProblem
@@ -16,6 +17,7 @@ from .results import ObserverDesign
 __all__ = ["well_conditioned_observer"]
 
 
+@one_warning_per_call
 def well_conditioned_observer(
     plant: Plant | Any,
     *,
