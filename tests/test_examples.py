@@ -18,6 +18,8 @@ from pathlib import Path
 
 import pytest
 
+from optdesign.plot import FIGURE_DPI
+
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 SCRIPTS = sorted(EXAMPLES.glob("*.py"))
@@ -52,7 +54,9 @@ def test_example_runs_cleanly(script, tmp_path):
     cmd = [sys.executable, "-W", "error::DeprecationWarning", str(script)]
     cmd += ["--quick"] if script.stem in QUICK else []
     env = {**os.environ, "OPTDESIGN_EXAMPLES_OUT": str(out), "MPLBACKEND": "Agg",
-           "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+           "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
+           # the optdesign of this checkout, not another install
+           "PYTHONPATH": os.pathsep.join([str(ROOT), *filter(None, [os.environ.get("PYTHONPATH")])])}
     env.pop("PYTHONWARNINGS", None)
     proc = subprocess.run(cmd, cwd=tmp_path, env=env, stdin=subprocess.DEVNULL, capture_output=True,
                           text=True, timeout=900)
@@ -60,6 +64,24 @@ def test_example_runs_cleanly(script, tmp_path):
     assert proc.stderr == "", f"{script.name} wrote to stderr:\n{proc.stderr[-4000:]}"
     assert len(proc.stdout.splitlines()) >= 5, f"{script.name} printed too little:\n{proc.stdout}"
     written = [p for p in out.rglob("*") if p.is_file()] if out.is_dir() else []
-    assert any(p.suffix == ".png" for p in written), f"{script.name} wrote no figure into {out}"
+    pngs = [p for p in written if p.suffix == ".png"]
+    assert pngs, f"{script.name} wrote no figure into {out}"
+    Image = pytest.importorskip("PIL.Image")
+    for png in pngs:  # the seed papers' figures too (paper001 and paper002 were pinned at 120 dpi)
+        with Image.open(png) as im:
+            assert round(im.info["dpi"][0]) == FIGURE_DPI, f"{png.name}: {im.info['dpi']} dpi"
     assert _tree_state(EXAMPLES) == before, f"{script.name} changed files in examples/"
     assert not list(tmp_path.glob("*_results")), f"{script.name} wrote into the working directory"
+
+
+def test_seed002_figures_at_the_library_resolution(tmp_path):
+    """paper002 pinned its figures at 120 dpi (paper001 too), below every other figure's 300."""
+    pytest.importorskip("matplotlib")
+    Image = pytest.importorskip("PIL.Image")
+    from optdesign.studies import paper002
+
+    rep = paper002.reproduce(tmp_path, quick=True)
+    assert len(rep.figures) == 2
+    for path in rep.figures:
+        with Image.open(path) as im:
+            assert round(im.info["dpi"][0]) == FIGURE_DPI, f"{Path(path).name}: {im.info['dpi']} dpi"
