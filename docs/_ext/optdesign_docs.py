@@ -44,6 +44,10 @@ __all__ = [
     "module_order",
     "canonical_names",
     "object_key",
+    "TASKS",
+    "expand_task_names",
+    "task_groups",
+    "object_page",
     "api_pages",
     "gallery_pages",
     "figure_owner",
@@ -61,6 +65,62 @@ LAYERS = ("model", "analysis", "classical", "formulate", "backends", "engines", 
 #: data reprs longer than this are not shown in the signature line
 MAX_VALUE_REPR = 80
 HEADING = "=-~^"
+
+#: the API reference's task groups: (title, what it is for, names).  A name is a public dotted path, or
+#: ``module.*`` for every name in that module's ``__all__``.  Each object named here has a page of its
+#: own (``api/generated/<canonical name>.rst``) and is listed under its task; every name of
+#: ``optdesign.__all__`` must be in a group (a name left out is listed under "Other", and a test fails).
+TASKS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
+    ("Design an observer", "Luenberger observers with their poles placed or free in a region, minimizing "
+     "the eigenvector condition number; generalized and noise-rejecting observers; the estimator as a "
+     "system.",
+     ("optdesign.well_conditioned_observer", "optdesign.ObserverDesign", "optdesign.generalized_observer",
+      "optdesign.GeneralizedObserver", "optdesign.noise_rejecting_observer", "optdesign.NoiseRejectingObserver",
+      "optdesign.simulate_observer", "optdesign.ObserverSimulation", "optdesign.estimator_system",
+      "optdesign.EstimatorArrays")),
+    ("Kalman filters", "Steady-state, sampled, finite-horizon, well-conditioned and output-delay Kalman "
+     "filters, and the noise covariances estimated from data.",
+     ("optdesign.kalman", "optdesign.KalmanFilter", "optdesign.kalmd", "optdesign.van_loan",
+      "optdesign.kalman_finite_horizon", "optdesign.KalmanSequence", "optdesign.well_conditioned_kalman",
+      "optdesign.output_delay_kalman", "optdesign.estimate_noise", "optdesign.NoiseEstimate",
+      "optdesign.simulate_outputs")),
+    ("Inverse Kalman: which Q gives these poles, is this gain optimal",
+     "The process noise whose Kalman filter has given poles (or the certificate that none has), and the "
+     "return-difference test of a given gain.",
+     ("optdesign.kalman_for_poles", "optdesign.InverseKalmanResult", "optdesign.InverseKalmanProblem",
+      "optdesign.is_kalman_optimal", "optdesign.KalmanOptimalityResult")),
+    ("State feedback", "The duals: well-conditioned pole placement and the inverse LQR.",
+     ("optdesign.place", "optdesign.PlacementResult", "optdesign.well_conditioned_feedback",
+      "optdesign.FeedbackDesign", "optdesign.lqr_for_poles", "optdesign.InverseLQRResult",
+      "optdesign.dual_plant")),
+    ("Robust design", "One gain for a set of models: the NLP on the worst case, the LMI with a common "
+     "Lyapunov matrix, and the evaluation of a gain on every model.",
+     ("optdesign.robust_observer", "optdesign.robust_lmi_observer", "optdesign.RobustObserverDesign",
+      "optdesign.per_model_designs", "optdesign.evaluate_gain", "optdesign.ModelSet")),
+    ("Plants and conversions", "The plant, its coercion from python-control and scipy systems, and back.",
+     ("optdesign.Plant", "optdesign.as_plant", "optdesign.as_system")),
+    ("Pole regions", "Where the poles may go: half-planes, disks, sectors, strips, ellipses and their "
+     "intersections, continuous and discrete.", ("optdesign.regions.*",)),
+    ("Noise models", "Output-noise models of the generalized observers.", ("optdesign.noise.*",)),
+    ("Analysis: conditioning, robustness, norms", "Pure functions of matrices: condition numbers, return "
+     "difference, circle condition, margins, H2 and Hinf norms.",
+     ("optdesign.return_difference", "optdesign.circle_condition", "optdesign.filter_margins",
+      "optdesign.h2_norm", "optdesign.hinf_norm", "optdesign.metrics.*")),
+    ("Riccati equations", "Algebraic Riccati equations with residuals and error estimates, and the "
+     "Riccati differential equation.",
+     ("optdesign.riccati_de", "optdesign.RiccatiTrajectory", "optdesign.riccati.*")),
+    ("Studies", "Sweeps and Pareto fronts over design parameters, spec files, the seed papers' "
+     "reproductions.", ("optdesign.studies.*",)),
+    ("Plots", "Pole maps with regions, model clouds, figures (matplotlib optional, no backend forced).",
+     ("optdesign.plot.*",)),
+    ("Problem library", "Named design problems with citations and reference values.",
+     ("optdesign.problems.*",)),
+    ("Drop-ins for scipy and python-control", "The peers' call forms and returns, gains designed by "
+     "optdesign.", ("optdesign.compat.scipy.*", "optdesign.compat.control.*")),
+    ("Results, statuses and errors", "The result base every verb returns, its checks and route, and the "
+     "errors (each a subclass of a builtin, rooted at OptDesignError).",
+     ("optdesign.results.*", "optdesign.errors.*")),
+)
 
 
 # --------------------------------------------------------------------------- public modules
@@ -242,16 +302,19 @@ def _group(obj: Any, page: str) -> str:
     return page if group == page or page.startswith(group + ".") else group
 
 
-def module_page(m: PublicModule, canon: dict[tuple, str]) -> str:
-    """The rst text of one module page."""
+def module_page(m: PublicModule, canon: dict[tuple, str], own_pages: frozenset[str] = frozenset()) -> str:
+    """The rst text of one module page (an orphan: the sidebar shows the task groups, not the modules).
+    Objects whose canonical name is in ``own_pages`` are documented on a page of their own and only
+    listed (linked) here."""
     module = m.module
     entries = []
     for name in m.names:
         obj = getattr(module, name)
         full = canon.get(object_key(obj, name), f"{m.name}.{name}")
-        directive, options = _directive(obj) if full == f"{m.name}.{name}" else (None, [])
+        here = full == f"{m.name}.{name}" and full not in own_pages
+        directive, options = _directive(obj) if here else (None, [])
         entries.append(ApiEntry(name, full, directive, options, _group(obj, m.name)))
-    lines = _title(f"``{m.name}``", 0)
+    lines = [":orphan:", ""] + _title(f"``{m.name}``", 0)
     lines += [f".. automodule:: {m.name}", "   :no-members:", ""]
     if m.submodules:
         lines += [".. rubric:: Modules", "", ".. autosummary::", ""]
@@ -264,7 +327,7 @@ def module_page(m: PublicModule, canon: dict[tuple, str]) -> str:
         lines += [".. rubric:: Public names", "", ".. autosummary::", "   :nosignatures:", ""]
         # autosummary wants names of the current module relative to it
         lines += [f"   {_relative(e.canonical, m.name)}" for e in entries] + [""]
-    elsewhere = [e for e in entries if e.directive is None]
+    elsewhere = [e for e in entries if e.directive is None and e.canonical not in own_pages]
     if elsewhere:
         lines += ["Documented at their canonical names: "
                   + ", ".join(f":py:obj:`{e.canonical}`" for e in elsewhere) + ".", ""]
@@ -280,13 +343,90 @@ def module_page(m: PublicModule, canon: dict[tuple, str]) -> str:
     return "\n".join(lines)
 
 
+def expand_task_names(names: Iterable[str]) -> list[tuple[str, Any]]:
+    """``(dotted name, object)`` of each name of a task group, ``module.*`` expanded to the module's
+    ``__all__``.  An object is looked up as an attribute of its module (``optdesign.studies.sweep`` is
+    the function the namespace exports, not the module of that name)."""
+    out = []
+    for name in names:
+        parent, _, attr = name.rpartition(".")
+        module = importlib.import_module(parent)
+        if attr == "*":
+            out += [(f"{parent}.{n}", getattr(module, n)) for n in module.__all__]
+        elif not hasattr(module, attr):
+            raise ValueError(f"TASKS names {name!r}, which does not exist")
+        else:
+            out.append((name, getattr(module, attr)))
+    return out
+
+
+def task_groups(canon: dict[tuple, str]) -> list[tuple[str, str, list[str]]]:
+    """``(title, intro, canonical names)`` of each task group of :data:`TASKS` -- an object once, in its
+    first group -- then "Other" with the names of ``optdesign.__all__`` that no group holds."""
+    seen: set[str] = set()
+    groups = []
+    for title, intro, names in TASKS:
+        fulls = []
+        for dotted, obj in expand_task_names(names):
+            full = canon.get(object_key(obj, dotted.rpartition(".")[2]), dotted)
+            if full not in seen:
+                seen.add(full)
+                fulls.append(full)
+        groups.append((title, intro, fulls))
+    package = importlib.import_module(PACKAGE)
+    other = [full for n in package.__all__
+             if (full := canon.get(object_key(getattr(package, n), n), f"{PACKAGE}.{n}")) not in seen]
+    if other:
+        groups.append(("Other", "Public names that no task group lists yet.", other))
+    return groups
+
+
+def object_page(full: str, public: list[str]) -> str:
+    """The page of one object: its autodoc entry, and the other public names it is exported under."""
+    found = lookup(full)
+    if found is None:
+        raise ValueError(f"no object {full!r}")
+    directive, options = _directive(found[0])
+    lines = _title(f"``{full}``", 0)
+    aliases = [p for p in public if p != full]
+    if aliases:
+        lines += ["Also exported as " + ", ".join(f"``{a}``" for a in aliases) + ".", ""]
+    lines += [f".. {directive}:: {full}"] + [f"   {o}" for o in options] + [""]
+    return "\n".join(lines)
+
+
 def api_pages(mods: list[PublicModule]) -> dict[str, str]:
-    """``relative path -> rst`` for the API reference (``api/index.rst`` and one page per module)."""
+    """``relative path -> rst`` for the API reference: ``api/index.rst`` (the task groups, each a table
+    and a captioned toctree of one page per object), ``api/generated/<name>.rst`` (those pages),
+    ``api/modules.rst`` (every module, linked) and one orphan page per module."""
     canon = canonical_names(mods)
-    pages = {f"api/{m.name}.rst": module_page(m, canon) for m in mods}
+    groups = task_groups(canon)
+    own = frozenset(full for _, _, fulls in groups for full in fulls)
+    pages = {f"api/{m.name}.rst": module_page(m, canon, own) for m in mods}
+    public: dict[str, list[str]] = {}
+    for m in mods:
+        if not _is_private(m.name):
+            for name in m.names:
+                full = canon.get(object_key(getattr(m.module, name), name))
+                if full is not None:
+                    public.setdefault(full, []).append(f"{m.name}.{name}")
+    for full in own:
+        pages[f"api/generated/{full}.rst"] = object_page(full, public.get(full, []))
     index = _title("API reference", 0) + [
-        "Generated from the package: every public module of :mod:`optdesign` and every name in its",
-        "``__all__``.  An object is documented once, under the first public name it has (the top-level",
+        ".. currentmodule:: optdesign", "",
+        "The public names of :mod:`optdesign`, grouped by the task they serve, one page each.  The",
+        "same objects module by module (and the layers below the namespaces): :doc:`modules`.", "",
+    ]
+    for title, intro, fulls in groups:
+        index += _title(title, 1) + [intro, "", ".. autosummary::", "   :nosignatures:", ""]
+        index += [f"   {_relative(full, PACKAGE)}" for full in fulls] + [""]  # relative to currentmodule
+        index += [".. toctree::", "   :hidden:", f"   :caption: {title}", ""]
+        index += [f"   generated/{full}" for full in fulls] + [""]
+    index += [".. toctree::", "   :hidden:", "   :caption: Modules", "", "   modules", ""]
+    pages["api/index.rst"] = "\n".join(index)
+    modules = _title("Modules", 0) + [
+        "Every public module of :mod:`optdesign` and every name in its ``__all__``, generated from the",
+        "package.  An object is documented once, under the first public name it has (the top-level",
         "``optdesign`` namespace first, then the convenience modules, then the layers; a constant where it",
         "is assigned); the other modules that export it link there.", "",
     ]
@@ -296,13 +436,14 @@ def api_pages(mods: list[PublicModule]) -> dict[str, str]:
         if _is_private(m.name):
             key = "Internals (foundation modules, not a stable API)"
         else:
-            key = "Namespaces" if len(parts) <= 2 else f"Layer {'.'.join(parts[:2])}"
+            key = "Namespaces" if len(parts) <= 2 else f"Layer ``{'.'.join(parts[:2])}``"
         sections.setdefault(key, []).append(m.name)
     for caption, names in sections.items():
-        index += [".. toctree::", "   :maxdepth: 1", f"   :caption: {caption}", ""]
+        modules += _title(caption, 1)
         # a package's modules right after it (the reference order itself is shallow-first)
-        index += [f"   {name}" for name in (names if caption == "Namespaces" else sorted(names))] + [""]
-    pages["api/index.rst"] = "\n".join(index)
+        modules += [f"* :doc:`{name}`: {_cell(_first_line(name))}"
+                    for name in (names if caption == "Namespaces" else sorted(names))] + [""]
+    pages["api/modules.rst"] = "\n".join(modules)
     return pages
 
 
@@ -336,8 +477,31 @@ def _script_doc(path: Path) -> str:
     return ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
 
 
+#: thumbnails per row of the gallery's index
+GALLERY_COLUMNS = 3
+
+
+def _thumbnail_table(cells: list[list[str]]) -> list[str]:
+    """A ``list-table`` of :data:`GALLERY_COLUMNS` columns holding the rst lines of each cell."""
+    lines = [".. list-table::", "   :class: optdesign-gallery", ""]
+    cells = cells + [[""]] * (-len(cells) % GALLERY_COLUMNS)
+    for start in range(0, len(cells), GALLERY_COLUMNS):
+        for col, cell in enumerate(cells[start:start + GALLERY_COLUMNS]):
+            head = "   * - " if col == 0 else "     - "
+            lines += [(head if i == 0 else "       ") + line if line else "" for i, line in enumerate(cell)]
+            if not any(cell):
+                lines[-1] = head.rstrip()
+    return lines + [""]
+
+
 def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
-    """``relative path -> rst`` for the gallery (``gallery/index.rst`` and one page per script)."""
+    """``relative path -> rst`` for the gallery (``gallery/index.rst`` and one page per script).
+
+    Each script's page shows its docstring, what it printed (``examples/figures/<stem>.txt``), its
+    figures and its source; the index shows a thumbnail of each script's first figure.  The output and
+    the figures are the committed snapshot of ``examples/figures/``, written by
+    ``docs/_ext/refresh_gallery.py`` (the build does not run the scripts: together they take minutes).
+    """
     scripts = sorted(examples.glob("*.py"))
     figdir = examples / "figures"
     figures = sorted(p.relative_to(figdir).as_posix() for p in figdir.rglob("*.png")) if figdir.is_dir() \
@@ -345,19 +509,25 @@ def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
     owners = {f: figure_owner(f, [s.stem for s in scripts]) for f in figures}
     rel = Path(os.path.relpath(examples, docs / "gallery")).as_posix()
     pages: dict[str, str] = {}
-    summaries: list[str] = []
+    cells: list[list[str]] = []
     for script in scripts:
         doc = _script_doc(script)
-        summaries.append(f"* :doc:`{script.stem}`: {_cell(doc.splitlines()[0] if doc else script.stem)}")
+        summary = _cell(doc.splitlines()[0] if doc else script.stem)
         lines = _title(f"``{script.name}``", 0) + [doc, ""]
         if f"examples/{script.name}" not in doc:
             lines += [f"Run: ``python examples/{script.name}``", ""]
+        output = figdir / f"{script.stem}.txt"
+        if output.is_file():
+            lines += _title("Output", 1) + [
+                f"What ``python examples/{script.name}`` printed (the committed snapshot; timings are of",
+                "the machine that ran it):", "",
+                f".. literalinclude:: {rel}/figures/{output.name}", "   :language: text", ""]
         mine = [f for f in figures if owners[f] == script.stem]
         if mine:
             lines += _title("Figures", 1)
             for fig in mine:
                 lines += [f".. figure:: {rel}/figures/{fig}", "   :width: 100%", "",
-                          f"   ``examples/figures/{fig}``", ""]
+                          f"   ``{fig}``", ""]
         for extra in sorted(examples.glob(f"{script.stem}.*")):
             if extra.suffix != ".py":
                 lines += _title(f"``{extra.name}``", 1) + [
@@ -365,12 +535,16 @@ def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
         lines += _title("Source", 1) + [f".. literalinclude:: {rel}/{script.name}", "   :language: python",
                                         ""]
         pages[f"gallery/{script.stem}.rst"] = "\n".join(lines)
+        cell = [f".. image:: {rel}/figures/{mine[0]}", "   :width: 100%", f"   :alt: {script.stem}", ""] \
+            if mine else []
+        cells.append(cell + [f":doc:`{script.stem}`", "", summary])
     index = _title("Gallery", 0) + [
-        "The scripts of ``examples/``, each with the figures it writes to ``examples/figures/``.  The",
-        "figures shown are the committed ones: building the site does not run the scripts (some take",
-        "minutes); run a script to regenerate its figures.", "",
-        ".. toctree::", "   :hidden:", "",
-    ] + [f"   {s.stem}" for s in scripts] + [""] + summaries + [""]
+        "The scripts of ``examples/``, each with what it prints and the figures it draws.  What is shown",
+        "is the committed snapshot in ``examples/figures/`` (building the site does not run the scripts:",
+        "together they take minutes); ``python docs/_ext/refresh_gallery.py`` reruns them and rewrites it.",
+        "Run a script yourself and its files go to ``examples/_build/`` (or ``$OPTDESIGN_EXAMPLES_OUT``).",
+        "", ".. toctree::", "   :hidden:", "",
+    ] + [f"   {s.stem}" for s in scripts] + [""] + _thumbnail_table(cells)
     orphans = [f for f in figures if owners[f] is None]
     if orphans:
         index += ["Figures no script claims (by name): " + ", ".join(f"``{f}``" for f in orphans), ""]
@@ -605,7 +779,7 @@ def generate(docs: Path, examples: Path) -> dict[str, str]:
     pages.update(gallery_pages(examples, docs))
     pages["guide/_generated/problems.rst"] = problems_page()
     pages["guide/_generated/cli.rst"] = cli_page()
-    for folder in ("api", "gallery"):
+    for folder in ("api", "api/generated", "gallery"):
         for old in (docs / folder).glob("*.rst") if (docs / folder).is_dir() else ():
             if f"{folder}/{old.name}" not in pages:
                 old.unlink()
