@@ -139,7 +139,7 @@ def main() -> None:
     fig.tight_layout()
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / "estimate_noise.png"
-    fig.savefig(path, dpi=150)
+    fig.savefig(path, dpi=300)  # the library's figure resolution (optdesign.plot.FIGURE_DPI)
     print(f"\nfigure: {path}")
 
 
