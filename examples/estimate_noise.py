@@ -63,7 +63,8 @@ def convergence(prob, Ns, reps: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--out", type=Path, default=Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or HERE / "_build"))
+    build = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or HERE / "_build")
+    ap.add_argument("--out", type=Path, default=build)
     ap.add_argument("--quick", action="store_true", help="fewer lengths and replications")
     args = ap.parse_args()
     np.set_printoptions(precision=4, suppress=True)

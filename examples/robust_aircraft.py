@@ -162,7 +162,8 @@ def study(plant, region, max_gain, sizes, h2_fracs, outdir: Path) -> Path:
 
 def main(quick: bool = False) -> None:
     np.set_printoptions(precision=4, suppress=True)
-    outdir = output_dir(Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build"))
+    # the build folder: $OPTDESIGN_EXAMPLES_OUT, else examples/_build/ (never beside the sources)
+    outdir = output_dir(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).parent / "_build")
     plant, region, max_gain, ms = setup()
     print(f"{ms!r}; region {region!r}, ||L|| <= {max_gain:.4g}")
     print(f"{'gain':<28} {'kappa2':>10} {'H2':>9} {'out':>6} {'dense in':>9}  time")

@@ -10,7 +10,8 @@ Run:  python examples/seed000_inverse_kalman.py
    method done correctly; the paper's printed numbers do not reproduce (see the table).
 4. Is a given gain Kalman-optimal?  The return-difference certificate on the double integrator.
 5. Structured noise (Q = G Qw G'), discrete time.
-6. The paper's table of printed vs reproduced values and the figures, written to the build folder (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
+6. The paper's table of printed vs reproduced values and the figures, written to the build folder
+   (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations

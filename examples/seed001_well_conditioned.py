@@ -69,7 +69,8 @@ def main() -> None:
     )
 
     # 6. Reproduce the paper: figures and the printed-vs-reproduced table.
-    rep = paper001.reproduce(Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build"))
+    out = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
+    rep = paper001.reproduce(out)
     print("\n" + rep.table())
     print("figures:", *[str(f) for f in rep.figures], sep="\n  ")
 

@@ -9,7 +9,8 @@ Run:  python examples/seed002_kalman_robustness.py
 4. Discrete time: the inequality is T V T* >= R with V = C P C' + R (not T R T* >= R).
 5. The delayed-output filter of the paper: p0 by Pade approximation and by sampling, the return
    difference (16) with the true delay, the circle condition (17).
-6. The paper's results table and figures, written to the build folder (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
+6. The paper's results table and figures, written to the build folder (``examples/_build/``, or
+   ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations

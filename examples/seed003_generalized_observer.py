@@ -9,8 +9,8 @@ Run:  python examples/seed003_generalized_observer.py
 4. What a stable generalized observer guarantees under output noise -- by simulation:
    eps = y - C xh -> 0, so C xh follows the NOISY output and x - xh does NOT go to zero.
 5. The noise-rejecting observer (noise estimated as an output disturbance): xh -> x.
-6. The paper's four figures and the side-by-side comparison, written to the build folder (``examples/_build/``, or
-   ``$OPTDESIGN_EXAMPLES_OUT``).
+6. The paper's four figures and the side-by-side comparison, written to the build folder
+   (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations

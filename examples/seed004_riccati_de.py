@@ -9,7 +9,8 @@ Run:  python examples/seed004_riccati_de.py
    midpoints, first order as a staircase.
 3. Long horizons and unstable plants: CAREX 1.2 in filter form (eigenvalue +1) on 0..1000 s.
 4. Discrete time: the same oscillator sampled at 0.1 s -- the time-varying predictor gain L_k.
-5. The paper's table (printed vs reproduced) and the figures, written to the build folder (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
+5. The paper's table (printed vs reproduced) and the figures, written to the build folder
+   (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations

@@ -190,7 +190,7 @@ def test_gallery_shows_every_script_and_committed_figure(site):
                    for t in text.values()), f"{fig} is not in the gallery"
     on_pages = [img for p, page in site.pages.items() if p.parent == gallery and p.name != "index.html"
                 for img in page.images]
-    assert len(on_pages) == len(figures), f"{len(on_pages)} images on the script pages for {len(figures)} figures"
+    assert len(on_pages) == len(figures), f"{len(on_pages)} images on the pages for {len(figures)} figures"
     thumbs = site.pages[gallery / "index.html"].images
     with_figures = {optdesign_docs.figure_owner(f, [s.stem for s in scripts]) for f in figures}
     assert len(thumbs) == len(with_figures - {None}), thumbs

@@ -24,7 +24,8 @@ def sites() -> dict[str, str]:
     """``INTERSPHINX_SITES`` of docs/conf.py, read without importing it (the import needs optdesign)."""
     tree = ast.parse((DOCS / "conf.py").read_text(encoding="utf-8"))
     for node in tree.body:
-        if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "INTERSPHINX_SITES" for t in node.targets):
+        names = [getattr(t, "id", "") for t in getattr(node, "targets", [])]
+        if isinstance(node, ast.Assign) and "INTERSPHINX_SITES" in names:
             return ast.literal_eval(node.value)
     raise SystemExit("docs/conf.py defines no INTERSPHINX_SITES")
 

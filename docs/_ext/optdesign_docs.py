@@ -2,16 +2,21 @@
 
 At ``builder-inited`` it writes (only when their text changed, so incremental builds stay incremental):
 
-* ``api/`` -- one page per public module of :mod:`optdesign` (found by walking the package; modules and
-  packages whose name has a component starting with ``_`` are private and skipped), listing the module's
-  ``__all__``.  Every public object is documented once, at its *canonical* name: the first public module,
-  in :func:`module_order`, whose ``__all__`` holds it (``optdesign.Plant`` rather than
-  ``optdesign.model.plant.Plant``; a constant: the first that also assigns it, where its ``#:`` comment
-  is); the other modules that export it link there.
-* ``gallery/`` -- one page per script of ``examples/``: the script's docstring, the figures it writes to
-  ``examples/figures/`` (the committed PNGs: the scripts are not run by the build, some take minutes) and
-  its source.  A figure belongs to the script whose file stem shares the longest ``_``-separated prefix
-  with the figure's path below ``figures/``.
+* ``api/`` -- the reference grouped by task (:data:`TASKS`: ``api/index.rst`` holds one table and one
+  captioned toctree per task, ``api/generated/<name>.rst`` one page per object), and one orphan page per
+  public module (found by walking the package; modules and packages whose name has a component starting
+  with ``_`` are private and skipped), listing the module's ``__all__``, linked from ``api/modules.rst``
+  but kept out of the sidebar.  Every public object is documented once, at its *canonical* name: the
+  first public module, in :func:`module_order`, whose ``__all__`` holds it (``optdesign.Plant`` rather
+  than ``optdesign.model.plant.Plant``; a constant: the first that also assigns it, where its ``#:``
+  comment is) -- on its own page when a task group lists it, else on its module's page; the other
+  modules that export it link there.
+* ``gallery/`` -- one page per script of ``examples/``: the script's docstring, what it printed and the
+  figures it drew (the committed snapshot in ``examples/figures/``: ``<stem>.txt`` and the PNGs, written
+  by ``docs/_ext/refresh_gallery.py``; the build does not run the scripts, together they take minutes)
+  and its source; the index shows a thumbnail of each script's first figure.  A figure belongs to the
+  script whose file stem shares the longest ``_``-separated prefix with the figure's path below
+  ``figures/``.
 * ``guide/_generated/problems.rst`` -- the problem library table, from :func:`optdesign.problems.load_all`.
 * ``guide/_generated/cli.rst`` -- the ``optdesign`` command's help texts, from its argparse parser.
 
@@ -35,6 +40,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from optdesign_tasks import TASKS  # the task groups of the API reference (docs/_ext/optdesign_tasks.py)
 
 __all__ = [
     "ApiEntry",
@@ -61,67 +68,11 @@ __all__ = [
 
 PACKAGE = "optdesign"
 #: layer order of the sub-packages (imports flow downward; the reference follows it)
-LAYERS = ("model", "analysis", "classical", "formulate", "backends", "engines", "design", "compat", "plot", "studies")
+LAYERS = ("model", "analysis", "classical", "formulate", "backends", "engines", "design", "compat", "plot",
+          "studies")
 #: data reprs longer than this are not shown in the signature line
 MAX_VALUE_REPR = 80
 HEADING = "=-~^"
-
-#: the API reference's task groups: (title, what it is for, names).  A name is a public dotted path, or
-#: ``module.*`` for every name in that module's ``__all__``.  Each object named here has a page of its
-#: own (``api/generated/<canonical name>.rst``) and is listed under its task; every name of
-#: ``optdesign.__all__`` must be in a group (a name left out is listed under "Other", and a test fails).
-TASKS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
-    ("Design an observer", "Luenberger observers with their poles placed or free in a region, minimizing "
-     "the eigenvector condition number; generalized and noise-rejecting observers; the estimator as a "
-     "system.",
-     ("optdesign.well_conditioned_observer", "optdesign.ObserverDesign", "optdesign.generalized_observer",
-      "optdesign.GeneralizedObserver", "optdesign.noise_rejecting_observer", "optdesign.NoiseRejectingObserver",
-      "optdesign.simulate_observer", "optdesign.ObserverSimulation", "optdesign.estimator_system",
-      "optdesign.EstimatorArrays")),
-    ("Kalman filters", "Steady-state, sampled, finite-horizon, well-conditioned and output-delay Kalman "
-     "filters, and the noise covariances estimated from data.",
-     ("optdesign.kalman", "optdesign.KalmanFilter", "optdesign.kalmd", "optdesign.van_loan",
-      "optdesign.kalman_finite_horizon", "optdesign.KalmanSequence", "optdesign.well_conditioned_kalman",
-      "optdesign.output_delay_kalman", "optdesign.estimate_noise", "optdesign.NoiseEstimate",
-      "optdesign.simulate_outputs")),
-    ("Inverse Kalman: which Q gives these poles, is this gain optimal",
-     "The process noise whose Kalman filter has given poles (or the certificate that none has), and the "
-     "return-difference test of a given gain.",
-     ("optdesign.kalman_for_poles", "optdesign.InverseKalmanResult", "optdesign.InverseKalmanProblem",
-      "optdesign.is_kalman_optimal", "optdesign.KalmanOptimalityResult")),
-    ("State feedback", "The duals: well-conditioned pole placement and the inverse LQR.",
-     ("optdesign.place", "optdesign.PlacementResult", "optdesign.well_conditioned_feedback",
-      "optdesign.FeedbackDesign", "optdesign.lqr_for_poles", "optdesign.InverseLQRResult",
-      "optdesign.dual_plant")),
-    ("Robust design", "One gain for a set of models: the NLP on the worst case, the LMI with a common "
-     "Lyapunov matrix, and the evaluation of a gain on every model.",
-     ("optdesign.robust_observer", "optdesign.robust_lmi_observer", "optdesign.RobustObserverDesign",
-      "optdesign.per_model_designs", "optdesign.evaluate_gain", "optdesign.ModelSet")),
-    ("Plants and conversions", "The plant, its coercion from python-control and scipy systems, and back.",
-     ("optdesign.Plant", "optdesign.as_plant", "optdesign.as_system")),
-    ("Pole regions", "Where the poles may go: half-planes, disks, sectors, strips, ellipses and their "
-     "intersections, continuous and discrete.", ("optdesign.regions.*",)),
-    ("Noise models", "Output-noise models of the generalized observers.", ("optdesign.noise.*",)),
-    ("Analysis: conditioning, robustness, norms", "Pure functions of matrices: condition numbers, return "
-     "difference, circle condition, margins, H2 and Hinf norms.",
-     ("optdesign.return_difference", "optdesign.circle_condition", "optdesign.filter_margins",
-      "optdesign.h2_norm", "optdesign.hinf_norm", "optdesign.metrics.*")),
-    ("Riccati equations", "Algebraic Riccati equations with residuals and error estimates, and the "
-     "Riccati differential equation.",
-     ("optdesign.riccati_de", "optdesign.RiccatiTrajectory", "optdesign.riccati.*")),
-    ("Studies", "Sweeps and Pareto fronts over design parameters, spec files, the seed papers' "
-     "reproductions.", ("optdesign.studies.*",)),
-    ("Plots", "Pole maps with regions, model clouds, figures (matplotlib optional, no backend forced).",
-     ("optdesign.plot.*",)),
-    ("Problem library", "Named design problems with citations and reference values.",
-     ("optdesign.problems.*",)),
-    ("Drop-ins for scipy and python-control", "The peers' call forms and returns, gains designed by "
-     "optdesign.", ("optdesign.compat.scipy.*", "optdesign.compat.control.*")),
-    ("Results, statuses and errors", "The result base every verb returns, its checks and route, and the "
-     "errors (each a subclass of a builtin, rooted at OptDesignError).",
-     ("optdesign.results.*", "optdesign.errors.*")),
-)
-
 
 # --------------------------------------------------------------------------- public modules
 
@@ -512,7 +463,7 @@ def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
     cells: list[list[str]] = []
     for script in scripts:
         doc = _script_doc(script)
-        summary = _cell(doc.splitlines()[0] if doc else script.stem)
+        summary = doc.splitlines()[0] if doc else script.stem  # rst, as the docstring wrote it
         lines = _title(f"``{script.name}``", 0) + [doc, ""]
         if f"examples/{script.name}" not in doc:
             lines += [f"Run: ``python examples/{script.name}``", ""]

@@ -44,7 +44,8 @@ def copy_figure(src: Path, dst: Path) -> None:
         dpi = im.info.get("dpi", (300.0, 300.0))
         small = im.convert("RGB")
         if scale < 1.0:
-            small = small.resize((round(im.width * scale), round(im.height * scale)), Image.Resampling.LANCZOS)
+            size = (round(im.width * scale), round(im.height * scale))
+            small = small.resize(size, Image.Resampling.LANCZOS)
     small = small.quantize(colors=256, dither=Image.Dither.NONE)
     small.save(dst, optimize=True, dpi=(dpi[0] * scale, dpi[1] * scale))
 
