@@ -262,12 +262,16 @@ def test_every_public_verb_has_an_example():
     import inspect
 
     import optdesign
+    from optdesign.compat import control, scipy
 
-    verbs = [n for n in optdesign.__all__ if inspect.isfunction(getattr(optdesign, n))]
-    verbs += ["Plant", "ModelSet", "InverseKalmanProblem"]
-    missing = [n for n in verbs if ">>>" not in (inspect.getdoc(getattr(optdesign, n)) or "")
-               or "Examples\n--------" not in inspect.getdoc(getattr(optdesign, n))]
-    assert len(verbs) >= 30 and not missing, f"public verbs without an Examples section: {missing}"
+    verbs = {f"optdesign.{n}": getattr(optdesign, n) for n in optdesign.__all__
+             if inspect.isfunction(getattr(optdesign, n))}
+    verbs.update({f"optdesign.{n}": getattr(optdesign, n) for n in ("Plant", "ModelSet", "InverseKalmanProblem")})
+    for module in (control, scipy):  # the drop-ins
+        verbs.update({f"{module.__name__}.{n}": getattr(module, n) for n in module.__all__
+                      if inspect.isfunction(getattr(module, n))})
+    missing = [name for name, obj in verbs.items() if "Examples\n--------\n>>>" not in (inspect.getdoc(obj) or "")]
+    assert len(verbs) >= 37 and not missing, f"public verbs without an Examples section: {missing}"
 
 
 

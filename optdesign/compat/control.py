@@ -563,6 +563,15 @@ def create_estimator_iosystem(sys: Any, QN: Any, RN: Any, P0: Any = None, G: Any
         messages: "System output must be full state", "System output is the wrong size for C").
     ControlNotImplementedError
         A nonzero feedthrough of the disturbances.
+
+    Examples
+    --------
+    >>> import control
+    >>> from optdesign.compat.control import create_estimator_iosystem
+    >>> sys = control.ss([[1., 0.1], [0., 1.]], [[0.005], [0.1]], [[1., 0.]], 0, dt=0.1)
+    >>> est = create_estimator_iosystem(sys, [[1.0]], [[0.01]])   # QN through B, RN on y
+    >>> est.input_labels, est.output_labels
+    (['y[0]', 'u[0]'], ['xhat[0]', 'xhat[1]'])
     """
     if not _is_statespace(sys):
         raise ControlArgumentError(f"Input system must be a linear I/O system (a control.StateSpace); found "
