@@ -266,11 +266,13 @@ def test_every_public_verb_has_an_example():
 
     verbs = {f"optdesign.{n}": getattr(optdesign, n) for n in optdesign.__all__
              if inspect.isfunction(getattr(optdesign, n))}
-    verbs.update({f"optdesign.{n}": getattr(optdesign, n) for n in ("Plant", "ModelSet", "InverseKalmanProblem")})
+    built = ("Plant", "ModelSet", "InverseKalmanProblem")
+    verbs.update({f"optdesign.{n}": getattr(optdesign, n) for n in built})
     for module in (control, scipy):  # the drop-ins
         verbs.update({f"{module.__name__}.{n}": getattr(module, n) for n in module.__all__
                       if inspect.isfunction(getattr(module, n))})
-    missing = [name for name, obj in verbs.items() if "Examples\n--------\n>>>" not in (inspect.getdoc(obj) or "")]
+    missing = [name for name, obj in verbs.items()
+               if "Examples\n--------\n>>>" not in (inspect.getdoc(obj) or "")]
     assert len(verbs) >= 37 and not missing, f"public verbs without an Examples section: {missing}"
 
 
