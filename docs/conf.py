@@ -30,6 +30,7 @@ extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
+    "sphinx.ext.intersphinx",
     "numpydoc",
     "myst_nb",
     "optdesign_docs",
@@ -62,8 +63,35 @@ nb_merge_streams = True
 # -- cross-references -----------------------------------------------------------------------------------
 # Every reference into optdesign must resolve (a dangling one is a broken link): optdesign_docs resolves
 # any public path of an object to where it is documented and silences only references to other packages
-# (numpy, scipy, builtins), which have no inventory offline.
+# (numpy, scipy, builtins) that no inventory resolves.
 nitpicky = True
+
+# intersphinx: links to the peers' documentation.  The build must pass -W offline (CI has no network),
+# so each project's inventory is read from docs/_intersphinx/<name>.inv when that file is shipped
+# (``python docs/_ext/fetch_inventories.py`` downloads them, on a machine with network), and from the
+# project's site only when OPTDESIGN_DOCS_ONLINE=1; a project with neither is left out (its references
+# then render as code, unlinked, as without intersphinx).
+INTERSPHINX_SITES = {
+    "python": "https://docs.python.org/3/",
+    "numpy": "https://numpy.org/doc/stable/",
+    "scipy": "https://docs.scipy.org/doc/scipy/",
+    "control": "https://python-control.readthedocs.io/en/latest/",
+    "cvxpy": "https://www.cvxpy.org/",
+    "casadi": "https://web.casadi.org/python-api/",
+    "matplotlib": "https://matplotlib.org/stable/",
+}
+_ONLINE = os.environ.get("OPTDESIGN_DOCS_ONLINE") == "1"
+
+
+def _inventory_locations(name: str) -> tuple[str | None, ...]:
+    local = HERE / "_intersphinx" / f"{name}.inv"
+    return tuple([str(local)] * local.is_file() + [None] * _ONLINE)
+
+
+intersphinx_mapping = {name: (url, _inventory_locations(name)) for name, url in INTERSPHINX_SITES.items()
+                       if _inventory_locations(name)}
+intersphinx_timeout = 10
+intersphinx_disabled_reftypes = ["std:doc"]  # a :doc: link is always ours
 
 # -- autodoc / autosummary / numpydoc -----------------------------------------------------------------
 autosummary_generate = False          # the module pages are written by optdesign_docs, not by autosummary

@@ -10,8 +10,10 @@ they differ in how sensitive those poles are to errors in A.  The script compare
   exists, with its guaranteed margins;
 
 by kappa2 of the closed-loop eigenvectors (right, scipy's ``cond(X)``, what optdesign minimizes
-for state feedback since 0.2.0, and left, the dual observer's measure), ``||K||``, the CPU time, and how far the closed-loop poles move when A is perturbed by
-random relative errors of 1e-2 (500 samples; figure ``examples/figures/feedback_knv1985_ex1.png``).
+for state feedback since 0.2.0, and left, the dual observer's measure), ``||K||``, the CPU time, and
+how far the closed-loop poles move when A is perturbed by
+random relative errors of 1e-2 (500 samples; figure ``feedback_knv1985_ex1.png`` in the build folder,
+``examples/_build/`` or ``$OPTDESIGN_EXAMPLES_OUT``).
 
 Run (headless)::
 
@@ -20,6 +22,7 @@ Run (headless)::
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 
@@ -34,7 +37,7 @@ from optdesign.analysis.metrics import kappa2
 from optdesign.design.feedback import place
 from optdesign.studies.reproduce import output_dir, pyplot, save_figure
 
-FIGURES = Path(__file__).resolve().parent / "figures"
+FIGURES = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
 REL, SAMPLES = 1e-2, 500     # relative size and number of the random perturbations of A
 
 

@@ -14,7 +14,7 @@ of plants that contains every combination.  Three gains are compared on the whol
 The noise model is a modelling choice (the seed gives none): unit-intensity process noise on every
 state and unit measurement noise, for the H2 numbers.
 
-Run (headless; figures go to ``examples/figures``)::
+Run (headless; figures go to the build folder ``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``)::
 
     python examples/robust_aircraft.py [--quick]
 
@@ -25,6 +25,7 @@ and H2 against the uncertainty size; the Pareto front of worst-case H2 against w
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -161,7 +162,8 @@ def study(plant, region, max_gain, sizes, h2_fracs, outdir: Path) -> Path:
 
 def main(quick: bool = False) -> None:
     np.set_printoptions(precision=4, suppress=True)
-    outdir = output_dir(Path(__file__).resolve().parent / "figures")
+    # the build folder: $OPTDESIGN_EXAMPLES_OUT, else examples/_build/ (never beside the sources)
+    outdir = output_dir(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).parent / "_build")
     plant, region, max_gain, ms = setup()
     print(f"{ms!r}; region {region!r}, ||L|| <= {max_gain:.4g}")
     print(f"{'gain':<28} {'kappa2':>10} {'H2':>9} {'out':>6} {'dense in':>9}  time")

@@ -10,11 +10,13 @@ Run:  python examples/seed000_inverse_kalman.py
    method done correctly; the paper's printed numbers do not reproduce (see the table).
 4. Is a given gain Kalman-optimal?  The return-difference certificate on the double integrator.
 5. Structured noise (Q = G Qw G'), discrete time.
-6. The paper's table of printed vs reproduced values and the figures, written to examples/figures/.
+6. The paper's table of printed vs reproduced values and the figures, written to the build folder
+   (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +72,7 @@ res = kalman_for_poles(dplant, [0.5, 0.2], q_structure="input")
 print("discrete target 0.5, 0.2 with noise through G:", res.status.value, "->", res.certificate, "\n")
 
 # --------------------------------------------------------------- 6. printed vs reproduced, figures
-outdir = Path(__file__).resolve().parent / "figures"
+outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
 repro = paper000.reproduce(outdir)
 print(repro.table())
 print("figures:", *[str(p) for p in repro.figures], sep="\n  ")

@@ -1,12 +1,13 @@
 """Seed 001 (Jung & Huh): well-conditioned observers and Kalman filters with optdesign.
 
-Run (headless; figures go to ``examples/figures``)::
+Run (headless; figures go to the build folder ``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``)::
 
     python examples/seed001_well_conditioned.py
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +69,8 @@ def main() -> None:
     )
 
     # 6. Reproduce the paper: figures and the printed-vs-reproduced table.
-    rep = paper001.reproduce(Path(__file__).resolve().parent / "figures")
+    out = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
+    rep = paper001.reproduce(out)
     print("\n" + rep.table())
     print("figures:", *[str(f) for f in rep.figures], sep="\n  ")
 

@@ -9,11 +9,13 @@ Run:  python examples/seed003_generalized_observer.py
 4. What a stable generalized observer guarantees under output noise -- by simulation:
    eps = y - C xh -> 0, so C xh follows the NOISY output and x - xh does NOT go to zero.
 5. The noise-rejecting observer (noise estimated as an output disturbance): xh -> x.
-6. The paper's four figures and the side-by-side comparison, written to examples/figures/.
+6. The paper's four figures and the side-by-side comparison, written to the build folder
+   (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -84,6 +86,7 @@ print(f"  max |x - xh| = {sr.tail('error'):.2e}, max |delta - delta_hat| = "
       f"{np.max(np.abs(sr.noise_estimate - sr.delta)[-T // 4:]):.2e}")
 
 # --------------------------------------------------------------------------- 6. the paper's figures
-rep = paper003.reproduce(Path(__file__).resolve().parent / "figures")
+outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
+rep = paper003.reproduce(outdir)
 print("\n" + rep.table())
 print("\nfigures:", *[str(p) for p in rep.figures], sep="\n  ")

@@ -9,11 +9,13 @@ Run:  python examples/seed004_riccati_de.py
    midpoints, first order as a staircase.
 3. Long horizons and unstable plants: CAREX 1.2 in filter form (eigenvalue +1) on 0..1000 s.
 4. Discrete time: the same oscillator sampled at 0.1 s -- the time-varying predictor gain L_k.
-5. The paper's table (printed vs reproduced) and the figures, written to examples/figures/.
+5. The paper's table (printed vs reproduced) and the figures, written to the build folder
+   (``examples/_build/``, or ``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -72,7 +74,7 @@ print(f"discrete: L_0 = {dtr.L[0].ravel()}, L_10 = {dtr.L[10].ravel()}, L_300 = 
       f"steady L = {dtr.L_steady.ravel()} (distance {dtr.steady_distance:.1e})\n")
 
 # --------------------------------------------------------------- 5. printed vs reproduced, figures
-outdir = Path(__file__).resolve().parent / "figures"
+outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
 repro = paper004.reproduce(outdir)
 print(repro.table())
 print("figures:", *[str(p) for p in repro.figures], sep="\n  ")

@@ -13,12 +13,14 @@ The same study as ``examples/study_alpha_sector.toml`` (``optdesign study`` runs
 3. with ``--dask``: the same sweep on a 2-worker Dask LocalCluster -- identical results;
 4. the spec file run through :func:`~optdesign.studies.run_spec` gives the same table.
 
-Figures and tables go to ``examples/figures/study_alpha_sector/``.
+Figures and tables go to ``study_alpha_sector/`` in the build folder (``examples/_build/``, or
+``$OPTDESIGN_EXAMPLES_OUT``).
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -27,7 +29,7 @@ import numpy as np
 from optdesign.studies import RegionSweepDesigner, grid, load_spec, plot_table, run_spec, sweep
 
 HERE = Path(__file__).resolve().parent
-OUT = HERE / "figures" / "study_alpha_sector"
+OUT = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or HERE / "_build") / "study_alpha_sector"
 
 
 def main(use_dask: bool = False) -> None:

@@ -197,6 +197,12 @@ def names(tag: str | None = None, kind: str | None = None) -> list[str]:
     ------
     ValidationError
         ``tag`` or ``kind`` is given but is not a string.
+
+    Examples
+    --------
+    >>> from optdesign import problems
+    >>> "chang_lee_1984_ex1" in problems.names(), len(problems.names()) > 20
+    (True, True)
     """
     tag = None if tag is None else as_str("tag", tag)
     kind = None if kind is None else as_str("kind", kind)
@@ -260,6 +266,13 @@ def load(name: str | os.PathLike) -> Problem:
         and the field).
     ValidationError
         ``name`` is not a string or a path.
+
+    Examples
+    --------
+    >>> from optdesign import problems
+    >>> ex1 = problems.load("chang_lee_1984_ex1")
+    >>> ex1.plant.A.tolist(), ex1.targets["poles"].tolist()
+    ([[0.0, 1.0], [-6.0, -5.0]], [-5.0, -8.0])
     """
     if is_problem_file(name):
         return load_file(name)
@@ -311,7 +324,14 @@ def _show(value: Any, indent: str) -> str:
 
 
 def describe(name: str | os.PathLike) -> str:
-    """A few lines describing a problem (used by ``optdesign show``)."""
+    """A few lines describing a problem (used by ``optdesign show``).
+
+    Examples
+    --------
+    >>> from optdesign import problems
+    >>> print(problems.describe("chang_lee_1984_ex1").splitlines()[0])      # doctest: +ELLIPSIS
+    chang_lee_1984_ex1...
+    """
     p = load(name)
     lines = [f"{p.name}: {p.title}", f"  kind: {p.kind}"]
     if p.citation:

@@ -8,6 +8,7 @@ about 30 s of CPU, hence ``slow``.
 
 from __future__ import annotations
 
+import html
 import importlib
 import os
 import re
@@ -154,7 +155,7 @@ def test_every_public_name_is_documented(site):
     (by identity: the page may document it under another public name), linked from its module's page."""
     documented = []
     for path, page in site.pages.items():
-        if path.parent.name == "api":
+        if "api" in path.relative_to(site.html).parts[:1]:
             for ident in page.signatures:
                 found = optdesign_docs.lookup(ident)
                 if found is not None:
@@ -176,19 +177,104 @@ def test_every_public_name_is_documented(site):
 
 @pytest.mark.slow
 def test_gallery_shows_every_script_and_committed_figure(site):
+    """Each script has a page with its committed output and figures; the index a thumbnail of each."""
     gallery = site.html / "gallery"
-    for script in sorted(EXAMPLES.glob("*.py")):
+    scripts = sorted(EXAMPLES.glob("*.py"))
+    for script in scripts:
         assert (gallery / f"{script.stem}.html").exists(), f"no gallery page for {script.name}"
     text = {p: p.read_text(encoding="utf-8") for p in gallery.glob("*.html")}
-    images = [img for p, page in site.pages.items() if p.parent == gallery for img in page.images]
     figdir = EXAMPLES / "figures"
     figures = sorted(f.relative_to(figdir).as_posix() for f in figdir.rglob("*.png"))
     for fig in figures:
-        assert any(f"examples/figures/{fig}" in t for t in text.values()), f"{fig} is not in the gallery"
-    assert len(images) == len(figures), f"{len(images)} images in the gallery for {len(figures)} figures"
+        assert any(f"<code class=\"docutils literal notranslate\"><span class=\"pre\">{fig}</span>" in t
+                   for t in text.values()), f"{fig} is not in the gallery"
+    on_pages = [img for p, page in site.pages.items() if p.parent == gallery and p.name != "index.html"
+                for img in page.images]
+    assert len(on_pages) == len(figures), f"{len(on_pages)} images on the pages for {len(figures)} figures"
+    thumbs = site.pages[gallery / "index.html"].images
+    with_figures = {optdesign_docs.figure_owner(f, [s.stem for s in scripts]) for f in figures}
+    assert len(thumbs) == len(with_figures - {None}), thumbs
+    for script in scripts:
+        output = figdir / f"{script.stem}.txt"
+        assert output.is_file(), f"no committed output of {script.name}: run docs/_ext/refresh_gallery.py"
+        words = re.findall(r"[A-Za-z_]{4,}", output.read_text(encoding="utf-8"))[:5]  # markup-free
+        page = text[gallery / f"{script.stem}.html"]
+        assert 'id="output"' in page and all(w in page for w in words), f"{script.name}: output not shown"
+
+
+@pytest.mark.slow
+def test_notebooks_are_executed(site):
+    """Both notebooks are on the site with their outputs: figures and printed text (myst-nb ran them)."""
+    for name in ("getting_started", "regions_and_pareto"):
+        page = site.html / "notebooks" / f"{name}.html"
+        assert page.exists(), f"no page for docs/notebooks/{name}.ipynb"
+        images = site.pages[page].images
+        assert len(images) >= 3, f"{name}: {len(images)} figures"
+        assert "cell_output" in page.read_text(encoding="utf-8")
+
+
+@pytest.mark.slow
+def test_api_sidebar_lists_tasks_not_modules(site):
+    """The API reference's navigation holds the task groups and one page per object; the modules
+    (and the internal layers) are reachable from api/modules.html only, outside the sidebar."""
+    index = (site.html / "api" / "index.html").read_text(encoding="utf-8")
+    nav = index[index.find('class="bd-sidebar-primary'):index.find('class="bd-main')]
+    assert nav, "no sidebar found in api/index.html"
+    for title, _, _ in optdesign_docs.TASKS:
+        assert html.escape(title) in nav, f"task group {title!r} not in the sidebar"
+    assert 'href="generated/optdesign.kalman.html"' in nav
+    assert "optdesign.design.verification.html" not in nav and "optdesign._validate.html" not in nav
+    modules = site.pages[site.html / "api" / "modules.html"]
+    assert any(url.endswith("optdesign.design.verification.html") for _, url in modules.links)
+
+
+@pytest.mark.slow
+def test_intersphinx_links_to_shipped_inventories(site):
+    """References to SciPy and Python resolve through docs/_intersphinx/ offline."""
+    place = (site.html / "api" / "generated" / "optdesign.place.html").read_text(encoding="utf-8")
+    assert 'href="https://docs.scipy.org/doc/scipy/reference/generated/scipy.signal.place_poles.html' in place
 
 
 # --------------------------------------------------------------------------- generator rules
+
+
+def test_every_top_level_name_is_in_a_task_group():
+    mods = optdesign_docs.public_modules()
+    groups = optdesign_docs.task_groups(optdesign_docs.canonical_names(mods))
+    titles = [title for title, _, _ in groups]
+    assert "Other" not in titles, f"names of optdesign.__all__ in no task group: {groups[-1][2]}"
+    listed = [full for _, _, fulls in groups for full in fulls]
+    assert len(listed) == len(set(listed))
+
+
+def test_task_groups_name_existing_objects():
+    with pytest.raises(ValueError, match="does not exist"):
+        optdesign_docs.expand_task_names(["optdesign.no_such_verb"])
+    names = dict(optdesign_docs.expand_task_names(["optdesign.studies.*"]))
+    from optdesign.studies.sweep import sweep as sweep_fn
+
+    assert names["optdesign.studies.sweep"] is sweep_fn  # the function, not the module of that name
+
+
+def test_every_public_verb_has_an_example():
+    """Each function of ``optdesign.__all__`` (and the classes a user builds: Plant, ModelSet, the
+    problem object) shows an Examples section with a doctest (run by tests/test_doctests.py)."""
+    import inspect
+
+    import optdesign
+    from optdesign.compat import control, scipy
+
+    verbs = {f"optdesign.{n}": getattr(optdesign, n) for n in optdesign.__all__
+             if inspect.isfunction(getattr(optdesign, n))}
+    built = ("Plant", "ModelSet", "InverseKalmanProblem")
+    verbs.update({f"optdesign.{n}": getattr(optdesign, n) for n in built})
+    for module in (control, scipy):  # the drop-ins
+        verbs.update({f"{module.__name__}.{n}": getattr(module, n) for n in module.__all__
+                      if inspect.isfunction(getattr(module, n))})
+    missing = [name for name, obj in verbs.items()
+               if "Examples\n--------\n>>>" not in (inspect.getdoc(obj) or "")]
+    assert len(verbs) >= 37 and not missing, f"public verbs without an Examples section: {missing}"
+
 
 
 def test_figure_owner_is_the_longest_shared_prefix():

@@ -2,16 +2,21 @@
 
 At ``builder-inited`` it writes (only when their text changed, so incremental builds stay incremental):
 
-* ``api/`` -- one page per public module of :mod:`optdesign` (found by walking the package; modules and
-  packages whose name has a component starting with ``_`` are private and skipped), listing the module's
-  ``__all__``.  Every public object is documented once, at its *canonical* name: the first public module,
-  in :func:`module_order`, whose ``__all__`` holds it (``optdesign.Plant`` rather than
-  ``optdesign.model.plant.Plant``; a constant: the first that also assigns it, where its ``#:`` comment
-  is); the other modules that export it link there.
-* ``gallery/`` -- one page per script of ``examples/``: the script's docstring, the figures it writes to
-  ``examples/figures/`` (the committed PNGs: the scripts are not run by the build, some take minutes) and
-  its source.  A figure belongs to the script whose file stem shares the longest ``_``-separated prefix
-  with the figure's path below ``figures/``.
+* ``api/`` -- the reference grouped by task (:data:`TASKS`: ``api/index.rst`` holds one table and one
+  captioned toctree per task, ``api/generated/<name>.rst`` one page per object), and one orphan page per
+  public module (found by walking the package; modules and packages whose name has a component starting
+  with ``_`` are private and skipped), listing the module's ``__all__``, linked from ``api/modules.rst``
+  but kept out of the sidebar.  Every public object is documented once, at its *canonical* name: the
+  first public module, in :func:`module_order`, whose ``__all__`` holds it (``optdesign.Plant`` rather
+  than ``optdesign.model.plant.Plant``; a constant: the first that also assigns it, where its ``#:``
+  comment is) -- on its own page when a task group lists it, else on its module's page; the other
+  modules that export it link there.
+* ``gallery/`` -- one page per script of ``examples/``: the script's docstring, what it printed and the
+  figures it drew (the committed snapshot in ``examples/figures/``: ``<stem>.txt`` and the PNGs, written
+  by ``docs/_ext/refresh_gallery.py``; the build does not run the scripts, together they take minutes)
+  and its source; the index shows a thumbnail of each script's first figure.  A figure belongs to the
+  script whose file stem shares the longest ``_``-separated prefix with the figure's path below
+  ``figures/``.
 * ``guide/_generated/problems.rst`` -- the problem library table, from :func:`optdesign.problems.load_all`.
 * ``guide/_generated/cli.rst`` -- the ``optdesign`` command's help texts, from its argparse parser.
 
@@ -36,6 +41,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from optdesign_tasks import TASKS  # the task groups of the API reference (docs/_ext/optdesign_tasks.py)
+
 __all__ = [
     "ApiEntry",
     "PublicModule",
@@ -44,6 +51,10 @@ __all__ = [
     "module_order",
     "canonical_names",
     "object_key",
+    "TASKS",
+    "expand_task_names",
+    "task_groups",
+    "object_page",
     "api_pages",
     "gallery_pages",
     "figure_owner",
@@ -57,11 +68,11 @@ __all__ = [
 
 PACKAGE = "optdesign"
 #: layer order of the sub-packages (imports flow downward; the reference follows it)
-LAYERS = ("model", "analysis", "classical", "formulate", "backends", "engines", "design", "compat", "plot", "studies")
+LAYERS = ("model", "analysis", "classical", "formulate", "backends", "engines", "design", "compat", "plot",
+          "studies")
 #: data reprs longer than this are not shown in the signature line
 MAX_VALUE_REPR = 80
 HEADING = "=-~^"
-
 
 # --------------------------------------------------------------------------- public modules
 
@@ -242,16 +253,19 @@ def _group(obj: Any, page: str) -> str:
     return page if group == page or page.startswith(group + ".") else group
 
 
-def module_page(m: PublicModule, canon: dict[tuple, str]) -> str:
-    """The rst text of one module page."""
+def module_page(m: PublicModule, canon: dict[tuple, str], own_pages: frozenset[str] = frozenset()) -> str:
+    """The rst text of one module page (an orphan: the sidebar shows the task groups, not the modules).
+    Objects whose canonical name is in ``own_pages`` are documented on a page of their own and only
+    listed (linked) here."""
     module = m.module
     entries = []
     for name in m.names:
         obj = getattr(module, name)
         full = canon.get(object_key(obj, name), f"{m.name}.{name}")
-        directive, options = _directive(obj) if full == f"{m.name}.{name}" else (None, [])
+        here = full == f"{m.name}.{name}" and full not in own_pages
+        directive, options = _directive(obj) if here else (None, [])
         entries.append(ApiEntry(name, full, directive, options, _group(obj, m.name)))
-    lines = _title(f"``{m.name}``", 0)
+    lines = [":orphan:", ""] + _title(f"``{m.name}``", 0)
     lines += [f".. automodule:: {m.name}", "   :no-members:", ""]
     if m.submodules:
         lines += [".. rubric:: Modules", "", ".. autosummary::", ""]
@@ -264,7 +278,7 @@ def module_page(m: PublicModule, canon: dict[tuple, str]) -> str:
         lines += [".. rubric:: Public names", "", ".. autosummary::", "   :nosignatures:", ""]
         # autosummary wants names of the current module relative to it
         lines += [f"   {_relative(e.canonical, m.name)}" for e in entries] + [""]
-    elsewhere = [e for e in entries if e.directive is None]
+    elsewhere = [e for e in entries if e.directive is None and e.canonical not in own_pages]
     if elsewhere:
         lines += ["Documented at their canonical names: "
                   + ", ".join(f":py:obj:`{e.canonical}`" for e in elsewhere) + ".", ""]
@@ -280,13 +294,90 @@ def module_page(m: PublicModule, canon: dict[tuple, str]) -> str:
     return "\n".join(lines)
 
 
+def expand_task_names(names: Iterable[str]) -> list[tuple[str, Any]]:
+    """``(dotted name, object)`` of each name of a task group, ``module.*`` expanded to the module's
+    ``__all__``.  An object is looked up as an attribute of its module (``optdesign.studies.sweep`` is
+    the function the namespace exports, not the module of that name)."""
+    out = []
+    for name in names:
+        parent, _, attr = name.rpartition(".")
+        module = importlib.import_module(parent)
+        if attr == "*":
+            out += [(f"{parent}.{n}", getattr(module, n)) for n in module.__all__]
+        elif not hasattr(module, attr):
+            raise ValueError(f"TASKS names {name!r}, which does not exist")
+        else:
+            out.append((name, getattr(module, attr)))
+    return out
+
+
+def task_groups(canon: dict[tuple, str]) -> list[tuple[str, str, list[str]]]:
+    """``(title, intro, canonical names)`` of each task group of :data:`TASKS` -- an object once, in its
+    first group -- then "Other" with the names of ``optdesign.__all__`` that no group holds."""
+    seen: set[str] = set()
+    groups = []
+    for title, intro, names in TASKS:
+        fulls = []
+        for dotted, obj in expand_task_names(names):
+            full = canon.get(object_key(obj, dotted.rpartition(".")[2]), dotted)
+            if full not in seen:
+                seen.add(full)
+                fulls.append(full)
+        groups.append((title, intro, fulls))
+    package = importlib.import_module(PACKAGE)
+    other = [full for n in package.__all__
+             if (full := canon.get(object_key(getattr(package, n), n), f"{PACKAGE}.{n}")) not in seen]
+    if other:
+        groups.append(("Other", "Public names that no task group lists yet.", other))
+    return groups
+
+
+def object_page(full: str, public: list[str]) -> str:
+    """The page of one object: its autodoc entry, and the other public names it is exported under."""
+    found = lookup(full)
+    if found is None:
+        raise ValueError(f"no object {full!r}")
+    directive, options = _directive(found[0])
+    lines = _title(f"``{full}``", 0)
+    aliases = [p for p in public if p != full]
+    if aliases:
+        lines += ["Also exported as " + ", ".join(f"``{a}``" for a in aliases) + ".", ""]
+    lines += [f".. {directive}:: {full}"] + [f"   {o}" for o in options] + [""]
+    return "\n".join(lines)
+
+
 def api_pages(mods: list[PublicModule]) -> dict[str, str]:
-    """``relative path -> rst`` for the API reference (``api/index.rst`` and one page per module)."""
+    """``relative path -> rst`` for the API reference: ``api/index.rst`` (the task groups, each a table
+    and a captioned toctree of one page per object), ``api/generated/<name>.rst`` (those pages),
+    ``api/modules.rst`` (every module, linked) and one orphan page per module."""
     canon = canonical_names(mods)
-    pages = {f"api/{m.name}.rst": module_page(m, canon) for m in mods}
+    groups = task_groups(canon)
+    own = frozenset(full for _, _, fulls in groups for full in fulls)
+    pages = {f"api/{m.name}.rst": module_page(m, canon, own) for m in mods}
+    public: dict[str, list[str]] = {}
+    for m in mods:
+        if not _is_private(m.name):
+            for name in m.names:
+                full = canon.get(object_key(getattr(m.module, name), name))
+                if full is not None:
+                    public.setdefault(full, []).append(f"{m.name}.{name}")
+    for full in own:
+        pages[f"api/generated/{full}.rst"] = object_page(full, public.get(full, []))
     index = _title("API reference", 0) + [
-        "Generated from the package: every public module of :mod:`optdesign` and every name in its",
-        "``__all__``.  An object is documented once, under the first public name it has (the top-level",
+        ".. currentmodule:: optdesign", "",
+        "The public names of :mod:`optdesign`, grouped by the task they serve, one page each.  The",
+        "same objects module by module (and the layers below the namespaces): :doc:`modules`.", "",
+    ]
+    for title, intro, fulls in groups:
+        index += _title(title, 1) + [intro, "", ".. autosummary::", "   :nosignatures:", ""]
+        index += [f"   {_relative(full, PACKAGE)}" for full in fulls] + [""]  # relative to currentmodule
+        index += [".. toctree::", "   :hidden:", f"   :caption: {title}", ""]
+        index += [f"   generated/{full}" for full in fulls] + [""]
+    index += [".. toctree::", "   :hidden:", "   :caption: Modules", "", "   modules", ""]
+    pages["api/index.rst"] = "\n".join(index)
+    modules = _title("Modules", 0) + [
+        "Every public module of :mod:`optdesign` and every name in its ``__all__``, generated from the",
+        "package.  An object is documented once, under the first public name it has (the top-level",
         "``optdesign`` namespace first, then the convenience modules, then the layers; a constant where it",
         "is assigned); the other modules that export it link there.", "",
     ]
@@ -296,13 +387,14 @@ def api_pages(mods: list[PublicModule]) -> dict[str, str]:
         if _is_private(m.name):
             key = "Internals (foundation modules, not a stable API)"
         else:
-            key = "Namespaces" if len(parts) <= 2 else f"Layer {'.'.join(parts[:2])}"
+            key = "Namespaces" if len(parts) <= 2 else f"Layer ``{'.'.join(parts[:2])}``"
         sections.setdefault(key, []).append(m.name)
     for caption, names in sections.items():
-        index += [".. toctree::", "   :maxdepth: 1", f"   :caption: {caption}", ""]
+        modules += _title(caption, 1)
         # a package's modules right after it (the reference order itself is shallow-first)
-        index += [f"   {name}" for name in (names if caption == "Namespaces" else sorted(names))] + [""]
-    pages["api/index.rst"] = "\n".join(index)
+        modules += [f"* :doc:`{name}`: {_cell(_first_line(name))}"
+                    for name in (names if caption == "Namespaces" else sorted(names))] + [""]
+    pages["api/modules.rst"] = "\n".join(modules)
     return pages
 
 
@@ -336,8 +428,31 @@ def _script_doc(path: Path) -> str:
     return ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
 
 
+#: thumbnails per row of the gallery's index
+GALLERY_COLUMNS = 3
+
+
+def _thumbnail_table(cells: list[list[str]]) -> list[str]:
+    """A ``list-table`` of :data:`GALLERY_COLUMNS` columns holding the rst lines of each cell."""
+    lines = [".. list-table::", "   :class: optdesign-gallery", ""]
+    cells = cells + [[""]] * (-len(cells) % GALLERY_COLUMNS)
+    for start in range(0, len(cells), GALLERY_COLUMNS):
+        for col, cell in enumerate(cells[start:start + GALLERY_COLUMNS]):
+            head = "   * - " if col == 0 else "     - "
+            lines += [(head if i == 0 else "       ") + line if line else "" for i, line in enumerate(cell)]
+            if not any(cell):
+                lines[-1] = head.rstrip()
+    return lines + [""]
+
+
 def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
-    """``relative path -> rst`` for the gallery (``gallery/index.rst`` and one page per script)."""
+    """``relative path -> rst`` for the gallery (``gallery/index.rst`` and one page per script).
+
+    Each script's page shows its docstring, what it printed (``examples/figures/<stem>.txt``), its
+    figures and its source; the index shows a thumbnail of each script's first figure.  The output and
+    the figures are the committed snapshot of ``examples/figures/``, written by
+    ``docs/_ext/refresh_gallery.py`` (the build does not run the scripts: together they take minutes).
+    """
     scripts = sorted(examples.glob("*.py"))
     figdir = examples / "figures"
     figures = sorted(p.relative_to(figdir).as_posix() for p in figdir.rglob("*.png")) if figdir.is_dir() \
@@ -345,19 +460,25 @@ def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
     owners = {f: figure_owner(f, [s.stem for s in scripts]) for f in figures}
     rel = Path(os.path.relpath(examples, docs / "gallery")).as_posix()
     pages: dict[str, str] = {}
-    summaries: list[str] = []
+    cells: list[list[str]] = []
     for script in scripts:
         doc = _script_doc(script)
-        summaries.append(f"* :doc:`{script.stem}`: {_cell(doc.splitlines()[0] if doc else script.stem)}")
+        summary = doc.splitlines()[0] if doc else script.stem  # rst, as the docstring wrote it
         lines = _title(f"``{script.name}``", 0) + [doc, ""]
         if f"examples/{script.name}" not in doc:
             lines += [f"Run: ``python examples/{script.name}``", ""]
+        output = figdir / f"{script.stem}.txt"
+        if output.is_file():
+            lines += _title("Output", 1) + [
+                f"What ``python examples/{script.name}`` printed (the committed snapshot; timings are of",
+                "the machine that ran it):", "",
+                f".. literalinclude:: {rel}/figures/{output.name}", "   :language: text", ""]
         mine = [f for f in figures if owners[f] == script.stem]
         if mine:
             lines += _title("Figures", 1)
             for fig in mine:
                 lines += [f".. figure:: {rel}/figures/{fig}", "   :width: 100%", "",
-                          f"   ``examples/figures/{fig}``", ""]
+                          f"   ``{fig}``", ""]
         for extra in sorted(examples.glob(f"{script.stem}.*")):
             if extra.suffix != ".py":
                 lines += _title(f"``{extra.name}``", 1) + [
@@ -365,12 +486,16 @@ def gallery_pages(examples: Path, docs: Path) -> dict[str, str]:
         lines += _title("Source", 1) + [f".. literalinclude:: {rel}/{script.name}", "   :language: python",
                                         ""]
         pages[f"gallery/{script.stem}.rst"] = "\n".join(lines)
+        cell = [f".. image:: {rel}/figures/{mine[0]}", "   :width: 100%", f"   :alt: {script.stem}", ""] \
+            if mine else []
+        cells.append(cell + [f":doc:`{script.stem}`", "", summary])
     index = _title("Gallery", 0) + [
-        "The scripts of ``examples/``, each with the figures it writes to ``examples/figures/``.  The",
-        "figures shown are the committed ones: building the site does not run the scripts (some take",
-        "minutes); run a script to regenerate its figures.", "",
-        ".. toctree::", "   :hidden:", "",
-    ] + [f"   {s.stem}" for s in scripts] + [""] + summaries + [""]
+        "The scripts of ``examples/``, each with what it prints and the figures it draws.  What is shown",
+        "is the committed snapshot in ``examples/figures/`` (building the site does not run the scripts:",
+        "together they take minutes); ``python docs/_ext/refresh_gallery.py`` reruns them and rewrites it.",
+        "Run a script yourself and its files go to ``examples/_build/`` (or ``$OPTDESIGN_EXAMPLES_OUT``).",
+        "", ".. toctree::", "   :hidden:", "",
+    ] + [f"   {s.stem}" for s in scripts] + [""] + _thumbnail_table(cells)
     orphans = [f for f in figures if owners[f] is None]
     if orphans:
         index += ["Figures no script claims (by name): " + ", ".join(f"``{f}``" for f in orphans), ""]
@@ -605,7 +730,7 @@ def generate(docs: Path, examples: Path) -> dict[str, str]:
     pages.update(gallery_pages(examples, docs))
     pages["guide/_generated/problems.rst"] = problems_page()
     pages["guide/_generated/cli.rst"] = cli_page()
-    for folder in ("api", "gallery"):
+    for folder in ("api", "api/generated", "gallery"):
         for old in (docs / folder).glob("*.rst") if (docs / folder).is_dir() else ():
             if f"{folder}/{old.name}" not in pages:
                 old.unlink()

@@ -255,6 +255,15 @@ def filter_margins(
     ----------
     Seed 002 (S. J. Lee), Theorem 2, eqs (20)-(24); Lehtomaki, Sandell & Athans (1981); Seiler,
     Packard & Gahinet (2020).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign import Plant, filter_margins, kalman
+    >>> plant = Plant([[0., 1.], [-4., -0.2]], np.eye(2), Q=np.diag([0.1, 1.0]), R=np.diag([0.5, 2.0]))
+    >>> fm = filter_margins(plant, kalman(plant).L)
+    >>> fm.guaranteed_gain_margin, round(fm.guaranteed_phase_margin)   # R diagonal: (1/2, inf), 60 deg
+    ((0.5, inf), 60)
     """
     deadline = Deadline.of(time_limit)
     L = as_gain(plant, L)

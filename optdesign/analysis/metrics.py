@@ -370,6 +370,12 @@ def kappa_fro(X: ArrayLike, *, tol: float | None = None) -> float:
     Raises
     ------
     DimensionError, NotFiniteError
+
+    Examples
+    --------
+    >>> from optdesign.metrics import kappa_fro
+    >>> round(kappa_fro([[-1.0, 0.0], [0.0, -2.0]]), 6)   # orthonormal eigenvectors: n
+    2.0
     """
     sp = _spectrum(_as_square(X), tol)
     if sp.coincident or sp.Vinv is None:
@@ -402,6 +408,12 @@ def departure(X: ArrayLike) -> float:
     pairs, and the strictly upper triangular part of a real Schur form contains one
     off-diagonal entry of each block -- which is not part of ``N`` (seed 001's printed
     eta = 2.41 for the aircraft example is that real-Schur quantity; the departure gives 3.107).
+
+    Examples
+    --------
+    >>> from optdesign.metrics import departure
+    >>> round(departure([[-1.0, 10.0], [0.0, -2.0]]), 6)   # the strictly upper part of the Schur form
+    10.0
     """
     A = _as_square(X)
     scale = _pow2_scale(A)
@@ -427,6 +439,12 @@ def min_gap(X: ArrayLike, *, tol: float | None = None) -> float:
     Raises
     ------
     DimensionError, NotFiniteError
+
+    Examples
+    --------
+    >>> from optdesign.metrics import min_gap
+    >>> round(min_gap([[-1.0, 10.0], [0.0, -2.0]]), 6)
+    1.0
     """
     sp = _spectrum(_as_square(X), tol)
     return 0.0 if sp.coincident else sp.gap
@@ -455,6 +473,14 @@ def eta(X: ArrayLike, *, tol: float | None = None) -> float:
     -----
     For 2 x 2 matrices ``kappa2(X) = eta + sqrt(1 + eta^2)`` (seed 001 eq (19)); in general
     Huh & Stein bound kappa2 by a monotone function of eta.
+
+    Examples
+    --------
+    >>> from optdesign.metrics import eta
+    >>> eta([[-1.0, 0.0], [0.0, -2.0]])            # normal: no departure
+    0.0
+    >>> round(eta([[-1.0, 10.0], [0.0, -2.0]]), 6)   # ||N||_F / gap = 10 / 1
+    10.0
     """
     sp = _spectrum(_as_square(X), tol)
     if sp.w.size == 1:

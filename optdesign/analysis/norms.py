@@ -119,6 +119,12 @@ def h2_norm(A: ArrayLike, B: ArrayLike, C: ArrayLike | None = None, *, dt: float
         Shapes do not match; a matrix is not finite.
     ValidationError
         ``dt`` not a positive number.
+
+    Examples
+    --------
+    >>> from optdesign import h2_norm
+    >>> round(h2_norm([[-1.0]], [[1.0]], [[1.0]]), 6)      # 1/(s + 1): sqrt(1/2)
+    0.707107
     """
     Am, Bm, Cm, _ = _system(A, B, C, None)
     dt = _check_dt(dt)
@@ -274,6 +280,13 @@ def hinf_norm(
     References
     ----------
     Bruinsma & Steinbuch 1990; Boyd & Balakrishnan 1990 (module docstring).
+
+    Examples
+    --------
+    >>> from optdesign import hinf_norm
+    >>> h = hinf_norm([[0., 1.], [-1., -0.2]], [[0.], [1.]], [[1., 0.]])   # 1/(s^2 + 0.2 s + 1)
+    >>> round(h.value, 4), round(h.frequency, 4)          # the resonance peak
+    (5.0252, 0.9899)
     """
     Am, Bm, Cm, Dm = _system(A, B, C, D)
     dt = _check_dt(dt)

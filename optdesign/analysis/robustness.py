@@ -223,6 +223,15 @@ def return_difference(
     References
     ----------
     Seed 002 (S. J. Lee), eq (16) with ``c1 = 0``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign import Plant, kalman, return_difference
+    >>> plant = Plant([[0., 1.], [-4., -0.2]], np.eye(2), Q=np.diag([0.1, 1.0]), R=np.diag([0.5, 2.0]))
+    >>> T = return_difference(plant, kalman(plant).L, [0.0, 2.0, 10.0])   # T(jw) = I + C (jwI - A)^-1 L
+    >>> T.shape, np.linalg.svd(T, compute_uv=False)[:, -1].round(3).tolist()
+    ((3, 2, 2), [0.873, 0.856, 0.994])
     """
     L = as_gain(plant, L)
     w = as_vector("omega", omega)
@@ -539,6 +548,18 @@ def circle_condition(
     References
     ----------
     Seed 002 (S. J. Lee), Theorem 1 / eq (17).  U. Shaked (1986) for the discrete-time form.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign import Plant, circle_condition, kalman
+    >>> from optdesign.classical.placement import place_observer
+    >>> plant = Plant([[0., 1.], [-4., -0.2]], np.eye(2), Q=np.diag([0.1, 1.0]), R=np.diag([0.5, 2.0]))
+    >>> circle_condition(plant, kalman(plant).L).passed        # every Kalman gain passes
+    True
+    >>> bad = circle_condition(plant, place_observer(plant, [-0.05 + 2j, -0.05 - 2j]))
+    >>> bad.passed, bad.omega_worst > 0                    # a placed gain fails, at a frequency
+    (False, True)
     """
     deadline = Deadline.of(time_limit)
     L = as_gain(plant, L)

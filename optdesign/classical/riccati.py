@@ -397,7 +397,14 @@ def _require_noise_reaches_boundary_modes(plant: Plant, Q: NDArray[np.float64]) 
 
 
 def sort_poles(p: NDArray) -> NDArray[np.complex128]:
-    """Poles sorted by real part, then imaginary part (conjugate pairs adjacent)."""
+    """Poles sorted by real part, then imaginary part (conjugate pairs adjacent).
+
+    Examples
+    --------
+    >>> from optdesign.riccati import sort_poles
+    >>> sort_poles([-1 + 2j, -3, -1 - 2j]).tolist()
+    [(-3+0j), (-1-2j), (-1+2j)]
+    """
     p = np.asarray(p, dtype=complex)
     return p[np.lexsort((p.imag, p.real))]
 
@@ -446,6 +453,14 @@ def filter_are(
     References
     ----------
     Seed 001 (Jung & Huh), eq (23)-(27).
+
+    Examples
+    --------
+    >>> from optdesign import Plant
+    >>> from optdesign.riccati import filter_are
+    >>> res = filter_are(Plant([[0., 1.], [0., 0.]], [[1., 0.]], G=[[0.], [1.]], Q=[[4.]], R=[[0.25]]))
+    >>> res.P.round(6).tolist()
+    [[0.707107, 1.0], [1.0, 2.828427]]
     """
     if method not in ("scipy", "hamiltonian"):
         raise ValidationError(f"method must be 'scipy' or 'hamiltonian'; found {method!r}")

@@ -35,7 +35,14 @@ _BOUNDARY_TOL = 4.0 * _EPS
 
 # --------------------------------------------------------------------------- helpers
 def format_pole(z: complex) -> str:
-    """A pole for messages: ``-5`` or ``-1+2j`` (6 significant digits)."""
+    """A pole for messages: ``-5`` or ``-1+2j`` (6 significant digits).
+
+    Examples
+    --------
+    >>> from optdesign.riccati import format_pole
+    >>> format_pole(-5.0), format_pole(-1 + 2j)
+    ('-5', '-1+2j')
+    """
     z = complex(z)
     if z.imag == 0:
         return f"{z.real:.6g}"

@@ -243,6 +243,13 @@ def lqe(*args: Any, method: Any = None, **kwargs: Any) -> tuple[NDArray, NDArray
         Incompatible sizes (python-control's messages).
     NotObservableError, RiccatiError, NotPositiveSemidefiniteError, NotPositiveDefiniteError
         From :func:`optdesign.kalman`; a RiccatiError also when the answer fails its checks.
+
+    Examples
+    --------
+    >>> from optdesign.compat.control import lqe
+    >>> L, P, E = lqe([[0., 1.], [0., 0.]], [[0.], [1.]], [[1., 0.]], [[4.]], [[0.25]])
+    >>> L.round(6).ravel().tolist(), sorted(E.real.round(6).tolist())   # as control.lqe
+    ([2.828427, 4.0], [-1.414214, -1.414214])
     """
     _no_keywords(kwargs)
     if args and _is_statespace(args[0]) and _strict_discrete(args[0]):
@@ -256,6 +263,13 @@ def dlqe(*args: Any, method: Any = None, **kwargs: Any) -> tuple[NDArray, NDArra
     Discrete (predictor) Kalman gain ``L = (A P C' + G NN)(C P C' + RN)^-1``; ``E = eig(A - L C)``.
     A system with ``dt == 0`` is refused (``dt=None`` or ``True``: discrete).  Parameters, returns
     and errors as :func:`lqe`.
+
+    Examples
+    --------
+    >>> from optdesign.compat.control import dlqe
+    >>> L, P, E = dlqe([[1.0]], [[1.0]], [[1.0]], [[0.1]], [[1.0]])     # a random walk
+    >>> round(float(L[0, 0]), 4), round(float(abs(E[0])), 4)           # current-estimator gain, pole
+    (0.2702, 0.7298)
     """
     _no_keywords(kwargs)
     if args and _is_statespace(args[0]) and _strict_continuous(args[0]):
@@ -338,6 +352,13 @@ def lqr(*args: Any, method: Any = None, integral_action: Any = None, **kwargs: A
         (A, B) not stabilizable (the modes are named).
     RiccatiError, NotPositiveSemidefiniteError, NotPositiveDefiniteError
         From the Riccati solve.
+
+    Examples
+    --------
+    >>> from optdesign.compat.control import lqr
+    >>> K, S, E = lqr([[0., 1.], [0., 0.]], [[0.], [1.]], [[1., 0.], [0., 0.]], [[1.]])
+    >>> K.round(6).tolist()                                 # [1, sqrt 2]
+    [[1.0, 1.414214]]
     """
     _no_keywords(kwargs)
     if args and _is_statespace(args[0]) and _strict_discrete(args[0]):
@@ -350,6 +371,13 @@ def dlqr(*args: Any, method: Any = None, integral_action: Any = None, **kwargs: 
     """python-control's ``dlqr``: ``K, S, E = dlqr(A, B, Q, R[, N])`` or ``dlqr(dsys, Q, R[, N])``.
 
     ``K = (R + B' S B)^-1 (B' S A + N')``; a system with ``dt == 0`` is refused.  As :func:`lqr`.
+
+    Examples
+    --------
+    >>> from optdesign.compat.control import dlqr
+    >>> K, S, E = dlqr([[1.0]], [[1.0]], [[1.0]], [[1.0]])   # x+ = x + u, cost sum x^2 + u^2
+    >>> round(float(K[0, 0]), 6), round(float(S[0, 0]), 6)   # S = golden ratio
+    (0.618034, 1.618034)
     """
     _no_keywords(kwargs)
     if args and _is_statespace(args[0]) and _strict_continuous(args[0]):
@@ -400,6 +428,14 @@ def place(A: Any, B: Any, p: Any) -> NDArray[np.float64]:
         (Ours: ValidationError / InfeasibleError subclasses.)  A pole repeated more than rank(B)
         times where the poles do not fix the gain, poles not conjugate-closed, (A, B) not
         controllable, or no placement found.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign.compat.control import place
+    >>> K = place([[0., 1.], [0., 0.]], [[0.], [1.]], [-1., -2.])     # python-control's call
+    >>> K.round(9).tolist(), np.sort(np.linalg.eigvals([[0., 1.], [-2., -3.]])).tolist()
+    ([[2.0, 3.0]], [-2.0, -1.0])
     """
     A_ = _matrix("A", A)
     B_ = _matrix("B", B)
@@ -527,6 +563,15 @@ def create_estimator_iosystem(sys: Any, QN: Any, RN: Any, P0: Any = None, G: Any
         messages: "System output must be full state", "System output is the wrong size for C").
     ControlNotImplementedError
         A nonzero feedthrough of the disturbances.
+
+    Examples
+    --------
+    >>> import control
+    >>> from optdesign.compat.control import create_estimator_iosystem
+    >>> sys = control.ss([[1., 0.1], [0., 1.]], [[0.005], [0.1]], [[1., 0.]], 0, dt=0.1)
+    >>> est = create_estimator_iosystem(sys, [[1.0]], [[0.01]])   # QN through B, RN on y
+    >>> est.input_labels, est.output_labels
+    (['y[0]', 'u[0]'], ['xhat[0]', 'xhat[1]'])
     """
     if not _is_statespace(sys):
         raise ControlArgumentError(f"Input system must be a linear I/O system (a control.StateSpace); found "

@@ -154,6 +154,17 @@ def estimator_system(plant: Plant, L: ArrayLike, *, form: str | None = None, M: 
         L, M, My or D of the wrong shape or not finite.
     BackendUnavailableError
         ``output="control"`` without python-control.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign import Plant, estimator_system
+    >>> plant = Plant([[0., 1.], [0., 0.]], [[1., 0.]], B=[[0.], [1.]])
+    >>> est = estimator_system(plant, [[2.], [1.]], output="arrays")   # inputs [u; y], outputs [y_hat; x_hat]
+    >>> est.B.shape, est.C.shape
+    ((2, 2), (3, 2))
+    >>> np.linalg.eigvals(est.A).real.round(6).tolist()             # A - L C: a double pole at -1
+    [-1.0, -1.0]
     """
     if not isinstance(plant, Plant):
         raise ValidationError(f"plant must be an optdesign.Plant; found {type(plant).__name__}")

@@ -99,6 +99,13 @@ def dual_plant(A: ArrayLike, B: ArrayLike, *, dt: float | None = None, G: ArrayL
     ------
     DimensionError, NotFiniteError, ValidationError
         Bad matrices (named A, B).
+
+    Examples
+    --------
+    >>> from optdesign import dual_plant
+    >>> dual = dual_plant([[0., 1.], [0., 0.]], [[0.], [1.]])   # state feedback on a double integrator
+    >>> dual.A.tolist(), dual.C.tolist()                       # Plant(A', B')
+    ([[0.0, 0.0], [1.0, 0.0]], [[0.0, 1.0]])
     """
     A = as_square("A", A)
     B = as_matrix("B", B, (A.shape[0], None))

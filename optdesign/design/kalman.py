@@ -510,6 +510,15 @@ def van_loan(A: ArrayLike, W: ArrayLike, Ts: float) -> tuple[NDArray[np.float64]
     References
     ----------
     Van Loan, C. F., IEEE TAC 23(3) (1978) 395-404.
+
+    Examples
+    --------
+    >>> from optdesign import van_loan
+    >>> Ad, Qd = van_loan([[0., 1.], [0., 0.]], [[0., 0.], [0., 1.]], 0.1)  # double integrator
+    >>> Ad.tolist()
+    [[1.0, 0.1], [0.0, 1.0]]
+    >>> (Qd * 3e4).round(6).tolist()        # [[Ts^3/3, Ts^2/2], [Ts^2/2, Ts]], times 3e4
+    [[10.0, 150.0], [150.0, 3000.0]]
     """
     A = as_square("A", A)
     n = A.shape[0]
@@ -568,6 +577,14 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
     ----------
     MathWorks, *kalmd* reference page; Van Loan (1978); Franklin, Powell & Workman, *Digital
     Control of Dynamic Systems* (1998).
+
+    Examples
+    --------
+    >>> from optdesign import Plant, kalmd
+    >>> plant = Plant([[0., 1.], [0., 0.]], [[1., 0.]], G=[[0.], [1.]], Q=[[1.]], R=[[0.01]])
+    >>> kf = kalmd(plant, 0.1)                      # sampled at 0.1 s
+    >>> kf.success, kf.L.round(4).ravel().tolist()
+    (True, [0.4406, 0.7996])
     """
     if method not in _METHODS:
         raise ValidationError(f"method must be one of {_METHODS}; found {method!r}")
@@ -697,6 +714,16 @@ def kalman_finite_horizon(plant: Any, P0: ArrayLike, steps: int, *, Q: ArrayLike
         the noise-data errors of :func:`kalman`.
     DimensionError, NotSymmetricError, NotPositiveSemidefiniteError
         Bad P0 (named).
+
+    Examples
+    --------
+    >>> from optdesign import Plant, kalman, kalman_finite_horizon
+    >>> plant = Plant([[1.0]], [[1.0]], Q=[[0.1]], R=[[1.0]], dt=1.0)   # a random walk
+    >>> seq = kalman_finite_horizon(plant, [[1.0]], 50)                # from P0 = 1
+    >>> float(seq.L[0, 0, 0]), round(float(seq.L[-1, 0, 0]), 4)        # -> the steady-state gain
+    (0.5, 0.2702)
+    >>> round(float(kalman(plant).L[0, 0]), 4)
+    0.2702
     """
     deadline = Deadline(time_limit)
     data = as_system(plant, G=G, Q=Q, R=R, sensors=sensors, known=known)

@@ -584,6 +584,14 @@ def simulate_outputs(plant: Plant | Any, steps: int, *, Q: ArrayLike | None = No
     Returns
     -------
     (steps, p) ndarray
+
+    Examples
+    --------
+    >>> from optdesign import Plant, simulate_outputs
+    >>> plant = Plant([[0.9]], [[1.0]], Q=[[1.0]], R=[[0.5]], dt=1.0)
+    >>> y = simulate_outputs(plant, 1000, seed=0)   # x+ = 0.9 x + w, y = x + v
+    >>> y.shape, round(float(y.var()), 1)           # q / (1 - 0.81) + r = 5.76
+    ((1000, 1), 5.9)
     """
     pl = as_plant(plant)
     if Q is not None or R is not None:

@@ -544,6 +544,13 @@ def output_delay_kalman(
     References
     ----------
     Seed 002 (S. J. Lee), eqs (3)-(8), (16)-(19).
+
+    Examples
+    --------
+    >>> from optdesign import output_delay_kalman
+    >>> f = output_delay_kalman([[0.5]], [[1.0]], [[0.5]], 1.0, [[1.0]], [[1.0]])   # y = x + 0.5 x(t-1) + v
+    >>> f.success, round(float(f.p0[0, 0]), 3), round(float(f.K0[0, 0]), 3)
+    (True, 1.382, 1.543)
     """
     deadline = Deadline.of(time_limit)
     A, C0, C1, h, W, R = _validate(A, C0, C1, h, Q, R, G)

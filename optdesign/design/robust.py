@@ -224,6 +224,16 @@ def robust_observer(
     References
     ----------
     gammasyn (Vogt, Lenz & Konigorski 2020); Chilali & Gahinet 1996.
+
+    Examples
+    --------
+    >>> from optdesign import ModelSet, Plant, robust_observer
+    >>> from optdesign.regions import HalfPlane
+    >>> models = ModelSet.vary(Plant([[0., 1.], [-2., -1.]], [[1., 0.]]), [(1, 0)], 0.2)  # A[1,0] +-20 %
+    >>> d = robust_observer(models, region=HalfPlane(1.0), max_gain=10.0, starts=1, nlp_starts=1,
+    ...                     per_model_starts=False, dense_points=0)
+    >>> d.success, d.certified, len(models), round(d.worst_kappa2, 1)
+    (True, True, 3, 1.2)
     """
     ms = as_model_set(models, weights)
     spec = _Spec(

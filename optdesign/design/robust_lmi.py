@@ -132,6 +132,15 @@ def robust_lmi_observer(
     References
     ----------
     Chilali & Gahinet 1996; Chilali, Gahinet & Apkarian 1999; MathWorks ``msfsyn``.
+
+    Examples
+    --------
+    >>> from optdesign import ModelSet, Plant, robust_lmi_observer
+    >>> from optdesign.regions import HalfPlane
+    >>> models = ModelSet.vary(Plant([[0., 1.], [-2., -1.]], [[1., 0.]]), [(1, 0)], 0.2)
+    >>> d = robust_lmi_observer(models, region=HalfPlane(1.0), max_gain=10.0, dense_points=0)
+    >>> d.success, d.certified           # one common Lyapunov matrix: every plant of the polytope
+    (True, True)
     """
     ms = as_model_set(models, weights)
     regions = as_regions(region, ms, "region", default=True)

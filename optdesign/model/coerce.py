@@ -316,6 +316,16 @@ def as_system(sys: Any, *, G: Any = None, Q: Any = None, R: Any = None, sensors:
         From the Plant constructor (names the matrix).
     BackendUnavailableError
         Never for a Plant or a scipy system; python-control is needed only for its own objects.
+
+    Examples
+    --------
+    >>> import scipy.signal
+    >>> from optdesign import as_system
+    >>> sd = as_system(scipy.signal.StateSpace([[-1.0]], [[1.0]], [[1.0]], [[0.0]]), Q=[[1.0]], R=[[0.1]])
+    >>> sd.plant                      # Q matches the inputs: the noise enters through B
+    Plant(n=1, p=1, m=1, continuous, Q,R given)
+    >>> sd.plant.G.tolist(), sd.source
+    ([[1.0]], 'scipy StateSpace')
     """
     kind = system_kind(sys)
     if kind == "plant":

@@ -219,7 +219,7 @@ def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref,
                  r"($\to 0$ as $\omega \to \infty$)", fontsize=9)
     bx.grid(True, which="both", alpha=0.3)
     bx.legend(fontsize=8)
-    f1 = save_figure(fig, outdir / "seed002_return_difference.png", dpi=120, progress=progress)
+    f1 = save_figure(fig, outdir / "seed002_return_difference.png", progress=progress)
 
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(9, 3.8))
     m = [r.order for r in pade_rows]
@@ -239,5 +239,5 @@ def _figures(outdir, fp, k_h0, k_c0, pl_h0, pl_c0, pade_rows, samp_rows, p0_ref,
     a2.set_title("Sampling with shift register + DARE")
     a2.grid(True, which="both", alpha=0.3)
     a2.legend(fontsize=8)
-    f2 = save_figure(fig, outdir / "seed002_convergence.png", dpi=120, progress=progress)
+    f2 = save_figure(fig, outdir / "seed002_convergence.png", progress=progress)
     return (f1, f2)

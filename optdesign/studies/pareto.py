@@ -66,6 +66,14 @@ def nondominated(values: np.ndarray, *, rtol: float = 1e-6) -> np.ndarray:
     Returns
     -------
     (k,) ndarray of bool
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign.studies import nondominated
+    >>> values = np.array([[1.0, 5.0], [2.0, 3.0], [3.0, 4.0], [4.0, 1.0]])
+    >>> nondominated(values).tolist()        # (3, 4) loses to (2, 3)
+    [True, True, False, True]
     """
     V = np.asarray(values, dtype=float)
     if V.ndim != 2:

@@ -45,6 +45,13 @@ def parse_region(text: str, *, field: str = "region") -> Region:
     ValidationError
         One line starting with ``field``: unknown shape, wrong number of numbers, a value that is
         not a number, an invalid parameter (e.g. ``sector:1.2``) or an empty intersection.
+
+    Examples
+    --------
+    >>> from optdesign.studies import parse_region
+    >>> region = parse_region("halfplane:1.5 & sector:0.7 & disk:20")
+    >>> [bool(region.contains([s])) for s in (-2.0, -1.0, -2.0 + 10.0j)]   # ok; slow; underdamped
+    [True, False, False]
     """
     if not isinstance(text, str) or not text.strip():
         raise ValidationError(f"{field}: expected a region such as 'halfplane:1 & sector:0.7'; found "

@@ -56,6 +56,15 @@ def simulate_observer(
     ------
     ValidationError, DimensionError
         Bad shapes, a continuous-time plant, u without B, non-finite data.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign import Plant, simulate_observer
+    >>> plant = Plant([[0.9, 0.1], [0.0, 0.8]], [[1.0, 0.0]], dt=0.1)
+    >>> sim = simulate_observer([[0.6], [0.5]], 0.1 * np.ones(300), x0=[1.0, 0.0], plant=plant)
+    >>> sim.error.shape, bool(sim.tail("error") > 0.01)     # a plain gain: the offset biases x_hat
+    ((300, 2), True)
     """
     gen: GeneralizedObserver | None = None
     rej: NoiseRejectingObserver | None = None

@@ -356,6 +356,19 @@ def noise_rejecting_observer(
     References
     ----------
     Johnson (1971); Francis & Wonham (1976); seed 003 section 5 (the example it is compared on).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from optdesign import Plant, noise_rejecting_observer, simulate_observer
+    >>> from optdesign.noise import Step
+    >>> plant = Plant([[0.9, 0.1], [0.0, 0.8]], [[1.0, 0.0]], dt=0.1)
+    >>> obs = noise_rejecting_observer(plant, Step(), poles=[0.5, 0.6, 0.7])   # a constant output offset
+    >>> obs.success, obs.poles.round(6).tolist()
+    (True, [0.5, 0.6, 0.7])
+    >>> sim = simulate_observer(obs, 0.1 * np.ones(300), x0=[1.0, 0.0])
+    >>> bool(sim.tail("error") < 1e-12)                   # x_hat -> x despite the offset
+    True
     """
     plant = check_discrete_plant(plant, "a noise-rejecting observer")
     noise = check_noise(noise, plant)

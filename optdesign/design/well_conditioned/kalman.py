@@ -124,6 +124,15 @@ def well_conditioned_kalman(
     References
     ----------
     Seed 001, section 2.3 and Example 2 (the gain depends on ``q/r`` only, eq 29).
+
+    Examples
+    --------
+    >>> from optdesign import Plant, well_conditioned_kalman
+    >>> from optdesign.regions import HalfPlane
+    >>> plant = Plant([[0, 1], [2, -1]], [[1, 0]], G=[[0], [1]], R=[[1]])   # seed 001, Example 2
+    >>> kf = well_conditioned_kalman(plant, objective="kappa2", region=HalfPlane(1.5), starts=1)
+    >>> kf.success, round(float(kf.Q[0, 0]), 2), kf.poles.real.round(3).tolist()   # a true Kalman filter
+    (True, 2.19, [-1.658, -1.5])
     """
     deadline = Deadline(as_time_limit(time_limit))
     nlp_solver = renamed("nlp_solver", nlp_solver, "solver", solver, "ipopt", stacklevel=3)

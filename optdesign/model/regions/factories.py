@@ -31,6 +31,16 @@ def stability_region(discrete: bool, margin: float = 0.0) -> Region:
     ValidationError
         ``discrete`` not a bool; ``margin`` not a finite real number, or ``margin >= 1`` in discrete
         time.
+
+    Examples
+    --------
+    >>> from optdesign.regions import stability_region
+    >>> left = stability_region(discrete=False, margin=0.5)       # Re s <= -0.5
+    >>> [bool(left.contains([s])) for s in (-1.0, -0.2)]
+    [True, False]
+    >>> disk = stability_region(discrete=True)                     # the unit disk
+    >>> [bool(disk.contains([z])) for z in (0.5, 1.2)]
+    [True, False]
     """
     discrete = as_bool("stability_region discrete", discrete)
     m = real_param("stability_region", "margin", margin)
@@ -55,6 +65,13 @@ def region_from_dict(d: dict[str, Any]) -> Region:
     ------
     ValidationError
         Not a mapping, unknown ``type``, or bad/missing parameters.
+
+    Examples
+    --------
+    >>> from optdesign.regions import Disk, HalfPlane, region_from_dict
+    >>> region = HalfPlane(1.0) & Disk(0.0, 10.0)
+    >>> region_from_dict(region.to_dict()) == region
+    True
     """
     if not isinstance(d, dict) or "type" not in d:
         raise ValidationError(f"a region description must be a dict with a 'type' key; found {d!r}")
