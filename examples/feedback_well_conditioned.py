@@ -126,7 +126,7 @@ def main() -> None:
     ax1.grid(True, alpha=0.3)
     ax1.legend(fontsize=8, loc="lower right")
     fig.suptitle("KNV 1985 Ex. 1: the same poles, placed by five methods")
-    path = save_figure(fig, output_dir(FIGURES) / "feedback_knv1985_ex1.png")
+    path = save_figure(fig, output_dir(FIGURES) / "feedback_knv1985_ex1.png", overwrite=True)
     print("\nfigure:", path)
 
 

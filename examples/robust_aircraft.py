@@ -103,7 +103,7 @@ def pole_figure(ms: ModelSet, region, designs: dict, outdir: Path) -> Path:
         fontsize=10,
     )
     fig.tight_layout(rect=(0, 0.04, 1, 1))
-    return save_figure(fig, outdir / "robust_aircraft_poles.png", layout=False)
+    return save_figure(fig, outdir / "robust_aircraft_poles.png", layout=False, overwrite=True)
 
 
 def study(plant, region, max_gain, sizes, h2_fracs, outdir: Path) -> Path:
@@ -157,7 +157,7 @@ def study(plant, region, max_gain, sizes, h2_fracs, outdir: Path) -> Path:
     a2.set_ylabel(r"worst-case $\kappa_2$")
     a2.set_title(r"Pareto front at $\pm$20 % (min $\kappa_2$ s.t. $H_2 \leq h$)", fontsize=9)
     a2.grid(alpha=0.3)
-    return save_figure(fig, outdir / "robust_aircraft_study.png")
+    return save_figure(fig, outdir / "robust_aircraft_study.png", overwrite=True)
 
 
 def main(quick: bool = False) -> None:

@@ -73,6 +73,6 @@ print("discrete target 0.5, 0.2 with noise through G:", res.status.value, "->", 
 
 # --------------------------------------------------------------- 6. printed vs reproduced, figures
 outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
-repro = paper000.reproduce(outdir)
+repro = paper000.reproduce(outdir, overwrite=True)
 print(repro.table())
 print("figures:", *[str(p) for p in repro.figures], sep="\n  ")

@@ -70,7 +70,7 @@ def main() -> None:
 
     # 6. Reproduce the paper: figures and the printed-vs-reproduced table.
     out = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
-    rep = paper001.reproduce(out)
+    rep = paper001.reproduce(out, overwrite=True)
     print("\n" + rep.table())
     print("figures:", *[str(f) for f in rep.figures], sep="\n  ")
 

@@ -84,6 +84,6 @@ for method in ("pade", "sample"):
 
 # --------------------------------------------------------------------------- 6. the paper
 outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
-rep = paper002.reproduce(outdir)
+rep = paper002.reproduce(outdir, overwrite=True)
 print("\n" + rep.table())
 print("figures:", *rep.figures, sep="\n  ")

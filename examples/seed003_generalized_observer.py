@@ -87,6 +87,6 @@ print(f"  max |x - xh| = {sr.tail('error'):.2e}, max |delta - delta_hat| = "
 
 # --------------------------------------------------------------------------- 6. the paper's figures
 outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
-rep = paper003.reproduce(outdir)
+rep = paper003.reproduce(outdir, overwrite=True)
 print("\n" + rep.table())
 print("\nfigures:", *[str(p) for p in rep.figures], sep="\n  ")

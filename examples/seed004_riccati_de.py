@@ -75,6 +75,6 @@ print(f"discrete: L_0 = {dtr.L[0].ravel()}, L_10 = {dtr.L[10].ravel()}, L_300 = 
 
 # --------------------------------------------------------------- 5. printed vs reproduced, figures
 outdir = Path(os.environ.get("OPTDESIGN_EXAMPLES_OUT") or Path(__file__).resolve().parent / "_build")
-repro = paper004.reproduce(outdir)
+repro = paper004.reproduce(outdir, overwrite=True)
 print(repro.table())
 print("figures:", *[str(p) for p in repro.figures], sep="\n  ")
