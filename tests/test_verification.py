@@ -106,3 +106,20 @@ def test_resolve_pole_tolerance_of_a_defective_matrix_is_not_raised():
     """A Jordan block has no eigenvector basis: no first-order movement, the tolerance as given."""
     J = np.array([[-1.0, 1.0], [0.0, -1.0]])
     assert resolve_pole_tolerance(J, 1e-6 * np.ones((2, 2)), 0.0, 1e-8) == 1e-8
+
+
+def test_stability_check_of_a_defective_stable_loop_uses_henrici_bound():
+    """A deadbeat discrete filter (a Jordan block at 0: python-control's ``dlqe`` on the double
+    integrator with the noise on the second state) is stable by 1; the first-order rounding floor
+    of a defective matrix is infinite, so the check failed and ``dlqe`` raised RiccatiError."""
+    from optdesign.compat.control import dlqe
+    from optdesign.design.verification import henrici_bound, stability_check
+
+    J = np.array([[0.0, 1.0], [0.0, 0.0]])
+    assert 0 < henrici_bound(J) < 1e-6          # ~ sqrt(20 eps): a 2x2 Jordan block
+    assert stability_check(J, True).passed
+    assert not stability_check(J + np.eye(2), True).passed      # the same block at 1: not stable
+    L, P, E = dlqe(J, [[0.0], [1.0]], [[1.0, 0.0]], [[1.0]], [[0.01]])
+    np.testing.assert_allclose(np.abs(E), 0.0, atol=1e-6)
+    # a simple pole just inside the unit circle, far below any bound: still refused
+    assert not stability_check(np.diag([1 - 1e-15, 0.2]), True).passed

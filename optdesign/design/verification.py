@@ -262,11 +262,37 @@ def resolve_poles_check(A: NDArray, C: NDArray, L: NDArray, L_other: NDArray, ot
     return Check.at_most("are_resolve_poles", err, ptol, detail)
 
 
+def henrici_bound(F: NDArray) -> float:
+    """How far rounding can move any eigenvalue of F, without assuming F diagonalizable.
+
+    Henrici's theorem (Golub & Van Loan, *Matrix Computations*, 4th ed., thm. 7.2.3): with the
+    Schur form ``F = Q (D + N) Q^H`` (N strictly upper triangular) and a perturbation of norm
+    ``delta``, every eigenvalue moves by at most ``max(theta, theta^(1/n))``, ``theta = delta
+    sum_{k<n} ||N||_2^k``.  ``delta = 10 n eps ||F||_F`` (the backward error of the eigenvalue
+    solve).  Finite for a defective F (a Jordan block of size k: ~ delta^(1/k)), where the
+    first-order floor of :func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor` is infinite.
+    """
+    import scipy.linalg
+
+    F = np.asarray(F, dtype=float)
+    n = F.shape[0]
+    if n == 0:
+        return 0.0
+    T, _ = scipy.linalg.schur(F, output="complex")
+    nn = float(np.linalg.norm(np.triu(T, 1), 2))
+    delta = 10.0 * n * _EPS * float(np.linalg.norm(F))
+    theta = delta * float(sum(nn ** k for k in range(n)))
+    return max(theta, theta ** (1.0 / n)) if np.isfinite(theta) else float("inf")
+
+
 def stability_check(F: NDArray, discrete: bool) -> Check:
-    """``stability_margin``: the poles of F must be stable by more than their rounding level."""
+    """``stability_margin``: the poles of F must be stable by more than their rounding level: the
+    first-order level (eigenvalue condition numbers) or, where it is larger (a nearly defective F,
+    e.g. a deadbeat filter's Jordan block at 0), :func:`henrici_bound`."""
     poles = np.linalg.eigvals(F)
     floor = eigenvalue_rounding_floor(F)
     level = (floor if np.isfinite(floor) else 1.0) * max(1.0, float(np.linalg.norm(F, 2)))
+    level = min(level, henrici_bound(F))
     if discrete:
         return Check.at_least("stability_margin", 1.0 - float(np.max(np.abs(poles))), level,
                               "1 - max |eig(A - L C)| must exceed the rounding level of the poles")
