@@ -216,3 +216,26 @@ def test_progress_shows_in_a_notebook_without_a_terminal(monkeypatch):
     assert p.enabled and err.getvalue().splitlines()[-1].startswith("demo: 2/2 steps")
     fake.get_ipython = lambda: None  # plain IPython loaded, no kernel
     assert prog.in_notebook() is False
+
+
+def test_pareto_with_progress_false_is_silent_in_a_notebook(monkeypatch):
+    """``studies.pareto(progress=False)``: its anchors and levels are designs of their own, whose
+    automatic progress turns on in a notebook; a study's point never reports its starts."""
+    import types
+
+    import optdesign._progress as prog
+    from optdesign import Plant
+    from optdesign.regions import Disk, HalfPlane
+    from optdesign.studies import pareto
+
+    fake = types.ModuleType("IPython")
+    fake.get_ipython = lambda: _FakeKernel()
+    monkeypatch.setitem(sys.modules, "IPython", fake)
+    monkeypatch.setattr(prog, "_tqdm_class", lambda notebook=False: None)
+    err = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    plant = Plant([[0.0, 1.0], [-2.0, -0.5]], [[1.0, 0.0]])
+    front = pareto(plant, HalfPlane(0.5) & Disk(0, 10), ("kappa2", "gain_norm"), levels=2, starts=1,
+                   progress=False)
+    assert front.front()
+    assert err.getvalue() == ""

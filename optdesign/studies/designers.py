@@ -530,8 +530,10 @@ class _RegionSession:
             pool = [(math.inf, d.initial_gain)]
         if d.placement != "pool":
             pool = pool[:1]  # the previous point's best design alone
+        # progress=False: a point of a study never reports its own starts (the sweep reports points;
+        # "automatic" would show every design's bar in a notebook)
         kw: dict[str, Any] = {"region": region, "seed": d.seed_for(**point), "time_limit": deadline,
-                              **{k: vals.get(k) for k in _BOUNDS}}
+                              "progress": False, **{k: vals.get(k) for k in _BOUNDS}}
         warm: dict[str, Any] = {}
         if pool:
             warm = {"warm_start": pool[0][1], "warm_starts": [L for _, L in pool[1:]]}
@@ -725,7 +727,8 @@ class PoleTargetDesigner:
             from ..design.well_conditioned import well_conditioned_observer
 
             kw = {"objective": self.objective} if self.objective else {}
-            res = well_conditioned_observer(plant, poles=target, starts=self.starts, seed=self.seed, **kw)
+            res = well_conditioned_observer(plant, poles=target, starts=self.starts, seed=self.seed,
+                                            progress=False, **kw)
             vals = gain_values(plant, res.L)
             vals["solver_time"] = float(res.solver_stats.time)
         return DesignPoint(result=res, values=vals, status=res.status, message=res.message,
