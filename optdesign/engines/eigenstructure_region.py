@@ -53,9 +53,9 @@ from ..model.regions import Region
 from ..results import Status
 from .eigenstructure import (
     KAPPA2_CONTINUATION,
+    MEASURES,
     DefectivePolesError,
     EigenstructureEngine,
-    MEASURES,
     FixedPoleModel,
     Measure,
     left_spectral_objective,
