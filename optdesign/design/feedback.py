@@ -357,8 +357,9 @@ def _region_feedback(pl: Plant, A: NDArray, B: NDArray, dual: Plant, region: Reg
                                  starts=options.get("starts"), seed=int(options.get("seed", 0)),
                                  deadline=deadline, dual_K=dual_K)
     if f is None:   # nothing verified in controller mode: the dual route's answer, as it is
-        return _feedback_from_observer(obs, A, B, plant=pl, target=None, region=used, discrete=pl.is_discrete,
-                                       stable=True)
+        d = _feedback_from_observer(obs, A, B, plant=pl, target=None, region=used, discrete=pl.is_discrete,
+                                    stable=True)
+        return dataclasses.replace(d, message=d.message + "; the controller mode found no verified design")
     answered = f["chosen"] == "dual"
     dual_stages = [Stage(f"dual route (observer of (A', B'), left eigenvectors): {s.name}", s.kind,
                          s.outcome if answered or s.outcome != "answered" else Status(obs.status).value,
@@ -373,7 +374,9 @@ def _region_feedback(pl: Plant, A: NDArray, B: NDArray, dual: Plant, region: Reg
     return FeedbackDesign(K=f["K"], poles=f["poles"], kappa2=f["kappa2"], kappa2_right=f["kappa2_right"],
                           eta=f["eta"], kappa_fro=f["kappa_fro"], gain_norm=f["gain_norm"],
                           objective=obs.objective, region=used, observer=obs, plant=pl, X=f["X"],
-                          status=f["status"], message=f["message"],
+                          status=f["status"], message=f["message"] + (
+                              "; the dual route (a start) reached its half of the time limit"
+                              if Status(obs.status) == Status.TIME_LIMIT else ""),
                           solver_stats=solver_stats, verification=f["verification"], certificate=None,
                           target_poles=None, route=Route(dual_stages + list(f["route"])), extra=extra)
 
