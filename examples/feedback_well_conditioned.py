@@ -10,10 +10,10 @@ they differ in how sensitive those poles are to errors in A.  The script compare
   exists, with its guaranteed margins;
 
 by kappa2 of the closed-loop eigenvectors (right, scipy's ``cond(X)``, what optdesign minimizes
-for state feedback since 0.2.0, and left, the dual observer's measure), ``||K||``, the CPU time, and
-how far the closed-loop poles move when A is perturbed by
-random relative errors of 1e-2 (500 samples; figure ``feedback_knv1985_ex1.png`` in the build folder,
-``examples/_build/`` or ``$OPTDESIGN_EXAMPLES_OUT``).
+for state feedback since 0.2.0 -- with fixed poles and with poles free in a region -- and left, the
+measure of the dual observer, shown for comparison), ``||K||``, the CPU time, and how far the
+closed-loop poles move when A is perturbed by random relative errors of 1e-2 (500 samples; figure
+``feedback_knv1985_ex1.png`` in the build folder, ``examples/_build/`` or ``$OPTDESIGN_EXAMPLES_OUT``).
 
 Run (headless)::
 

@@ -19,12 +19,14 @@ controller answer at no cost:
 
 What "kappa2" measures.  State feedback is measured by ``cond(X)`` of the unit-column *right*
 eigenvectors ``X`` of ``A - B K`` (scipy's ``X``, MATLAB's ``place``, Kautsky-Nichols-Van Dooren,
-Byers-Nash, Chu).  With fixed poles and no bounds the placement engine runs in controller mode and
-minimizes exactly that (:mod:`optdesign.design.feedback_controller`); ``kappa2`` and
-``kappa2_right`` are then equal.  The routes that design the observer of the dual pair (poles in a
-region, gain or trade-off bounds, structural zeros, objective eta) minimize kappa2 of the
-unit-column eigenvectors of ``(A - B K)'``, i.e. of the *left* eigenvectors of ``A - B K``;
-``kappa2`` is then that, and ``kappa2_right`` is ``cond(X)`` beside it.  The two are eigenvector
+Byers-Nash, Chu).  With fixed poles, or poles free in a region, and no bounds the placement engine
+runs in controller mode and minimizes exactly that (:mod:`optdesign.design.feedback_controller`;
+in a region from the usual starts and from the dual route's design, so never worse than it);
+``kappa2`` and ``kappa2_right`` are then equal and ``extra["mode"]`` says ``controller``.  The
+routes that design the observer of the dual pair (gain or trade-off bounds, structural zeros,
+objective eta) minimize kappa2 of the unit-column eigenvectors of ``(A - B K)'``, i.e. of the
+*left* eigenvectors of ``A - B K``; ``kappa2`` is then that, ``kappa2_right`` is ``cond(X)``
+beside it, and the message and ``extra["mode"]`` say which measure was optimized.  The two are eigenvector
 matrices of the same spectrum, within ``sqrt(n)`` of the optimally scaled condition number of each
 other (van der Sluis), close but not equal.
 
@@ -41,6 +43,7 @@ van der Sluis, A., "Condition numbers and equilibration of matrices", Numer. Mat
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -57,7 +60,7 @@ from ..errors import NotControllableError, ValidationError
 from ..model.coerce import as_system
 from ..model.plant import Plant
 from ..model.regions import Region
-from ..results import Check, DesignResult, Route, Status, Verification
+from ..results import Check, DesignResult, Route, Stage, Status, Verification
 from .feedback_controller import ackermann_fields, controller_fields, input_rank, needs_ackermann
 from .inverse_kalman import kalman_for_poles
 from .verification import pole_check, stability_check
@@ -179,9 +182,10 @@ class FeedbackDesign(DesignResult):
     poles : (n,) ndarray of complex
         ``eig(A - B K)`` by numpy, sorted by real then imaginary part.
     kappa2 : float
-        What was minimized: ``cond(X)`` of the unit-column right eigenvectors of ``A - B K`` (fixed
-        poles, controller mode; infinite for a defective loop), or in the dual route kappa2 of the
-        unit-column eigenvectors of ``(A - B K)'`` (see the module notes).
+        What was minimized: ``cond(X)`` of the unit-column right eigenvectors of ``A - B K``
+        (controller mode, fixed poles or a region; infinite for a defective loop), or in the dual
+        route kappa2 of the unit-column eigenvectors of ``(A - B K)'`` (see the module notes;
+        ``extra["mode"]`` says which).
     kappa2_right : float
         ``cond(X)``: kappa2 of the unit-column right eigenvectors of ``A - B K`` (scipy's measure).
     eta, kappa_fro, gain_norm : float
@@ -193,6 +197,11 @@ class FeedbackDesign(DesignResult):
     X : (n, n) ndarray of complex or None
         Controller mode: the verified unit-column right eigenvectors of ``A - B K`` whose condition
         number is ``kappa2`` (columns in the engine's pole order); None otherwise.
+    extra : dict
+        ``"mode"``: :data:`CONTROLLER_MODE` or :data:`DUAL_MODE`.  Region mode in controller mode
+        also: ``kappa2_dual_route`` (cond(X) of the dual route's design, a start),
+        ``kappa2_left`` (the dual measure of K), ``chosen`` (``"dual"``, ``"region"`` or
+        ``"polish"``: which candidate answered).
     plant : Plant
         The plant (with B).
     verification : Verification
@@ -233,13 +242,17 @@ def _feedback_from_observer(obs: Any, A: NDArray, B: NDArray, *, plant: Plant | 
         poles, k_right = np.full(A.shape[0], np.nan + 0j), float("nan")
     v = Verification.of(checks)
     message = _primal_words(obs.message)
+    measure = (f"; measure optimized: {obs.objective} of the LEFT eigenvectors of A - B K (the dual "
+               f"observer's), "
+               f"not cond(X) of the right ones (kappa2_right = {k_right:.6g})")
     return FeedbackDesign(K=K, poles=poles, kappa2=obs.kappa2, kappa2_right=k_right, eta=obs.eta,
                           kappa_fro=obs.kappa_fro, gain_norm=obs.gain_norm, objective=obs.objective,
                           region=region, observer=obs, plant=plant, status=obs.status,
-                          message=f"state feedback by duality: {message}", solver_stats=obs.solver_stats,
+                          message=f"state feedback by duality: {message}{measure}",
+                          solver_stats=obs.solver_stats,
                           verification=v, certificate=getattr(obs, "certificate", None),
                           target_poles=target, route=getattr(obs, "route", Route()),
-                          extra={"dual": "observer of (A', B'), K = L'"})
+                          extra={"dual": "observer of (A', B'), K = L'", "mode": DUAL_MODE})
 
 
 @one_warning_per_call
@@ -248,8 +261,17 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
                               **options: Any) -> FeedbackDesign:
     """State-feedback gain K whose closed loop ``A - B K`` has a well-conditioned eigenbasis.
 
+    Objective kappa2 / kappa_fro without bounds or structural zeros (controller mode): ``cond(X)``
+    of the unit-column right eigenvectors ``X`` of ``A - B K`` is minimized (scipy's measure).  Fixed
+    poles: the placement engine in controller mode.  Poles in a region:
     :func:`~optdesign.design.well_conditioned.well_conditioned_observer` on the dual plant
-    ``(A', B')``, then ``K = L'``, re-verified on ``A - B K``.
+    ``(A', B')`` first (half the ``time_limit``; its design ``K = L'`` minimizes the dual measure),
+    then the region engine in controller mode from that design and the usual region starts, then the
+    fixed-pole controller mode at the final poles; the best verified design on ``cond(X)`` is
+    returned (never worse than the dual route's).  With ``max_gain``, ``kappa2_max``, ``eta_max``,
+    ``structure``, objective eta or an NLP asked for, the dual route answers alone (its measure, the
+    *left* eigenvectors of ``A - B K``, said in the message and ``extra["mode"]``).  Every answer
+    is re-verified on ``A - B K``.
 
     Parameters
     ----------
@@ -302,6 +324,8 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
                                     options)
         if fields is not None:
             return _feedback_from_fields(fields, pl, target, options.get("objective", "kappa2"))
+    if target is None and mask is None and _controller_region_ok(options):
+        return _region_feedback(pl, A, B, dual, region, allow_unstable, options)
     obs = well_conditioned_observer(dual, poles=target, region=region, structure=mask,
                                     allow_unstable=allow_unstable, **options)
     return _feedback_from_observer(obs, A, B, plant=pl, target=target, region=region,
@@ -310,6 +334,60 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
 
 #: options of :func:`well_conditioned_feedback` that send fixed poles to the dual route (the NLP)
 _DUAL_ROUTE_OPTIONS = ("max_gain", "kappa2_max", "eta_max", "nlp_solver", "solver")
+
+#: ``extra["mode"]`` of a design on state feedback's own measure, and of one by the dual route
+CONTROLLER_MODE = "controller: cond(X) of the right eigenvectors of A - B K"
+DUAL_MODE = "dual: kappa2 of the left eigenvectors of A - B K (the observer of (A', B'))"
+
+
+def _controller_region_ok(options: dict[str, Any]) -> bool:
+    """Region mode on state feedback's own measure: kappa2 / kappa_fro without bounds or an NLP asked
+    for (eta, bounds and structural zeros stay on the dual route, which says so)."""
+    return options.get("objective", "kappa2") in ("kappa2", "kappa_fro") and not any(
+        options.get(k) is not None for k in _DUAL_ROUTE_OPTIONS)
+
+
+def _region_feedback(pl: Plant, A: NDArray, B: NDArray, dual: Plant, region: Region | None,
+                     allow_unstable: bool, options: dict[str, Any]) -> FeedbackDesign:
+    """Poles free in a region, on ``cond(X)`` of ``A - B K``'s right eigenvectors: the dual route first
+    (half the time budget; it validates the question), then the region engine in controller mode from
+    its design and the usual starts (:func:`~.feedback_controller.region_controller_fields`)."""
+    from .._deadline import Deadline, as_time_limit
+    from ..model.regions import stability_region
+    from .feedback_controller import region_controller_fields
+
+    deadline = Deadline(as_time_limit(options.get("time_limit")))
+    dual_opts = dict(options, time_limit=deadline.fraction(0.5) if deadline.limited else None)
+    obs = well_conditioned_observer(dual, region=region, allow_unstable=allow_unstable, **dual_opts)
+    used = getattr(obs, "region", None) or region or stability_region(pl.is_discrete)
+    L = getattr(obs, "L", None)
+    dual_K = None if L is None or not np.all(np.isfinite(L)) else np.array(L, dtype=float).T
+    f = region_controller_fields(A, B, used, dual=dual, objective=obs.objective, discrete=pl.is_discrete,
+                                 starts=options.get("starts"), seed=int(options.get("seed", 0)),
+                                 deadline=deadline, dual_K=dual_K)
+    if f is None:   # nothing verified in controller mode: the dual route's answer, as it is
+        d = _feedback_from_observer(obs, A, B, plant=pl, target=None, region=used, discrete=pl.is_discrete,
+                                    stable=True)
+        return dataclasses.replace(d, message=d.message + "; the controller mode found no verified design")
+    answered = f["chosen"] == "dual"
+    dual_stages = [Stage(f"dual route (observer of (A', B'), left eigenvectors): {s.name}", s.kind,
+                         s.outcome if answered or s.outcome != "answered" else Status(obs.status).value,
+                         s.detail, s.time) for s in getattr(obs, "route", ())]
+    extra = {"mode": CONTROLLER_MODE, "dual": "the observer of (A', B') (K = L') was a start",
+             "kappa2_dual_route": f["kappa2_dual_route"],
+             "kappa2_left": float(metrics.kappa2((A - B @ f["K"]).T)),
+             "chosen": f["chosen"]}
+    stats = obs.solver_stats
+    solver_stats = dataclasses.replace(f["solver_stats"], time=(stats.time or 0.0) + f["solver_stats"].time,
+                                       iterations=(stats.iterations or 0) + f["solver_stats"].iterations)
+    return FeedbackDesign(K=f["K"], poles=f["poles"], kappa2=f["kappa2"], kappa2_right=f["kappa2_right"],
+                          eta=f["eta"], kappa_fro=f["kappa_fro"], gain_norm=f["gain_norm"],
+                          objective=obs.objective, region=used, observer=obs, plant=pl, X=f["X"],
+                          status=f["status"], message=f["message"] + (
+                              "; the dual route (a start) reached its half of the time limit"
+                              if Status(obs.status) == Status.TIME_LIMIT else ""),
+                          solver_stats=solver_stats, verification=f["verification"], certificate=None,
+                          target_poles=None, route=Route(dual_stages + list(f["route"])), extra=extra)
 
 
 def _controller_design(A: NDArray, B: NDArray, target: NDArray, discrete: bool, allow_unstable: bool,

@@ -41,14 +41,17 @@ from ..engines.eigenstructure_fixed import place_fixed
 from ..errors import DefectivePolesError
 from ..results import Check, Route, SolverStats, Stage, Status, Verification
 from .verification import (
+    POLE_FLOOR_CAP,
     eig_residual_check,
     eigen_spread,
     kappa2_agreement_check,
     pole_check,
+    region_margin_check,
     stability_check,
 )
 
 __all__ = ["input_rank", "needs_ackermann", "controller_fields", "ackermann_fields",
+           "region_controller_fields", "region_checks",
            "ackermann_observer", "backward_check", "charpoly_check",
            "POLE_TOL", "CHARPOLY_TOL"]
 
@@ -116,19 +119,21 @@ def _rename(checks: list[Check]) -> list[Check]:
 def controller_fields(A: NDArray, B: NDArray, target: NDArray, *, objective: str, discrete: bool,
                       stable: bool, starts: int | None, seed: int, time_limit: float | Deadline | None,
                       gain_mask: NDArray | None = None, max_iter: int = 400,
-                      final_ftol: float | None = None) -> dict[str, Any]:
+                      final_ftol: float | None = None, warm_start: NDArray | None = None) -> dict[str, Any]:
     """Fixed poles on the engine in controller mode; the fields of a ``FeedbackDesign`` (K, poles,
     kappa2 (= cond(X)), X, ...) with the verification on ``A - B K``.
 
     ``gain_mask`` (m, n) of bool: free entries of K.  ``max_iter`` and ``final_ftol`` as
     :func:`~optdesign.engines.eigenstructure_fixed.place_fixed` (the drop-in's ``maxiter``, ``rtol``).
+    ``warm_start`` (m, n): a gain K placing ``target`` (e.g. region mode's answer), one more start.
     """
     t0 = time.process_time()
     eng = EigenstructureEngine(A.T, B.T)
     out = place_fixed(eng.A, eng.C, target, objective=objective, starts=starts, seed=seed,  # type: ignore[arg-type]
                       deadline=Deadline.of(time_limit), engine=eng, measure="left", max_iter=max_iter,
                       gain_mask=None if gain_mask is None else np.asarray(gain_mask, dtype=bool).T,
-                      final_ftol=final_ftol)
+                      final_ftol=final_ftol,
+                      warm_start=None if warm_start is None else np.asarray(warm_start, dtype=float).T)
     cpu = time.process_time() - t0
     stage = Stage("eigenstructure_engine (controller mode: cond of the right eigenvectors of A - B K)",
                   "engine", "answered", out.message, cpu)
@@ -251,3 +256,175 @@ def ackermann_observer(plant: Any, target: NDArray, objective: str, *, stable: b
                           objective=objective, status=Status.SOLVED, message=msg, solver_stats=f["solver_stats"],
                           verification=Verification.of(checks), target_poles=target, plant=plant,
                           route=Route(f["route"]))
+
+
+# --------------------------------------------------------------------------- region mode
+def region_checks(A: NDArray, B: NDArray, K: NDArray, X: NDArray | None, region: Any, *,
+                  discrete: bool) -> tuple[list[Check], float, NDArray]:
+    """``(checks, cond(X), X)`` of a region-mode state-feedback gain, on ``A - B K`` itself.
+
+    ``feedback_region_margin`` (the region's tolerance: ``REGION_TOL`` or the poles' rounding floor,
+    relative to ``max(1, max |pole|)``), ``feedback_stability_margin``, and for the basis ``X``
+    (right eigenvectors of ``A - B K``, columns normalized here; None: numpy's) ``eig_residual`` and
+    ``kappa2_agreement`` (its condition number against ``metrics.kappa2``).  ``cond(X)`` is computed
+    here from the unit-column ``X`` (one SVD).
+    """
+    F = A - B @ K
+    summ = metrics.condition_summary(F)
+    floor = min(float(summ["rounding_floor"]), POLE_FLOOR_CAP)
+    rc = region_margin_check(region, np.linalg.eigvals(F), floor)
+    checks = [Check(name="feedback_region_margin", value=rc.value, tolerance=rc.tolerance, passed=rc.passed,
+                    sense=rc.sense, detail=rc.detail.replace("A - LC", "A - B K"))]
+    checks += _rename([stability_check(F, discrete)])
+    if X is None:
+        X, w = metrics.eigenvector_matrix(F, return_eigenvalues=True)
+    else:
+        X = np.asarray(X, dtype=complex)
+        X = X / np.linalg.norm(X, axis=0)
+        w = np.einsum("ij,ij->j", X.conj(), F @ X)   # Rayleigh quotients: the poles of the columns
+    s = np.linalg.svd(X, compute_uv=False)
+    k2 = float(s[0] / s[-1]) if s[-1] > 0 else math.inf
+    if not math.isfinite(k2):
+        checks.append(Check.at_most("feedback_kappa2_finite", math.inf, 0.0, "A - B K has no eigenbasis"))
+        return checks, k2, X
+    more, _ = _basis_checks(F, X, w, k2)
+    return checks + _rename(more), k2, X
+
+
+def region_controller_fields(A: NDArray, B: NDArray, region: Any, *, dual: Any, objective: str,
+                             discrete: bool, starts: int | None, seed: int, deadline: Deadline,
+                             dual_K: NDArray | None) -> dict[str, Any] | None:
+    """Poles free in ``region``, state feedback on its own measure.
+
+    The region engine in controller mode (``measure="left"`` on the dual pair ``(A', B')``: ``cond(X)``
+    of the unit-column right eigenvectors of ``A - B K``), one start at a time from the dual route's
+    design ``dual_K`` and the usual region starts of the dual plant ``dual``
+    (:func:`~.well_conditioned.starts.iter_region_starts`), then the fixed-pole controller mode
+    (:func:`controller_fields`, warm-started) at the final poles.  Every candidate, the dual route's
+    design too, is verified on ``A - B K`` (:func:`region_checks`) and the best verified one on
+    ``cond(X)`` is returned: never worse than the dual route's.
+
+    Returns
+    -------
+    dict or None
+        The fields of a ``FeedbackDesign`` (as :func:`controller_fields`), plus ``chosen``
+        (``"dual"``, ``"region"`` or ``"polish"``) and ``kappa2_dual_route``; None when no candidate
+        passed its checks.
+    """
+    from ..engines.eigenstructure_region import RegionStart
+    from ..errors import OptDesignError
+    from .well_conditioned.problem import AUTO_REGION_STARTS
+    from .well_conditioned.starts import iter_region_starts
+
+    t0 = time.process_time()
+    best: tuple | None = None     # (cond X, K, X, checks, chosen)
+    specs: list[RegionStart] = []
+    if dual_K is not None and np.all(np.isfinite(dual_K)):
+        specs.append(RegionStart("the dual route's design", np.linalg.eigvals(A - B @ dual_K), dual_K.T))
+        best = _verified(A, B, dual_K, None, region, discrete, "dual", best)
+    k2_dual = best[0] if best is not None else math.nan
+    rng = np.random.default_rng(seed)
+    n_starts = AUTO_REGION_STARTS if starts is None else int(starts)
+    specs += [RegionStart(o, np.asarray(P0, dtype=complex), L0)
+              for o, L0, _, P0 in iter_region_starts(dual, region, n_starts, rng, None)]
+    out, done, its, timed_out = _region_engine(A, B, region, specs, objective, seed, deadline)
+    if out is not None:
+        best = _verified(A, B, out.L.T, out.V, region, discrete, "region", best)
+    detail = (f"{done} of {len(specs)} starts, the dual route's design first"
+              + (", time limit reached" if timed_out else ""))
+    stages = [("eigenstructure_engine, free poles (controller mode: cond(X) of the right eigenvectors of "
+               "A - B K)", "engine", detail, time.process_time() - t0)]
+    t1 = time.process_time()
+    note = "skipped: no design or no time left"
+    if best is not None and not deadline.expired:
+        prev: tuple = best
+        try:
+            f = _polish(A, B, prev[1], objective, discrete, seed, deadline)
+        except (OptDesignError, np.linalg.LinAlgError) as exc:   # e.g. the final poles repeat
+            note = f"skipped: {type(exc).__name__}"
+        else:
+            if f is None:
+                note = "skipped: a repeated pole with one input (the gain is fixed by the poles)"
+                f = {"K": None, "solver_stats": SolverStats(backend="none")}
+            its += int(f["solver_stats"].iterations or 0)
+            if f["K"] is not None:
+                new: tuple = _verified(A, B, f["K"], f["X"], region, discrete, "polish", prev) or prev
+                note = f"cond(X) {prev[0]:.6g} -> {new[0]:.6g}" if new is not prev else "no better design"
+                best = new
+    stages.append(("eigenstructure_engine, fixed poles at the final poles (controller mode)", "polish", note,
+                   time.process_time() - t1))
+    if best is None:
+        return None
+    return _region_fields(A, B, best, stages, k2_dual=k2_dual, its=its, timed_out=timed_out,
+                          inaccurate=out is not None and out.status == Status.ITERATION_LIMIT,
+                          cpu=time.process_time() - t0)
+
+
+def _polish(A: NDArray, B: NDArray, K: NDArray, objective: str, discrete: bool, seed: int,
+            deadline: Deadline) -> dict[str, Any] | None:
+    """:func:`controller_fields` at the poles of ``A - B K``, warm-started from ``K`` (None: a repeated
+    pole with one input, the gain is fixed by the poles)."""
+    P = np.linalg.eigvals(A - B @ K)
+    if needs_ackermann(P, input_rank(B)):
+        return None
+    return controller_fields(A, B, P, objective=objective, discrete=discrete, stable=True, starts=None,
+                             seed=seed, time_limit=deadline, warm_start=K)
+
+
+def _verified(A: NDArray, B: NDArray, K: NDArray, X: NDArray | None, region: Any, discrete: bool, chosen: str,
+              best: tuple | None) -> tuple | None:
+    """``best``, or the candidate ``K`` if its checks pass and its ``cond(X)`` is smaller."""
+    checks, k2, Xu = region_checks(A, B, K, X, region, discrete=discrete)
+    if Verification.of(checks).passed and math.isfinite(k2) and (best is None or k2 < best[0]):
+        return (k2, np.asarray(K, dtype=float), Xu, checks, chosen)
+    return best
+
+
+def _region_engine(A: NDArray, B: NDArray, region: Any, specs: list[Any], objective: str, seed: int,
+                   deadline: Deadline) -> tuple[Any, int, int, bool]:
+    """``place_region`` in controller mode, one start at a time (a start the engine refuses is
+    skipped); ``(best outcome or None, starts run, iterations, timed out)``."""
+    from ..engines.eigenstructure_region import place_region
+    from ..errors import OptDesignError
+
+    eng = EigenstructureEngine(A.T, B.T)
+    best, done, its, timed_out = None, 0, 0, False
+    for idx, st in enumerate(specs):
+        if idx and deadline.expired:
+            return best, done, its, True
+        try:
+            out = place_region(eng.A, eng.C, region, objective=objective, starts=[st], n_samples=0,
+                               seed=seed + idx, deadline=deadline, engine=eng, measure="left")
+        except (OptDesignError, np.linalg.LinAlgError):
+            continue
+        done, its = done + 1, its + int(out.iterations)
+        timed_out |= out.status == Status.TIME_LIMIT
+        if np.all(np.isfinite(out.L)) and (best is None or out.objective_value < best.objective_value):
+            best = out
+    return best, done, its, timed_out
+
+
+def _region_fields(A: NDArray, B: NDArray, best: tuple, stages: list[tuple], *, k2_dual: float, its: int,
+                   timed_out: bool, inaccurate: bool, cpu: float) -> dict[str, Any]:
+    """The fields of the chosen region-mode design ``best = (cond X, K, X, checks, chosen)``."""
+    k2, K, X, checks, chosen = best
+    F = A - B @ K
+    status = Status.TIME_LIMIT if timed_out else Status.OPTIMAL_INACCURATE if inaccurate else Status.OPTIMAL
+    answered = {"region": 0, "polish": 1}.get(chosen)
+    route = []
+    for i, (name, kind, detail, t) in enumerate(stages):
+        outcome = ("answered" if i == answered else "unchanged" if kind == "polish" else
+                   "improved" if chosen == "polish" else status.value)
+        route.append(Stage(name, kind, outcome, detail, t))
+    src = {"dual": "the dual route's design (the controller mode did not improve on it)",
+           "region": "the region engine in controller mode",
+           "polish": "the fixed-pole controller mode at the region engine's poles"}[chosen]
+    msg = (f"state feedback, controller mode, poles free in the region: cond(X) of the unit-column right "
+           f"eigenvectors of A - B K = {k2:.6g}, from {src}; the dual route's design: {k2_dual:.6g}"
+           + (" (time limit reached: best so far)" if timed_out else ""))
+    kf = float(np.linalg.norm(X) * np.linalg.norm(np.linalg.inv(X)))
+    stats = SolverStats(backend="eigenstructure", native_status=status.value, time=cpu, iterations=its)
+    return dict(K=K, poles=sort_poles(np.linalg.eigvals(F)), X=X, kappa2=k2, kappa2_right=k2,
+                eta=float(metrics.eta(F)), kappa_fro=kf, gain_norm=float(np.linalg.norm(K, 2)), status=status,
+                message=msg, verification=Verification.of(checks), solver_stats=stats, route=tuple(route),
+                outcome=None, chosen=chosen, kappa2_dual_route=k2_dual)

@@ -53,9 +53,12 @@ from ..model.regions import Region
 from ..results import Status
 from .eigenstructure import (
     KAPPA2_CONTINUATION,
+    MEASURES,
     DefectivePolesError,
     EigenstructureEngine,
     FixedPoleModel,
+    Measure,
+    left_spectral_objective,
     padded_bases,
     spectral_objective,
 )
@@ -128,6 +131,10 @@ class RegionModel:
         Conjugate-closed poles that are not variables (the unobservable modes).
     interior : (float, float), optional
         ``(x0, rho)`` of :func:`interior_of` when the caller has it (it costs a golden-section search).
+    measure : {"right", "left"}, default "right"
+        Which eigenvectors of ``A - L C`` the objective measures, as
+        :class:`~optdesign.engines.eigenstructure.FixedPoleModel` (``"left"``: state feedback's
+        ``cond(X)`` of the transposed loop).
 
     Raises
     ------
@@ -143,9 +150,13 @@ class RegionModel:
         region: Region,
         pinned: ArrayLike = (),
         interior: tuple[float, float] | None = None,
+        measure: Measure = "right",
     ) -> None:
+        if measure not in MEASURES:
+            raise ValidationError(f"measure must be one of {MEASURES}; found {measure!r}")
         self.engine = engine
         self.region = region
+        self.measure = measure
         n, r = engine.n, engine.rank
         pin = np.asarray(pinned, dtype=complex).ravel()
         pin_real = np.sort(pin[pin.imag == 0].real)
@@ -294,7 +305,7 @@ class RegionModel:
             return f, G
         W, Br, Bp = m["W"][idx], m["Br"][idx], m["Bp"][idx]
         try:
-            fs, Kg, _ = spectral_objective(W, objective, k)
+            fs, Kg = self._objective(W, objective, k)
         except np.linalg.LinAlgError:
             fs, Kg = self._each(W, np.arange(idx.size), objective, k)
         assert Kg is not None  # a gradient was asked for
@@ -333,11 +344,20 @@ class RegionModel:
         K = np.zeros((idx.size,) + W.shape[1:], dtype=W.dtype)
         for i, j in enumerate(idx):
             try:
-                fi, Ki, _ = spectral_objective(W[j : j + 1], objective, k)
+                fi, Ki = self._objective(W[j : j + 1], objective, k)
             except np.linalg.LinAlgError:
                 continue
             fs[i], K[i] = fi[0], Ki[0]
         return fs, K
+
+    def _objective(self, W: NDArray, objective: str, k: int | None) -> tuple[NDArray, NDArray]:
+        """``(f, K = df/dW)`` of the measured eigenvectors (right: ``W^-1``; left: the rows of ``W``)."""
+        if self.measure == "left":
+            f, K = left_spectral_objective(W, objective, k)
+        else:
+            f, K, _ = spectral_objective(W, objective, k)
+        assert K is not None  # a gradient was asked for
+        return f, K
 
     def _pole_derivative(self, N, Na, Q1, R1, Kj, c, directions) -> list[NDArray]:
         """``Re sum_k conj(K_jk) dw_jk`` per unit change of each pole along ``directions`` (1: the real
@@ -407,7 +427,8 @@ class RegionModel:
         finally:
             self.anchor_r, self.anchor_p = keep
         P = self.poles(x)
-        model = FixedPoleModel(self.engine, P, tol=0.0)  # a pair near the real axis stays a pair
+        # a pair near the real axis stays a pair
+        model = FixedPoleModel(self.engine, P, tol=0.0, measure=self.measure)
         return model, model.coords_from_rows(_reorder(W, P, model.poles))
 
     def coords_of(self, fixed: FixedPoleModel, X: NDArray) -> NDArray[np.float64]:
@@ -568,6 +589,7 @@ def place_region(
     seed: int = 0,
     deadline: Deadline | float | None = None,
     engine: EigenstructureEngine | None = None,
+    measure: Measure = "right",
 ) -> PlacementOutcome:
     """Observer gain minimizing kappa2 (or kappa_fro) of ``A - L C`` with its poles free in ``region``.
 
@@ -592,6 +614,11 @@ def place_region(
         returned with status ``time_limit``.
     engine : EigenstructureEngine, optional
         Re-use an engine built for ``(A, C)`` (``A`` and ``C`` are then ignored).
+    measure : {"right", "left"}, default "right"
+        Which eigenvectors of ``A - L C`` kappa2 / kappa_fro measure (as
+        :func:`~optdesign.engines.eigenstructure_fixed.place_fixed`): ``"left"`` is state feedback's
+        ``cond(X)`` of the transposed loop ``A' - C' L'`` (controller mode); the outcome's ``V`` is then
+        that ``X``.
 
     Returns
     -------
@@ -641,7 +668,7 @@ def place_region(
         if dl.expired:
             timed_out = True
             break
-        rec, best, to = _one_start(eng, region, st, pinned, objective, rng, dl)
+        rec, best, to = _one_start(eng, region, st, pinned, objective, rng, dl, measure)
         timed_out |= to
         records.append(rec)
         if best is not None:
@@ -671,7 +698,7 @@ def place_region(
     )
 
 
-def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
+def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl, measure: Measure = "right"):
     """Candidates of one start: its gain, the fixed-pole optimum at its poles, and the region
     optimum from the start and from that fixed-pole optimum (two members of one batch), each
     polished at its final poles.  ``(record, best candidate or None, timed_out)``."""
@@ -682,7 +709,7 @@ def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
     best: tuple | None = None
     timed_out = False
     try:
-        fixed = FixedPoleModel(eng, P0)
+        fixed = FixedPoleModel(eng, P0, measure=measure)
     except DefectivePolesError:
         return StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 0, "defective start", 0.0), None, False
     L0 = st.gain if st.gain is not None else peer_start(eng.A, eng.C, fixed.poles, "YT")
@@ -707,7 +734,7 @@ def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
 
     if st.gain is not None:
         try:  # the start's own gain, unoptimized (never worse than the caller's start)
-            gm = FixedPoleModel(eng, np.linalg.eigvals(eng.A - st.gain @ eng.C))
+            gm = FixedPoleModel(eng, np.linalg.eigvals(eng.A - st.gain @ eng.C), measure=measure)
             xg = gm.coords_from_gain(st.gain)
             if xg is not None:
                 consider(gm, xg, "start gain")
@@ -724,7 +751,7 @@ def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
     timed_out |= ra == "time_limit"
     # (B) free poles, from the start and from (A) (a warm start: from (A) only)
     nrf, npf = _structure(fixed.poles, pinned)
-    model = RegionModel(eng, nrf, npf, region, pinned, interior)
+    model = RegionModel(eng, nrf, npf, region, pinned, interior, measure)
     X = model.coords_of(fixed, xa[None, :] if st.warm else np.stack([x0, xa]))
     reasons = ["converged"] * X.shape[0]
     stages = REGION_WARM_STAGES if st.warm else REGION_STAGES
