@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from .._deadline import Deadline
 from .._validate import as_int, as_positive_float
+from ..analysis.linalg import sym
 from ..backends.clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
 from ..results import Status
 
@@ -93,7 +94,7 @@ def _max_step(Li: NDArray, D: NDArray) -> float:
     """The largest a with ``F + a D >= 0`` for ``F = Lf Lf'``, ``Li = Lf^-1`` (inf when D >= 0)."""
     W = Li @ D @ Li.T
     w, _, _, _, info = _dsyevr(W, compute_v=0, range="I", il=1, iu=1)
-    lam = float(w[0]) if info == 0 else float(np.linalg.eigvalsh(_sym(W))[0])
+    lam = float(w[0]) if info == 0 else float(np.linalg.eigvalsh(sym(W))[0])
     return np.inf if lam >= 0 else -1.0 / lam
 
 
@@ -106,10 +107,6 @@ def _chol_inv(F: NDArray) -> tuple[NDArray, NDArray]:
     if info != 0:
         raise np.linalg.LinAlgError("singular Cholesky factor")
     return Lf, Li
-
-
-def _sym(W: NDArray) -> NDArray:
-    return 0.5 * (W + W.T)
 
 
 def _schur(B: NDArray, Lx: NDArray, Lzi: NDArray) -> NDArray:
@@ -243,7 +240,7 @@ def _iterate(B, b, X, Z, y, Rd):
         dy, _ = _dpotrs(Mc, rhs, lower=1)
         dZ = Rd - (dy @ Bf).reshape(n, n)
         W = X @ dZ if corr is None else X @ dZ + corr
-        dX = sigma * mu * Zi - X - _sym(W @ Zi)
+        dX = sigma * mu * Zi - X - sym(W @ Zi)
         return dX, dy, dZ
 
     def steps(dX, dZ, gamma):
@@ -255,7 +252,7 @@ def _iterate(B, b, X, Z, y, Rd):
     sigma = min(1.0, (mu_aff / mu) ** 3) if mu > 0 else 0.0
     dX, dy, dZ = direction(sigma, dXa @ dZa)
     ap, ad = steps(dX, dZ, 0.9 + 0.09 * min(ap, ad))
-    Xn, Zn = _sym(X + ap * dX), _sym(Z + ad * dZ)
+    Xn, Zn = sym(X + ap * dX), sym(Z + ad * dZ)
     return Xn, Zn, y + ad * dy
 
 

@@ -10,16 +10,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis.linalg import commutation, sym
 from ..classical.placement import pole_error
 from ..formulate.inverse_kalman import (
     fixed_gain_maps,
     noise_input,
     tril_index,
 )
-
-
-def sym(X: NDArray) -> NDArray:
-    return 0.5 * (X + X.T)
 
 
 def min_norm_lstsq(M: NDArray, b: NDArray) -> NDArray:
@@ -83,15 +80,6 @@ def lower_rows(n: int) -> NDArray[np.intp]:
     """Positions of the svec entries in the column-major vec."""
     I, J = tril_index(n)
     return J * n + I
-
-
-def commutation(k: int, r: int) -> NDArray:
-    """K with vec(V') = K vec(V) for a (k, r) matrix V."""
-    K = np.zeros((k * r, k * r))
-    for i in range(k):
-        for j in range(r):
-            K[i * r + j, j * k + i] = 1.0
-    return K
 
 
 def vec_f(X: NDArray) -> NDArray:

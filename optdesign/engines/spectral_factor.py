@@ -51,6 +51,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis.linalg import commutation
 from ..errors import ValidationError
 
 __all__ = [
@@ -403,7 +404,7 @@ class FactorProblem:
         Hvv = np.kron(np.eye(r), 2.0 * S)
         if self.objective == "nearest":
             E = V @ V.T - self.nominal
-            Jd = np.kron(V, np.eye(k)) + np.kron(np.eye(k), V) @ _commutation(k, r)
+            Jd = np.kron(V, np.eye(k)) + np.kron(np.eye(k), V) @ commutation(k, r)
             Hvv += 2.0 * Jd.T @ Jd + 4.0 * np.kron(np.eye(r), E)
         H[:self.nv, :self.nv] = Hvv[np.ix_(self.idx, self.idx)]
         if not self.fixed_g:
@@ -505,14 +506,6 @@ class FactorProblem:
         qn = float(np.sum(V * V)) + abs(t) * V.shape[0]   # >= ||Qdec||_2
         bl = self.blocks
         return float(np.max(bl.w * (bl.norms[0] + bl.norms[1] * qn)))
-
-
-def _commutation(k: int, r: int) -> NDArray[np.float64]:
-    """K with vec(V') = K vec(V) for a (k, r) matrix V (column-major vec)."""
-    K = np.zeros((k * r, k * r))
-    i, j = np.meshgrid(np.arange(k), np.arange(r), indexing="ij")
-    K[(i * r + j).ravel(), (j * k + i).ravel()] = 1.0
-    return K
 
 
 def residual_scale(problem: FactorProblem, x: NDArray) -> float:
