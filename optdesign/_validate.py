@@ -20,6 +20,7 @@ from .errors import (
     NotPositiveDefiniteError,
     NotPositiveSemidefiniteError,
     NotSymmetricError,
+    OptDesignDeprecationWarning,
     ValidationError,
 )
 
@@ -452,7 +453,7 @@ _UNSET: Any = object()
 def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *, stacklevel: int = 4) -> Any:
     """An argument renamed in the one vocabulary of the verbs (``structure`` -> ``q_structure``,
     ``solver`` -> ``sdp_solver``, ...): the old spelling is accepted for one release with a
-    :class:`DeprecationWarning`; both at once is an error.
+    :class:`~optdesign.errors.OptDesignDeprecationWarning`; both at once is an error.
 
     ``new_value`` / ``old_value`` are what the caller passed (``None`` = not given); returns the value
     to use (``default`` when neither was given).
@@ -469,7 +470,7 @@ def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *,
     if new_value is not None:
         raise ValidationError(f"give {new}= or its old spelling {old}=, not both")
     warnings.warn(f"{old}= is deprecated: use {new}= (the old spelling goes in the next release)",
-                  DeprecationWarning, stacklevel=stacklevel)
+                  OptDesignDeprecationWarning, stacklevel=stacklevel)
     return old_value
 
 

@@ -37,6 +37,7 @@ __all__ = [
     "ProblemFileError",
     "OutputPathError",
     "OutputExistsError",
+    "OptDesignDeprecationWarning",
 ]
 
 
@@ -214,3 +215,9 @@ class OutputExistsError(OptDesignError, FileExistsError):
 
     def __str__(self) -> str:  # OSError's str of one argument is the message; keep it so
         return str(self.args[0]) if self.args else ""
+
+
+class OptDesignDeprecationWarning(DeprecationWarning):
+    """A deprecated spelling of optdesign's own (an old argument name, alias or no-op), accepted for
+    one release.  Its own class so that a test run can turn exactly these into errors
+    (``-W error::optdesign.errors.OptDesignDeprecationWarning``) without the third-party ones."""
