@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 from scipy.linalg import blas
 
 from .._deadline import Deadline
+from .tolerances import ARMIJO_C1, QN_FTOL, QN_XTOL, WOLFE_C2
 
 __all__ = ["QNResult", "bfgs_minimize", "bfgs_minimize_batch"]
 
@@ -173,14 +174,14 @@ def bfgs_minimize_batch(
     *,
     max_iter: int = 500,
     max_eval: int = 5000,
-    ftol: float = 1e-10,
+    ftol: float = QN_FTOL,
     gtol: float = 0.0,
     window: int = 8,
     deadline: Deadline | None = None,
     H0: list[NDArray[np.float64] | None] | None = None,
-    c1: float = 1e-4,
-    c2: float = 0.9,
-    xtol: float = 1e-10,
+    c1: float = ARMIJO_C1,
+    c2: float = WOLFE_C2,
+    xtol: float = QN_XTOL,
     pass_index: bool = False,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
     """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.

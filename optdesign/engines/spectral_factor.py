@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 
 from ..analysis.linalg import commutation
 from ..errors import ValidationError
+from .tolerances import RESIDUAL_ROUNDING_FACTOR, rounding_level
 
 __all__ = [
     "SpectralBlocks",
@@ -62,7 +63,6 @@ __all__ = [
     "residual_scale",
 ]
 
-_EPS = float(np.finfo(float).eps)
 
 
 # ============================================================================ block data
@@ -510,4 +510,4 @@ class FactorProblem:
 
 def residual_scale(problem: FactorProblem, x: NDArray) -> float:
     """The rounding level of the residuals at x: ``n eps`` times the size of their terms."""
-    return 8.0 * problem.blocks.n * _EPS * problem.scale_c(x)
+    return rounding_level(problem.blocks.n, problem.scale_c(x), RESIDUAL_ROUNDING_FACTOR)
