@@ -265,8 +265,8 @@ def main(argv=None) -> int:
     lines += [
         "",
         f"Reading: at the same final kappa2 (every method within 1e-4 relative of ours on all "
-        f"{len(k_ratio['scipy BFGS'])} problems, see the counts), ours in lockstep takes {tb / t0:.2f}x less "
-        f"CPU than scipy BFGS and {tl / t0:.2f}x less than L-BFGS-B in total.  Two causes, separated by the "
+        f"{len(k_ratio['scipy BFGS'])} problems, see the counts), scipy BFGS takes {tb / t0:.2f}x the CPU "
+        f"of ours in lockstep and L-BFGS-B {tl / t0:.2f}x, in total.  Two causes, separated by the "
         f"one-start-at-a-time row: the lockstep (one stacked LAPACK call per round for all starts: "
         f"{t1 / t0:.2f}x) and a cheaper iteration ({1e6 * t1 / e1:.0f} us per evaluation one start at a time "
         f"against scipy BFGS's {1e6 * tb / eb:.0f} us, the same objective), while scipy BFGS needs "

@@ -89,7 +89,7 @@ def rounding_level(size: int, scale: float, factor: float = 1.0) -> float:
 # (engines/eigenstructure.py, engines/eigenstructure_fixed.py)
 
 #: two poles within ``POLE_COINCIDE_RTOL max(1, |p|)`` are one repeated pole: ~4.5e5 eps, far above
-#: the rounding of poles typed or computed by a user (~eps |p|)
+#: the rounding of poles typed or computed by a user (``~ eps |p|``)
 POLE_COINCIDE_RTOL = 1e-10
 #: a point of a spread real pole within ``SPREAD_REAL_RTOL`` times the spreading radius of the real
 #: axis is put on it (``exp(1j pi)`` has imaginary part 1.2e-16, not 0)
@@ -173,7 +173,7 @@ IPM_TOL = 1e-9
 #: rounding_level(n, gain ||P|| + scale ||L R L'||, IPM_FLOOR_FACTOR)`` (the terms of Q's formula)
 IPM_FLOOR_FACTOR = 10.0
 #: an eigenvalue is real for the Newton gain refinement when ``|Im| <= CONJ_IMAG_RTOL max(1, |lam|)``
-#: (numpy's eig returns the real eigenvalues of a real matrix with imaginary parts ~eps |lam|)
+#: (numpy's eig returns the real eigenvalues of a real matrix with imaginary parts ``~ eps |lam|``)
 CONJ_IMAG_RTOL = 1e-12
 #: relative eigenvalue thresholds that read the face of the PSD cone off an SDP point, the likeliest
 #: first: the SDP solvers stop at 1e-8 .. 1e-10 relative accuracy, so the face's eigenvalues sit
@@ -236,7 +236,7 @@ FILTER_GAMMA_F = 1e-5
 
 #: the target margin inside the region and the residual tolerance:
 #: ``rounding_level(1, ||A||, NORMAL_ROUNDING_FACTOR)`` (a normal matrix's eigenvalues round by
-#: ~eps ||F||) and that times ``||A||`` for the Gram residual (quadratic in A)
+#: ``~ eps ||F||``) and that times ``||A||`` for the Gram residual (quadratic in A)
 NORMAL_ROUNDING_FACTOR = 100.0
 #: Levenberg-Marquardt damping: start, floor after successes (divided by 3), and the ceiling at which
 #: a start gives up (multiplied by 4 on failures)
