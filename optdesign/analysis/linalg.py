@@ -35,7 +35,7 @@ def sym(X: _M) -> _M:
     (n, n) same type as ``X``
         Exactly symmetric for a float array (``X + X'`` rounds the same both ways).
     """
-    return 0.5 * (X + X.T)  # type: ignore[attr-defined, operator, return-value]
+    return 0.5 * (X + X.T)  # type: ignore[attr-defined]
 
 
 def commutation(k: int, r: int) -> NDArray[np.float64]:
