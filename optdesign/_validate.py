@@ -20,6 +20,7 @@ from .errors import (
     NotPositiveDefiniteError,
     NotPositiveSemidefiniteError,
     NotSymmetricError,
+    OptDesignDeprecationWarning,
     ValidationError,
 )
 
@@ -465,7 +466,7 @@ def _outside_level() -> int:
 def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *, stacklevel: int = 4) -> Any:
     """An argument renamed in the one vocabulary of the verbs (``structure`` -> ``q_structure``,
     ``solver`` -> ``sdp_solver``, ...): the old spelling is accepted for one release with a
-    :class:`DeprecationWarning`; both at once is an error.
+    :class:`~optdesign.errors.OptDesignDeprecationWarning`; both at once is an error.
 
     ``new_value`` / ``old_value`` are what the caller passed (``None`` = not given); returns the value
     to use (``default`` when neither was given).  The warning points at the first caller outside
@@ -484,7 +485,7 @@ def renamed(new: str, new_value: Any, old: str, old_value: Any, default: Any, *,
     if new_value is not None:
         raise ValidationError(f"give {new}= or its old spelling {old}=, not both")
     warnings.warn(f"{old}= is deprecated: use {new}= (the old spelling goes in the next release)",
-                  DeprecationWarning, stacklevel=max(stacklevel, _outside_level()))
+                  OptDesignDeprecationWarning, stacklevel=max(stacklevel, _outside_level()))
     return old_value
 
 

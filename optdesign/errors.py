@@ -38,6 +38,7 @@ __all__ = [
     "OutputPathError",
     "OutputExistsError",
     "OptDesignWarning",
+    "OptDesignDeprecationWarning",
 ]
 
 
@@ -226,3 +227,9 @@ class OptDesignWarning(UserWarning):
     patterns: :mod:`optdesign.backends.report`).  Silence it with
     ``warnings.filterwarnings("ignore", category=optdesign.OptDesignWarning)``, or make it an error
     with ``"error"``."""
+
+
+class OptDesignDeprecationWarning(DeprecationWarning):
+    """A deprecated spelling of optdesign's own (an old argument name, alias or no-op), accepted for
+    one release.  Its own class so that a test run can turn exactly these into errors
+    (``-W error::optdesign.errors.OptDesignDeprecationWarning``) without the third-party ones."""

@@ -113,7 +113,7 @@ def test_region_structure_and_gain_bound_are_transposed():
     assert np.linalg.norm(d.K, 2) <= 10.0 * (1 + 1e-6)
     assert region.margin(np.linalg.eigvals(A - B @ d.K)) <= d.verification["feedback_region_margin"].tolerance
     assert d.verification["feedback_region_margin"].passed
-    obs = well_conditioned_observer(dual_plant(A, B), region=region, structure=mask.T, max_gain=10.0,
+    obs = well_conditioned_observer(dual_plant(A, B), region=region, gain_mask=mask.T, max_gain=10.0,
                                     starts=2)
     np.testing.assert_array_equal(d.K, obs.L.T)
     assert d.kappa2 == obs.kappa2 and d.kappa2_right == pytest.approx(metrics.kappa2(A - B @ d.K), rel=1e-12)

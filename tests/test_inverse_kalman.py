@@ -37,6 +37,7 @@ from optdesign.errors import (
     NotConjugateClosedError,
     NotObservableError,
     NotPositiveDefiniteError,
+    OptDesignDeprecationWarning,
     RiccatiError,
     ValidationError,
 )
@@ -165,7 +166,7 @@ def test_example2_every_method_reaches_minus8_minus5():
         assert pole_error(_are(plant, res.Q).poles, target) < 1e-8
     # auto = the engine (issue 14: several outputs without an NLP detour), reported as "sdp"
     assert results["auto"].method == "sdp"
-    assert results["auto"].details["L_source"] == "the inverse Kalman engine"
+    assert results["auto"].extra["L_source"] == "the inverse Kalman engine"
     assert results["auto"].objective_value <= np.trace(results["sequential"].Q) + 1e-9
     # the min-trace NLP does not do worse than the sequential member
     assert results["nlp"].objective_value <= np.trace(results["sequential"].Q) + 1e-9
@@ -197,7 +198,7 @@ def test_example2_sdp_with_two_outputs_reaches_minus8_minus5(objective):
     plant, target = prob.plant, prob.targets["poles"]
     res = kalman_for_poles(plant, target, method="sdp", objective=objective)
     assert res.method == "sdp" and res.status.is_solved
-    assert res.details["L_source"] == "the inverse Kalman engine"
+    assert res.extra["L_source"] == "the inverse Kalman engine"
     _assert_valid(res, plant, target)
     L, poles = _scipy_are_poles(plant, res.Q)
     assert pole_error(poles, [-8.0, -5.0]) < 1e-8
@@ -292,6 +293,12 @@ def test_unstable_target_is_infeasible_not_an_exception():
     res = kalman_for_poles(disc, [1.2, 0.1])
     assert res.certificate.kind == "unstable_target" and "unit circle" in res.certificate.reason
 
+
+
+def test_details_is_a_deprecated_alias_of_extra():
+    res = kalman_for_poles(_ex1_plant(), [1.0, -8.0])
+    with pytest.warns(OptDesignDeprecationWarning, match=r"details is deprecated: use \.extra"):
+        assert res.details is res.extra
 
 # ------------------------------------------------------------ is_kalman_optimal
 def test_is_kalman_optimal_double_integrator():
@@ -569,11 +576,11 @@ def test_target_at_an_eigenvalue_of_A_uses_the_state_space_nlp():
     assert np.min(np.abs(target + 1.0)) < 1e-9  # -1 is unexcited, so it stays
     res = kalman_for_poles(plant, target, method="nlp")
     _assert_valid(res, plant, target)
-    assert res.details["formulation"] == "state-space"
+    assert res.extra["formulation"] == "state-space"
     # the default route: the engine does not apply there, the SDP route (L from that NLP) answers
     auto = kalman_for_poles(plant, target)
     _assert_valid(auto, plant, target)
-    assert auto.details["L_source"] == "the NLP"
+    assert auto.extra["L_source"] == "the NLP"
 
 
 # ------------------------------------------------------------------- structured Q
@@ -655,7 +662,7 @@ def test_structure_that_cannot_reach_the_target_reports_the_closest_poles(rng, c
     res = kalman_for_poles(gplant, target, q_structure=structure)
     assert res.status == Status.NOT_FOUND and res.certificate is None and not res.success
     assert "feasibility unknown" in res.message and "evidence, not proof" in res.message
-    cert = SimpleNamespace(**res.details["closest"])
+    cert = SimpleNamespace(**res.extra["closest"])
     assert cert.closest_pole_error > 1e-3 and np.all(np.isfinite(cert.closest_poles))
     # the closest design is a real Kalman filter with noise through G only, and the reported
     # error is that of its poles
@@ -1025,8 +1032,8 @@ def test_closed_form_spectral_nlp_agrees_with_the_symbolic_one(rng, objective, m
     fast = kalman_for_poles(plant, target, **kw)
     slow = kalman_for_poles(plant, target, nlp_options={"derivatives": "symbolic"}, **kw)
     assert fast.success and slow.success
-    assert {e["derivatives"] for e in fast.details["starts"]} == {"closed form"}
-    assert {e["derivatives"] for e in slow.details["starts"]} == {"symbolic"}
+    assert {e["derivatives"] for e in fast.extra["starts"]} == {"closed form"}
+    assert {e["derivatives"] for e in slow.extra["starts"]} == {"symbolic"}
     np.testing.assert_allclose(fast.objective_value, slow.objective_value, rtol=1e-6)
 
 

@@ -43,6 +43,7 @@ from optdesign.design.well_conditioned import (
 )
 from optdesign.design.well_conditioned.problem import DEFAULT_STARTS
 from optdesign.engines.eigenstructure_fixed import default_starts
+from optdesign.errors import OptDesignDeprecationWarning
 from optdesign.formulate.well_conditioned import (
     KAPPA2_STAGES,
     NLPScaling,
@@ -438,7 +439,7 @@ def test_structure_mask_and_gain_bound():
     assert d.kappa2 >= free.kappa2 * (1 - 1e-9)  # a bound cannot help
     mask = np.ones((plant.n, plant.p), dtype=bool)
     mask[0, 1] = False
-    dm = well_conditioned_observer(plant, poles=P, starts=2, structure=mask)
+    dm = well_conditioned_observer(plant, poles=P, starts=2, gain_mask=mask)
     assert dm.verification["mask"].value == 0.0 and dm.L[0, 1] == 0.0
     assert dm.success, dm.verification.summary()
 
@@ -906,18 +907,20 @@ def test_errors():
         well_conditioned_observer(plant, poles=P, region=HalfPlane(1.0))
     with pytest.raises(ValidationError, match="objective must be one of"):
         well_conditioned_observer(plant, poles=P, objective="kappa3")
-    with pytest.raises(ValidationError, match="solver must be 'ipopt'"):
+    with pytest.warns(OptDesignDeprecationWarning, match="solver= is deprecated"), \
+            pytest.raises(ValidationError, match="solver must be 'ipopt'"):
         well_conditioned_observer(plant, poles=P, solver="snopt")
     with pytest.raises(ValidationError, match="starts must be an integer >= 1"):
         well_conditioned_observer(plant, poles=P, starts=0)
     with pytest.raises(ValidationError, match="seed must be an integer"):
         well_conditioned_observer(plant, poles=P, seed=-1)
-    with pytest.raises(ValidationError, match=r"gain_mask .* must have shape \(4, 2\)"):  # structure= renamed
+    with pytest.warns(OptDesignDeprecationWarning, match="structure= is deprecated"), \
+            pytest.raises(ValidationError, match=r"gain_mask .* must have shape \(4, 2\)"):
         well_conditioned_observer(plant, poles=P, structure=np.ones((2, 4), bool))
     with pytest.raises(ValidationError, match="no free entry"):
-        well_conditioned_observer(plant, poles=P, structure=np.zeros((4, 2), bool))
+        well_conditioned_observer(plant, poles=P, gain_mask=np.zeros((4, 2), bool))
     with pytest.raises(ValidationError, match="boolean mask"):
-        well_conditioned_observer(plant, poles=P, structure=np.full((4, 2), 2))
+        well_conditioned_observer(plant, poles=P, gain_mask=np.full((4, 2), 2))
     with pytest.raises(ValidationError, match="max_gain must be finite and > 0"):
         well_conditioned_observer(plant, poles=P, max_gain=-1.0)
     with pytest.raises(ValidationError, match="kappa2_max must be >= 1"):
@@ -993,10 +996,11 @@ def test_argument_errors_are_typed():
     with pytest.raises(ValidationError, match=r"scaling must be true or false; found 'yes'"):
         well_conditioned_observer(plant, poles=P, scaling="yes")
     with pytest.raises(ValidationError, match=r"gain_mask must be a boolean mask .*; found a ragged"):
-        well_conditioned_observer(plant, poles=P, structure=[[True, False], [True]])
+        well_conditioned_observer(plant, poles=P, gain_mask=[[True, False], [True]])
     with pytest.raises(ValidationError, match=r"objective must be one of .*; found array"):
         well_conditioned_observer(plant, poles=P, objective=np.array(["kappa2", "eta"]))
-    with pytest.raises(ValidationError, match=r"solver must be 'ipopt' .*; found array"):
+    with pytest.warns(OptDesignDeprecationWarning, match="solver= is deprecated"), \
+            pytest.raises(ValidationError, match=r"solver must be 'ipopt' .*; found array"):
         well_conditioned_observer(plant, poles=P, solver=np.array(["ipopt", "snopt"]))
     for bad in (("1", "2"), (1.0, 2.0, 3.0), (1.0, float("nan"))):
         with pytest.raises(ValidationError, match=r"q_range must be a pair \(lo, hi\) of numbers"):

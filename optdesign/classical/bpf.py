@@ -109,6 +109,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
 from .._validate import as_matrix, as_positive_float, as_square, check_symmetric
+from ..analysis.linalg import sym
 from ..errors import RiccatiError, ValidationError
 from .transition import (
     RiccatiMap,
@@ -154,10 +155,6 @@ def _as_count(name: str, value) -> int:
     if value < 1:
         raise ValidationError(f"{name} must be a positive integer; found {value}")
     return int(value)
-
-
-def _sym(X: NDArray) -> NDArray:
-    return 0.5 * (X + X.T)
 
 
 # ------------------------------------------------------------ block-pulse basics
@@ -328,7 +325,7 @@ def filter_hamiltonian_trusted(A: NDArray[np.float64], C: NDArray[np.float64], W
     n = A.shape[0]
     M = np.empty((2 * n, 2 * n))
     M[:n, :n] = -A.T
-    M[:n, n:] = _sym(C.T @ np.linalg.solve(R, C))
+    M[:n, n:] = sym(C.T @ np.linalg.solve(R, C))
     M[n:, :n] = W
     M[n:, n:] = A
     return M
@@ -625,7 +622,7 @@ def bpf_riccati(M: ArrayLike, P0: ArrayLike, t_final: float, m: int,
         if k:                                                    # restart at t_k = k h
             node = _solve_checked(back, Y, "I - hM/2", k - 1, m, h, restarted)   # T^r [I; P(t_j)]
             Pnode = _solve_checked(node[:n].T, node[n:].T, "U_k", k - 1, m, h, restarted).T
-            Z = np.vstack([np.eye(n), _sym(Pnode)])
+            Z = np.vstack([np.eye(n), sym(Pnode)])
             restarts += 1
         phi = phi1
         for _ in range(min(seg, m - k)):
@@ -634,7 +631,7 @@ def bpf_riccati(M: ArrayLike, P0: ArrayLike, t_final: float, m: int,
             Y = _solve_checked(phi, Z, "phi_k", k, m, h, restarted)   # phi_k^-1 [I; P(t_j)]  (4.26)
             Pk = _solve_checked(Y[:n].T, Y[n:].T, "U_k", k, m, h, restarted).T   # V U^-1  (4.11)
             asym[k] = 0.5 * np.linalg.norm(Pk - Pk.T)
-            P[k] = _sym(Pk) if symmetrize else Pk
+            P[k] = sym(Pk) if symmetrize else Pk
             phi = phi @ step                                     # (4.25)
             k += 1
     return BPFRiccati(t=(np.arange(k, dtype=np.float64) + 0.5) * h, P=P[:k], asymmetry=asym[:k], h=h,

@@ -86,6 +86,7 @@ from scipy.linalg.lapack import dpotrf as _potrf
 
 from .._deadline import Deadline
 from .._validate import as_bool, as_positive_float, as_square, check_symmetric
+from ..analysis.linalg import sym
 from ..errors import DimensionError, RiccatiError, ValidationError
 
 __all__ = [
@@ -119,10 +120,6 @@ def as_hamiltonian(M: ArrayLike) -> tuple[NDArray[np.float64], int]:
 
 def _as_initial(P0: ArrayLike, n: int) -> NDArray[np.float64]:
     return check_symmetric("P0", as_square("P0", P0, n))
-
-
-def _sym(X: NDArray) -> NDArray:
-    return 0.5 * (X + X.T)
 
 
 def _norm1(X: NDArray) -> float:
@@ -232,8 +229,8 @@ def _base_map(M: NDArray, n: int, delta: float) -> RiccatiMap:
 def _partitioned(E21: NDArray, X: NDArray, n: int, dt: float) -> RiccatiMap:
     """Lainiotis' blocks from ``X = E11^-1 [E12, I]``: ``O = E11^-1 E12``, ``Pn = E21 E11^-1``,
     ``Phi = E11^-T``."""
-    O = _sym(X[:, :n])  # noqa: E741
-    Pn = _sym(E21 @ X[:, n:])
+    O = sym(X[:, :n])  # noqa: E741
+    Pn = sym(E21 @ X[:, n:])
     return RiccatiMap(Pn=Pn, Phi=np.ascontiguousarray(X[:, n:].T), O=O, dt=dt)
 
 
@@ -306,9 +303,9 @@ def compose_maps(first: RiccatiMap, second: RiccatiMap) -> RiccatiMap:
         raise RiccatiError(f"compose_maps: I + Pn1 O2 is singular (LAPACK gesv info = {info}): Pn1 or "
                            "O2 is not PSD, or the maps overflowed")
     Z = XZ[:, n:]
-    Pn = _sym(second.Pn + second.Phi @ _sym(XZ[:, :n]) @ second.Phi.T)
+    Pn = sym(second.Pn + second.Phi @ sym(XZ[:, :n]) @ second.Phi.T)
     Phi = second.Phi @ Z
-    O = _sym(first.O + first.Phi.T @ (second.O @ Z))  # noqa: E741
+    O = sym(first.O + first.Phi.T @ (second.O @ Z))  # noqa: E741
     return RiccatiMap(Pn=Pn, Phi=Phi, O=O, dt=first.dt + second.dt,
                       doublings=max(first.doublings, second.doublings) + 1)
 
@@ -341,7 +338,7 @@ def apply_map(rmap: RiccatiMap, P: ArrayLike) -> NDArray[np.float64]:
         P that is not PSD, shows in the verification of the trajectory).
     """
     P = np.asarray(P, dtype=float)
-    return _Applier(rmap)(_sym(P))
+    return _Applier(rmap)(sym(P))
 
 
 #: smallest n for the Cholesky form of a step (:func:`apply_map`); below it the LU form is faster
@@ -666,7 +663,7 @@ def davison_maki(M: ArrayLike, P0: ArrayLike, times: ArrayLike, *,
             for _ in range(ns):
                 U = E[:n, :n] + E[:n, n:] @ P
                 V = E[n:, :n] + E[n:, n:] @ P
-                P = _sym(np.linalg.solve(U.T, V.T).T)
+                P = sym(np.linalg.solve(U.T, V.T).T)
         out[j] = P
         t_prev = float(t)
     return out

@@ -326,7 +326,7 @@ def well_conditioned_feedback(plant: Any, *, poles: ArrayLike | None = None, reg
             return _feedback_from_fields(fields, pl, target, options.get("objective", "kappa2"))
     if target is None and mask is None and _controller_region_ok(options):
         return _region_feedback(pl, A, B, dual, region, allow_unstable, options)
-    obs = well_conditioned_observer(dual, poles=target, region=region, structure=mask,
+    obs = well_conditioned_observer(dual, poles=target, region=region, gain_mask=mask,
                                     allow_unstable=allow_unstable, **options)
     return _feedback_from_observer(obs, A, B, plant=pl, target=target, region=region,
                                    discrete=pl.is_discrete, stable=not allow_unstable)

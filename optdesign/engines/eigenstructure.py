@@ -61,6 +61,15 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._validate import as_int, as_matrix, as_poles, as_positive_float
 from ..errors import DefectivePolesError, DimensionError, ValidationError
+from .tolerances import (
+    CONJUGATE_RTOL,
+    NORM_FLOOR,
+    NULL_BASIS_FACTOR,
+    PBH_RANK_FACTOR,
+    POLE_COINCIDE_RTOL,
+    SPREAD_REAL_RTOL,
+    rounding_level,
+)
 
 __all__ = [
     "OBJECTIVES",
@@ -77,7 +86,6 @@ __all__ = [
     "padded_bases",
 ]
 
-_EPS = float(np.finfo(float).eps)
 
 #: objectives of the engine
 OBJECTIVES = ("kappa2", "kappa_fro", "eta")
@@ -100,7 +108,7 @@ Measure = Literal["right", "left"]
 # --------------------------------------------------------------------------- pole sets
 
 
-def pole_multiplicities(poles: ArrayLike, *, rtol: float = 1e-10) -> list[tuple[complex, int]]:
+def pole_multiplicities(poles: ArrayLike, *, rtol: float = POLE_COINCIDE_RTOL) -> list[tuple[complex, int]]:
     """Distinct poles and their multiplicities (poles within ``rtol max(1, |p|)`` coincide).
 
     Parameters
@@ -172,7 +180,7 @@ def spread_poles(poles: ArrayLike, rank: int, separation: float) -> NDArray[np.c
         if v.imag == 0:
             ang = 2.0 * math.pi * np.arange(m) / m
             pts = v + rad * np.exp(1j * ang)
-            pts = np.where(np.abs(pts.imag) <= 1e-12 * rad, pts.real + 0j, pts)
+            pts = np.where(np.abs(pts.imag) <= SPREAD_REAL_RTOL * rad, pts.real + 0j, pts)
             out += list(pts)
         else:
             ang = math.pi * (2 * np.arange(m) + 1) / m
@@ -255,7 +263,7 @@ class EigenstructureEngine:
         if C.shape[1] != n:
             raise DimensionError(f"C must have n = {n} columns (A is {n} x {n}); found shape {C.shape}")
         U, s, Vt = np.linalg.svd(C)
-        tol = max(C.shape) * _EPS * (float(s[0]) if s.size else 0.0)
+        tol = rounding_level(max(C.shape), float(s[0]) if s.size else 0.0)
         r = int(np.sum(s > tol))
         if r == 0:
             raise DimensionError("C must have rank >= 1 (it is zero): no output, no observer")
@@ -290,7 +298,8 @@ class EigenstructureEngine:
         else:
             M = (self.A - lam * np.eye(n)) @ self.Z if lam.imag else (self.A - lam.real * np.eye(n)) @ self.Z
             Q, R, _ = scipy.linalg.qr(M, mode="full", pivoting=True, check_finite=False)
-            tol = 100.0 * n * _EPS * max(float(np.abs(R[0, 0])) if R.size else 0.0, self.scale, abs(lam))
+            tol = rounding_level(n, max(float(np.abs(R[0, 0])) if R.size else 0.0, self.scale, abs(lam)),
+                                 NULL_BASIS_FACTOR)
             rank = int(np.sum(np.abs(np.diagonal(R)) > tol))
             N = Q[:, rank:].conj()
             if lam.imag == 0:
@@ -304,10 +313,10 @@ class EigenstructureEngine:
         """Eigenvalues ``mu`` of ``A`` with ``rank [A - mu I; C] < n`` (PBH test, relative tolerance)."""
         w = np.linalg.eigvals(self.A)
         out = []
-        scale = max(float(np.linalg.norm(self.A, 2)), float(np.linalg.norm(self.C, 2)), 1e-300)
+        scale = max(float(np.linalg.norm(self.A, 2)), float(np.linalg.norm(self.C, 2)), NORM_FLOOR)
         for mu in w:
             s = np.linalg.svd(np.vstack([self.A - mu * np.eye(self.n), self.C]), compute_uv=False)
-            if s[-1] <= 1e3 * self.n * _EPS * scale:
+            if s[-1] <= rounding_level(self.n, scale, PBH_RANK_FACTOR):
                 out.append(mu)
         return np.asarray(out, dtype=complex)
 
@@ -350,7 +359,7 @@ class FixedPoleModel:
         A pole repeated more than ``rank C`` times.
     """
 
-    def __init__(self, engine: EigenstructureEngine, poles: ArrayLike, *, tol: float = 1e-8,
+    def __init__(self, engine: EigenstructureEngine, poles: ArrayLike, *, tol: float = CONJUGATE_RTOL,
                  measure: Measure = "right") -> None:
         if measure not in MEASURES:
             raise ValidationError(f"measure must be one of {MEASURES}; found {measure!r}")

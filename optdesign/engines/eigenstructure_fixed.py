@@ -44,6 +44,15 @@ from .eigenstructure import (
     spread_poles,
 )
 from .quasi_newton import bfgs_minimize_batch
+from .tolerances import (
+    DISTINCT_F_MIN,
+    DISTINCT_FTOL_MIN,
+    DISTINCT_X_MIN,
+    MASK_TOL,
+    STAGE_FTOL,
+    STAGE_FTOL_DEFAULT,
+    STAGE_GTOL,
+)
 
 __all__ = [
     "StartRecord",
@@ -186,12 +195,8 @@ def peer_start(A: NDArray, C: NDArray, poles: NDArray, method: str) -> NDArray[n
     return L if np.all(np.isfinite(L)) else None
 
 
-#: per stage: (order k of the kappa2 bound or None for the exact function, relative decrease
-#: tolerance of the stage); loose early stages, measured: tight ones spend evaluations on a
-#: surrogate whose minimizer is discarded anyway
-_STAGE_FTOL = {4: 1e-5, 64: 1e-6, 1024: 1e-8, 16384: 1e-9, None: 1e-9}
-#: gradient tolerance of the smooth stages (log kappa2 per unit change of unit-norm coordinates)
-_GTOL = 1e-6
+# the stage tolerances (STAGE_FTOL per order k of the kappa2 bound, STAGE_GTOL on the smooth
+# stages), the duplicate-start tests and MASK_TOL are in engines/tolerances.py with their measurements
 
 
 def run_starts(
@@ -222,7 +227,7 @@ def run_starts(
     H: list[NDArray | None] = [None] * s
     alive = list(range(s))
     for si, k in enumerate(stages):
-        ftol = _STAGE_FTOL.get(k, 1e-8)
+        ftol = STAGE_FTOL.get(k, STAGE_FTOL_DEFAULT)
         if final_ftol is not None and si == len(stages) - 1:
             ftol = final_ftol
         if deadline.expired:
@@ -234,7 +239,7 @@ def run_starts(
             return model.evaluate_batch(Z, objective, _k)
 
         res, Hs = bfgs_minimize_batch(
-            fun, X[alive], max_iter=max_iter, ftol=ftol, gtol=0.0 if k is None else _GTOL,
+            fun, X[alive], max_iter=max_iter, ftol=ftol, gtol=0.0 if k is None else STAGE_GTOL,
             deadline=deadline, H0=[H[i] for i in alive],
         )
         for j, (i, r) in enumerate(zip(alive, res, strict=True)):
@@ -244,7 +249,7 @@ def run_starts(
             reasons[i] = r.reason
             if report is not None:
                 report[i] = (int(r.iterations), float(r.decrease))
-        alive = _distinct(model, X, alive, [r.f for r in res], reasons, max(ftol, 1e-12))
+        alive = _distinct(model, X, alive, [r.f for r in res], reasons, max(ftol, DISTINCT_FTOL_MIN))
     return [(model.normalize(X[i]), int(its[i]), int(evs[i]), reasons[i]) for i in range(s)]
 
 
@@ -260,7 +265,7 @@ def _distinct(
     one basin sit up to ~4e-3 apart with values equal to 7e-7, while distinct basins of equal
     value (the flat valleys of Chu's example 9) are 0.4-1.7 apart.
     """
-    tol_f, tol_x = max(1e-9, 0.1 * ftol), max(1e-6, math.sqrt(ftol))
+    tol_f, tol_x = max(DISTINCT_F_MIN, 0.1 * ftol), max(DISTINCT_X_MIN, math.sqrt(ftol))
     keep: list[tuple[int, float, NDArray]] = []
     for i, fi in zip(alive, f, strict=True):
         xi = model.normalize(X[i])
@@ -528,9 +533,6 @@ def _mask_zeros(gain_mask: ArrayLike | None, n: int, p: int) -> NDArray[np.bool_
     return None if m is None or m.all() else ~m
 
 
-#: relative violation ``max |L_ij| / ||L_start||_F`` on the structural zeros accepted before they
-#: are set to zero exactly (the poles then move by about that much times their condition numbers)
-MASK_TOL = 1e-9
 #: augmented-Lagrangian rounds after the continuation
 _MASK_ROUNDS = 12
 
@@ -574,8 +576,8 @@ def masked_solve(
             return model.penalized(Z, objective, _k, zero, y[idx], rho[idx], scale[idx])
 
         res, _ = bfgs_minimize_batch(
-            fun, X, max_iter=max_iter, ftol=_STAGE_FTOL.get(k, 1e-8), gtol=0.0 if k is None else _GTOL,
-            deadline=dl, pass_index=True,
+            fun, X, max_iter=max_iter, ftol=STAGE_FTOL.get(k, STAGE_FTOL_DEFAULT),
+            gtol=0.0 if k is None else STAGE_GTOL, deadline=dl, pass_index=True,
         )
         for i, r in enumerate(res):
             X[i] = model.normalize(r.x)

@@ -37,21 +37,17 @@ from numpy.typing import NDArray
 
 from .._deadline import Deadline
 from .._validate import as_int, as_positive_float
+from ..analysis.linalg import sym
 from ..backends.clarabel_fixed_gain import FixedGainFamily, FixedGainSolution, smat
 from ..results import Status
+from .tolerances import IPM_FLOOR_FACTOR, IPM_TOL, rounding_level
 
 __all__ = ["IPM_TOL", "IPM_MAX_ITER", "IpmReport", "symmetric_basis", "solve_fixed_gain_ipm",
            "standard_form_ipm"]
 
-#: stopping test: relative primal and dual infeasibility and relative duality gap (of the column-
-#: scaled data) at most this -- Clarabel's tight settings are 1e-10; the polish finishes on the face.
-#: Measured (``--stages``): 1e-8 saves an IPM iteration but triples the Newton polish at n = 20
-IPM_TOL = 1e-9
-
 #: iterations before giving up (measured: 8-15 on 49 one-output targets, n = 2..20)
 IPM_MAX_ITER = 60
 
-_EPS = float(np.finfo(float).eps)
 _dpotrf, _dpotrs, _dtrtri, _dsyevr = sl.lapack.get_lapack_funcs(
     ("potrf", "potrs", "trtri", "syevr"), dtype=np.float64)
 
@@ -93,7 +89,7 @@ def _max_step(Li: NDArray, D: NDArray) -> float:
     """The largest a with ``F + a D >= 0`` for ``F = Lf Lf'``, ``Li = Lf^-1`` (inf when D >= 0)."""
     W = Li @ D @ Li.T
     w, _, _, _, info = _dsyevr(W, compute_v=0, range="I", il=1, iu=1)
-    lam = float(w[0]) if info == 0 else float(np.linalg.eigvalsh(_sym(W))[0])
+    lam = float(w[0]) if info == 0 else float(np.linalg.eigvalsh(sym(W))[0])
     return np.inf if lam >= 0 else -1.0 / lam
 
 
@@ -106,10 +102,6 @@ def _chol_inv(F: NDArray) -> tuple[NDArray, NDArray]:
     if info != 0:
         raise np.linalg.LinAlgError("singular Cholesky factor")
     return Lf, Li
-
-
-def _sym(W: NDArray) -> NDArray:
-    return 0.5 * (W + W.T)
 
 
 def _schur(B: NDArray, Lx: NDArray, Lzi: NDArray) -> NDArray:
@@ -162,7 +154,7 @@ def solve_fixed_gain_ipm(family: FixedGainFamily, *, tol: float = IPM_TOL, max_i
     if m == 0 or not (np.all(np.isfinite(T)) and np.all(np.isfinite(family.Q0))):
         return None, IpmReport(False, 0, "empty or non-finite data", np.nan, np.nan, np.nan)
     colnorm = np.linalg.norm(T, axis=0)
-    if np.any(colnorm <= _EPS * max(1.0, float(np.max(colnorm)))):
+    if np.any(colnorm <= rounding_level(1, max(1.0, float(np.max(colnorm))))):
         return None, IpmReport(False, 0, "a direction of x does not move Q", np.nan, np.nan, np.nan)
     Ts = T / colnorm                                      # x = xs / colnorm
     B = symmetric_basis(Ts, n)
@@ -243,7 +235,7 @@ def _iterate(B, b, X, Z, y, Rd):
         dy, _ = _dpotrs(Mc, rhs, lower=1)
         dZ = Rd - (dy @ Bf).reshape(n, n)
         W = X @ dZ if corr is None else X @ dZ + corr
-        dX = sigma * mu * Zi - X - _sym(W @ Zi)
+        dX = sigma * mu * Zi - X - sym(W @ Zi)
         return dX, dy, dZ
 
     def steps(dX, dZ, gamma):
@@ -255,7 +247,7 @@ def _iterate(B, b, X, Z, y, Rd):
     sigma = min(1.0, (mu_aff / mu) ** 3) if mu > 0 else 0.0
     dX, dy, dZ = direction(sigma, dXa @ dZa)
     ap, ad = steps(dX, dZ, 0.9 + 0.09 * min(ap, ad))
-    Xn, Zn = _sym(X + ap * dX), _sym(Z + ad * dZ)
+    Xn, Zn = sym(X + ap * dX), sym(Z + ad * dZ)
     return Xn, Zn, y + ad * dy
 
 
@@ -274,8 +266,8 @@ def _solution(family: FixedGainFamily, x: NDArray, rep: IpmReport, dual_residual
         gain = 2.0 * float(np.linalg.norm(A))
     else:
         gain = 1.0 + float(np.linalg.norm(A - family.L @ family.map.C)) ** 2
-    floor = family.scale * dual_residual + 10.0 * n * _EPS * (
-        gain * float(np.linalg.norm(P)) + family.scale * float(np.linalg.norm(family.LRL)))
+    terms = gain * float(np.linalg.norm(P)) + family.scale * float(np.linalg.norm(family.LRL))
+    floor = family.scale * dual_residual + rounding_level(n, terms, IPM_FLOOR_FACTOR)
     if lam[0] < -10.0 * floor:
         return None, replace(rep, converged=False,
                              reason=f"Q(x) not PSD: smallest eigenvalue {lam[0]:.3g} < -{10.0 * floor:.3g}")

@@ -18,10 +18,18 @@ import scipy.linalg
 from numpy.typing import NDArray
 
 from ..model.regions import Region
+from .tolerances import (
+    EPS,
+    LM_DAMPING_MAX,
+    LM_DAMPING_MIN,
+    LM_DAMPING_START,
+    LM_DIAG_FLOOR,
+    NORMAL_ROUNDING_FACTOR,
+    rounding_level,
+)
 
 __all__ = ["normal_freedom", "search_normal_closed_loop"]
 
-_EPS = float(np.finfo(float).eps)
 
 
 def normal_freedom(n: int, p: int) -> int:
@@ -128,10 +136,10 @@ def _solve_layout(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, .
     which stops only at ``tol`` or a damping of 1e10, reaches it."""
     k = M0.shape[1]
     x = np.concatenate([M0.ravel(), lam0])
-    h = math.sqrt(_EPS) * max(1.0, float(np.max(np.abs(x))))
+    h = math.sqrt(EPS) * max(1.0, float(np.max(np.abs(x))))  # forward differences: sqrt(eps) relative
     iu = np.triu_indices(k)  # (the upper triangle of the k x k Gram residual; once per start)
     r, M, Lam = _gram_residual(G1, G2, region, layout, iu, x, delta)
-    cost, mu = float(r @ r), 1e-3
+    cost, mu = float(r @ r), LM_DAMPING_START
     eye = np.eye(x.size)
     for _ in range(iters):
         if np.linalg.norm(r) <= tol:
@@ -139,12 +147,12 @@ def _solve_layout(G1: NDArray, G2: NDArray, region: Region, layout: tuple[int, .
         J = np.column_stack([(_gram_residual(G1, G2, region, layout, iu, x + h * e, delta)[0] - r) / h
                              for e in eye])
         JtJ, grad = J.T @ J, J.T @ r
-        while mu < 1e10:
-            xn = x - np.linalg.solve(JtJ + mu * (np.diag(np.diag(JtJ)) + 1e-12 * eye), grad)
+        while mu < LM_DAMPING_MAX:
+            xn = x - np.linalg.solve(JtJ + mu * (np.diag(np.diag(JtJ)) + LM_DIAG_FLOOR * eye), grad)
             out = _gram_residual(G1, G2, region, layout, iu, xn, delta)
             cn = float(out[0] @ out[0])
             if cn < cost:
-                x, cost, mu = xn, cn, max(mu / 3.0, 1e-12)
+                x, cost, mu = xn, cn, max(mu / 3.0, LM_DAMPING_MIN)
                 r, M, Lam = out
                 break
             mu *= 4.0
@@ -177,8 +185,9 @@ def search_normal_closed_loop(A: NDArray, C: NDArray, V0: NDArray, region: Regio
     G1, G2 = V0.T @ A @ V0, (A @ V0).T @ (A @ V0)
     Cpinv = np.linalg.pinv(C)
     scale = max(1.0, float(np.linalg.norm(A, 2)))
-    delta = 100.0 * _EPS * scale  # aim inside: a normal matrix's eigenvalues round by ~eps ||F||
-    tol = 100.0 * _EPS * scale * scale  # G2 is quadratic in A
+    # aim inside: a normal matrix's eigenvalues round by ~eps ||F||
+    delta = rounding_level(1, scale, NORMAL_ROUNDING_FACTOR)
+    tol = rounding_level(1, scale, NORMAL_ROUNDING_FACTOR) * scale  # G2 is quadratic in A
     tries: list[tuple[NDArray | None, tuple[int, ...] | None]] = [(X, None) for X in mats]
     tries += [(None, lay) for _ in range(random_starts) for lay in _layouts(n)]
     samples: dict[int, NDArray] = {}

@@ -58,17 +58,20 @@ from .._backends import import_clarabel
 from .._deadline import Deadline, dense_kkt_refusal
 from ..backends.clarabel_fixed_gain import FixedGainFamily, clarabel_settings, smat, svec, svec_index
 from .fixed_gain_ipm import standard_form_ipm, symmetric_basis
+from .tolerances import (
+    KKT_TOL,
+    LYAPUNOV_GAP_FACTOR,
+    NORM_FLOOR,
+    POLISH_ROUNDING_FACTOR,
+    POLISH_START_TOL,
+    QR_RANK_FACTOR,
+    rounding_level,
+)
 
 __all__ = ["POLISH_START_TOL", "KKT_TOL", "IPM_MIN_N", "OneOutputForm", "one_output_form",
            "one_output_form_of_plant", "form_of_basis",
            "OneOutputSolution", "solve_one_output", "symmetric_product_matrix"]
 
-_EPS = float(np.finfo(float).eps)
-
-#: Clarabel's gap and feasibility tolerances before the Newton polish (relative to the normalized
-#: data): the polish converges quadratically from there (measured: 2-3 Newton steps to rounding on
-#: 24 targets n = 2..20; Clarabel 9-14 iterations)
-POLISH_START_TOL = 1e-8
 #: the dense IPM (:func:`~optdesign.engines.fixed_gain_ipm.standard_form_ipm`, n x n Schur matrix)
 #: instead of Clarabel from this n (Clarabel's KKT system has a dense block of n(n+1)/2 rows).
 #: Measured (CPU per SDP with the polish, 2 targets each): Clarabel 1.0-2.4 ms at n = 2-6 (the IPM
@@ -77,10 +80,7 @@ POLISH_START_TOL = 1e-8
 IPM_MIN_N = 12
 #: Newton steps at most (quadratic convergence: 2-3 are used)
 POLISH_MAX_ITER = 8
-#: KKT test of the polished point: smallest eigenvalue of Z over ``||Z||`` at least ``-KKT_TOL``,
-#: complementarity ``||Q Z|| / (||Q|| ||Z||)`` and primal infeasibility ``||W' svec(Q) - b|| / ||b||``
-#: at most KKT_TOL (the polish reaches 1e-16 .. 1e-15; the engine's dual-slack test is 1e-9 too)
-KKT_TOL = 1e-9
+# POLISH_START_TOL and KKT_TOL (re-exported here) are in engines/tolerances.py with their measurements
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,7 +129,7 @@ def one_output_form_of_plant(A: NDArray, C: NDArray,
     S, U = sla.schur(A, output="real")
     lam = np.linalg.eigvals(A)
     gap = float(np.min(np.abs(lam[:, None] + lam[None, :])))
-    if not gap > 1e3 * n * _EPS * max(1.0, float(np.linalg.norm(A, 1))):
+    if not gap > rounding_level(n, max(1.0, float(np.linalg.norm(A, 1))), LYAPUNOV_GAP_FACTOR):
         return None
     I, J, w = svec_index(n)
     uc = U.T @ c
@@ -148,7 +148,7 @@ def one_output_form_of_plant(A: NDArray, C: NDArray,
         return None
     Qf, Rf = np.linalg.qr(cols)
     d = np.abs(np.diag(Rf))
-    if not d.min() > 1e3 * I.size * _EPS * max(float(d.max()), 1e-300):
+    if not d.min() > rounding_level(I.size, max(float(d.max()), NORM_FLOOR), QR_RANK_FACTOR):
         return None
     return form_of_basis(np.ascontiguousarray(Qf), n)
 
@@ -167,7 +167,7 @@ def one_output_form(T: NDArray) -> OneOutputForm | None:
         return None
     Qf, Rf = np.linalg.qr(T, mode="complete")
     d = np.abs(np.diag(Rf))
-    if m and not d.min() > 1e3 * t * _EPS * max(float(d.max()), 1e-300):
+    if m and not d.min() > rounding_level(t, max(float(d.max()), NORM_FLOOR), QR_RANK_FACTOR):
         return None
     return form_of_basis(np.ascontiguousarray(Qf[:, m:]), n)
 
@@ -325,14 +325,14 @@ def _polish(W: NDArray, b: NDArray, q: NDArray, y: NDArray, n: int) -> tuple[NDA
         Q, Z = smat(q, n), smat(e - W @ y, n)
         r1 = W.T @ q - b
         r2 = 0.5 * svec(Q @ Z + Z @ Q)
-        size = max(float(np.linalg.norm(Q)) * float(np.linalg.norm(Z)), 1e-300)
+        size = max(float(np.linalg.norm(Q)) * float(np.linalg.norm(Z)), NORM_FLOOR)
         res = max(float(np.linalg.norm(r1)), float(np.linalg.norm(r2)) / size)
         if not np.isfinite(res):
             return q, y, k, "the Newton polish produced non-finite values"
         if best is not None and res >= 0.5 * best[0]:   # stopped converging: rounding reached
             return best[1], best[2], k, ""
         best = (res, q, y)
-        if res <= 4.0 * _EPS:
+        if res <= rounding_level(1, 1.0, POLISH_ROUNDING_FACTOR):
             return q, y, k, ""
         if k == POLISH_MAX_ITER:
             break
@@ -355,8 +355,8 @@ def _truncated(Q: NDArray, Z: NDArray) -> tuple[NDArray, int]:
     (strict complementarity: one of them vanishes in each direction), exactly PSD."""
     lam, U = np.linalg.eigh(0.5 * (Q + Q.T))
     zq = np.einsum("ij,ik,kj->j", U, Z, U)   # u_i' Z u_i
-    nq = max(float(np.max(np.abs(lam))), 1e-300)
-    nz = max(float(np.max(np.abs(zq))), 1e-300)
+    nq = max(float(np.max(np.abs(lam))), NORM_FLOOR)
+    nz = max(float(np.max(np.abs(zq))), NORM_FLOOR)
     keep = lam / nq > zq / nz
     V = U[:, keep] * np.sqrt(np.maximum(lam[keep], 0.0))
     return V @ V.T, int(np.sum(keep))
@@ -366,12 +366,13 @@ def _kkt(W: NDArray, b: NDArray, y: NDArray, Q: NDArray, Z: NDArray) -> dict[str
     """The KKT test of ``(Q, y)`` (normalized units): Z PSD, complementarity, primal feasibility
     (dual feasibility is exact: Z is defined from y), and the relative duality gap."""
     zl = np.linalg.eigvalsh(0.5 * (Z + Z.T))
-    nz = max(float(np.max(np.abs(zl))), 1e-300)
-    nq = max(float(np.linalg.norm(Q)), 1e-300)
+    nz = max(float(np.max(np.abs(zl))), NORM_FLOOR)
+    nq = max(float(np.linalg.norm(Q)), NORM_FLOOR)
+    nb = max(float(np.linalg.norm(b)), NORM_FLOOR)
     out = {"min_eig": float(zl[0]) / nz,
-           "complementarity": float(np.linalg.norm(Q @ Z)) / (nq * float(np.linalg.norm(Z)) + 1e-300),
-           "infeasibility": float(np.linalg.norm(W.T @ svec(Q) - b)) / max(float(np.linalg.norm(b)), 1e-300),
-           "gap": abs(float(np.trace(Q)) - float(b @ y)) / max(abs(float(np.trace(Q))), 1e-300)}
+           "complementarity": float(np.linalg.norm(Q @ Z)) / (nq * float(np.linalg.norm(Z)) + NORM_FLOOR),
+           "infeasibility": float(np.linalg.norm(W.T @ svec(Q) - b)) / nb,
+           "gap": abs(float(np.trace(Q)) - float(b @ y)) / max(abs(float(np.trace(Q))), NORM_FLOOR)}
     out["passed"] = bool(out["min_eig"] >= -KKT_TOL and out["complementarity"] <= KKT_TOL
                          and out["infeasibility"] <= KKT_TOL)
     return out

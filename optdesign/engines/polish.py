@@ -10,16 +10,23 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis.linalg import commutation, sym
 from ..classical.placement import pole_error
 from ..formulate.inverse_kalman import (
     fixed_gain_maps,
     noise_input,
     tril_index,
 )
-
-
-def sym(X: NDArray) -> NDArray:
-    return 0.5 * (X + X.T)
+from .tolerances import (
+    CONJ_IMAG_RTOL,
+    FACE_POLISH_THRESHOLDS,
+    FACE_REFINE_MAX,
+    FACE_REFINE_MIN,
+    NORM_FLOOR,
+    POLISH_EXACT_RES,
+    POLISH_ROUNDING_RES,
+    SPECTRAL_POLISH_THRESHOLDS,
+)
 
 
 def min_norm_lstsq(M: NDArray, b: NDArray) -> NDArray:
@@ -49,14 +56,14 @@ def refine_gain(A: NDArray, C: NDArray, L: NDArray, target: NDArray, iters: int 
         r, c = linear_sum_assignment(cost)
         rows, rhs = [], []
         for i, j in zip(r, c, strict=True):
-            if lam[i].imag < -1e-12 * max(1.0, abs(lam[i])):
+            if lam[i].imag < -CONJ_IMAG_RTOL * max(1.0, abs(lam[i])):
                 continue  # the conjugate equation is implied
             # d lambda_i = -y_i^H dL C x_i
             g = -np.outer(Y[:, i].conj(), C @ X[:, i]).reshape(-1)  # d/d vec_rowmajor(dL)
             d = target[j] - lam[i]
             rows.append(g.real)
             rhs.append(d.real)
-            if abs(lam[i].imag) > 1e-12 * max(1.0, abs(lam[i])):
+            if abs(lam[i].imag) > CONJ_IMAG_RTOL * max(1.0, abs(lam[i])):
                 rows.append(g.imag)
                 rhs.append(d.imag)
         J = np.asarray(rows)
@@ -83,15 +90,6 @@ def lower_rows(n: int) -> NDArray[np.intp]:
     """Positions of the svec entries in the column-major vec."""
     I, J = tril_index(n)
     return J * n + I
-
-
-def commutation(k: int, r: int) -> NDArray:
-    """K with vec(V') = K vec(V) for a (k, r) matrix V."""
-    K = np.zeros((k * r, k * r))
-    for i in range(k):
-        for j in range(r):
-            K[i * r + j, j * k + i] = 1.0
-    return K
 
 
 def vec_f(X: NDArray) -> NDArray:
@@ -125,16 +123,16 @@ def face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
     candidates: list[tuple[float, NDArray, NDArray]] = []
     if structure == "diagonal":
         w0 = np.asarray(W0, dtype=float).ravel()
-        wmax = max(float(np.max(np.abs(w0))), 1e-300)
-        masks = dict.fromkeys(tuple(w0 > tau * wmax) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-9, 1e-3))
+        wmax = max(float(np.max(np.abs(w0))), NORM_FLOOR)
+        masks = dict.fromkeys(tuple(w0 > tau * wmax) for tau in FACE_POLISH_THRESHOLDS)
         faces = [np.flatnonzero(np.array(mk)) for mk in masks]
     else:
         lam, U = np.linalg.eigh(sym(np.asarray(W0, dtype=float)))
         lam, U = lam[::-1], U[:, ::-1]
-        lmax = max(float(lam[0]), 1e-300)
+        lmax = max(float(lam[0]), NORM_FLOOR)
         # candidate ranks from eigenvalue gaps, the likeliest thresholds first
         ranks = list(dict.fromkeys(int(np.sum(lam > tau * lmax))
-                                   for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-9, 1e-3)))
+                                   for tau in FACE_POLISH_THRESHOLDS))
         faces = [U[:, :r] for r in ranks]
     for face in faces:
         if structure == "diagonal":
@@ -159,7 +157,7 @@ def face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
         for _ in range(3):  # min-norm correction, then iterative refinement
             dz = min_norm_lstsq(M, rhs - M @ z)
             z = z + dz
-        res = float(np.linalg.norm(M @ z - rhs)) / max(1e-300, float(np.linalg.norm(rhs)) + 1.0)
+        res = float(np.linalg.norm(M @ z - rhs)) / max(NORM_FLOOR, float(np.linalg.norm(rhs)) + 1.0)
         svp = z[: svecP0.size]
         P = (Dn @ svp).reshape(n, n, order="F")
         w = z[svecP0.size:]
@@ -173,7 +171,7 @@ def face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
             Wr = (duplication(r) @ w).reshape(r, r, order="F") if r else np.zeros((0, 0))
             ok = bool(np.linalg.eigvalsh(Wr)[0] > 0) if r else True
             Wdec = sym(face @ Wr @ face.T) if r else np.zeros((face.shape[0],) * 2)
-        if ok and structure != "diagonal" and face.shape[1] and 1e-14 < res < 1e-3:
+        if ok and structure != "diagonal" and face.shape[1] and FACE_REFINE_MIN < res < FACE_REFINE_MAX:
             # the face was read off an inexact point: refine it too (Gauss-Newton on Q = V V')
             Wr = Uf.T @ Wdec @ Uf
             lw, Uw = np.linalg.eigh(sym(Wr))
@@ -182,7 +180,7 @@ def face_polish(A, C, L, R, dt, structure, G, P0, W0, rtol):
             Wdec = sym(V @ V.T)
         if ok:
             candidates.append((res, P, Wdec))
-            if res < 1e-13:  # exact to rounding on this face: no need to try the others
+            if res < POLISH_EXACT_RES:  # exact to rounding on this face: no need to try the others
                 break
     if not candidates:
         return None
@@ -230,7 +228,7 @@ def gn_refine(MgP, MqP, cg, cq, Gm, Dn, P0, V0, rhs, iters: int = 8):
             best = (res, x)
         else:
             break
-        if res < 1e-15:
+        if res < POLISH_ROUNDING_RES:
             break
     P, V = unpack(best[1])
     return sym(P), V, best[0]
@@ -244,8 +242,8 @@ def spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None,
     Gm = np.eye(np.asarray(W0).shape[0]) if structure == "full" else noise_input(structure, G)
     if structure == "diagonal":
         w0 = np.maximum(np.ravel(W0), 0.0)
-        wmax = max(float(np.max(w0)), 1e-300)
-        for mk in dict.fromkeys(tuple(w0 > tau * wmax) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-3)):
+        wmax = max(float(np.max(w0)), NORM_FLOOR)
+        for mk in dict.fromkeys(tuple(w0 > tau * wmax) for tau in SPECTRAL_POLISH_THRESHOLDS):
             act = np.flatnonzero(np.array(mk))
             M = np.column_stack([E @ vec_f(np.outer(Gm[:, i], Gm[:, i])) for i in act]) if act.size else \
                 np.zeros((E.shape[0], 0))
@@ -260,8 +258,8 @@ def spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None,
         return best
     lam, U = np.linalg.eigh(sym(np.asarray(W0, dtype=float)))
     lam, U = lam[::-1], U[:, ::-1]
-    lmax = max(float(lam[0]), 1e-300)
-    for r in dict.fromkeys(int(np.sum(lam > tau * lmax)) for tau in (1e-6, 1e-7, 1e-5, 1e-8, 1e-4, 1e-3)):
+    lmax = max(float(lam[0]), NORM_FLOOR)
+    for r in dict.fromkeys(int(np.sum(lam > tau * lmax)) for tau in SPECTRAL_POLISH_THRESHOLDS):
         if r == 0:
             continue
         k = U.shape[0]
@@ -280,12 +278,12 @@ def spectral_polish(E: NDArray, off: NDArray, structure: str, G: NDArray | None,
             if not new < cur:
                 break
             V, cur = Vn, new
-            if cur < 1e-15 * (1.0 + float(np.linalg.norm(off))):
+            if cur < POLISH_ROUNDING_RES * (1.0 + float(np.linalg.norm(off))):
                 break
         res = cur / (1.0 + float(np.linalg.norm(off)))
         if best is None or res < best[1]:
             best = (sym(V @ V.T), res)
-        if res < 1e-13:
+        if res < POLISH_EXACT_RES:
             break
     return best
 

@@ -15,13 +15,15 @@ Each start keeps its own inverse-Hessian approximation and line search and stops
 No Hessian is ever formed: one evaluation is one value and one gradient (measured in issue 13:
 an exact Lagrangian Hessian of the CasADi formulation cost 50-390x a gradient).
 
-Stopping rules (first met wins), reported per start in ``QNResult.reason``:
-
-* ``"converged"``: the relative decrease of ``f`` over the last ``window`` iterations is below
-  ``ftol`` (nonsmooth functions: the gradient need not vanish), or ``||g||_inf <= gtol``;
-* ``"line search"``: no step satisfying the Wolfe conditions was found before the bracket shrank
-  below ``xtol`` (at a nonsmooth minimizer this is the normal end, Lewis & Overton section 6.2);
-* ``"max_iter"`` / ``"max_eval"``: budget exhausted; ``"time_limit"``: the deadline expired.
+Why ours and not scipy's (issue 29; ``benchmarks/bench_quasi_newton.py``,
+``benchmarks/results/quasi_newton.md``): on the placement objective, through the engine's
+continuation, from the same starts with the same stopping rule, on the 29 benchmark placement
+problems and 14 random plants (n = 5..10), this method in lockstep took 5.05 s of CPU in all
+against 12.79 s for ``scipy.optimize.minimize(method="BFGS")`` (2.53x) and 14.91 s for
+``"L-BFGS-B"`` (2.95x), at the same best kappa2 (all within 1e-4 relative on every problem).  The
+lockstep accounts for 2.08x (one start at a time: 10.51 s); the rest is a cheaper iteration (137 us
+against scipy BFGS's 227 us per evaluation of the same objective), although scipy BFGS needs
+fewer evaluations (0.73x ours).  L-BFGS-B was faster on 2 of the 43 problems (0.79x, 0.85x).
 
 References
 ----------
@@ -41,6 +43,7 @@ from numpy.typing import NDArray
 from scipy.linalg import blas
 
 from .._deadline import Deadline
+from .tolerances import ARMIJO_C1, QN_FTOL, QN_XTOL, WOLFE_C2
 
 __all__ = ["QNResult", "bfgs_minimize", "bfgs_minimize_batch"]
 
@@ -173,14 +176,14 @@ def bfgs_minimize_batch(
     *,
     max_iter: int = 500,
     max_eval: int = 5000,
-    ftol: float = 1e-10,
+    ftol: float = QN_FTOL,
     gtol: float = 0.0,
     window: int = 8,
     deadline: Deadline | None = None,
     H0: list[NDArray[np.float64] | None] | None = None,
-    c1: float = 1e-4,
-    c2: float = 0.9,
-    xtol: float = 1e-10,
+    c1: float = ARMIJO_C1,
+    c2: float = WOLFE_C2,
+    xtol: float = QN_XTOL,
     pass_index: bool = False,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
     """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.

@@ -51,7 +51,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from ..analysis.linalg import commutation
 from ..errors import ValidationError
+from .tolerances import RESIDUAL_ROUNDING_FACTOR, rounding_level
 
 __all__ = [
     "SpectralBlocks",
@@ -61,7 +63,6 @@ __all__ = [
     "residual_scale",
 ]
 
-_EPS = float(np.finfo(float).eps)
 
 
 # ============================================================================ block data
@@ -403,7 +404,7 @@ class FactorProblem:
         Hvv = np.kron(np.eye(r), 2.0 * S)
         if self.objective == "nearest":
             E = V @ V.T - self.nominal
-            Jd = np.kron(V, np.eye(k)) + np.kron(np.eye(k), V) @ _commutation(k, r)
+            Jd = np.kron(V, np.eye(k)) + np.kron(np.eye(k), V) @ commutation(k, r)
             Hvv += 2.0 * Jd.T @ Jd + 4.0 * np.kron(np.eye(r), E)
         H[:self.nv, :self.nv] = Hvv[np.ix_(self.idx, self.idx)]
         if not self.fixed_g:
@@ -507,14 +508,6 @@ class FactorProblem:
         return float(np.max(bl.w * (bl.norms[0] + bl.norms[1] * qn)))
 
 
-def _commutation(k: int, r: int) -> NDArray[np.float64]:
-    """K with vec(V') = K vec(V) for a (k, r) matrix V (column-major vec)."""
-    K = np.zeros((k * r, k * r))
-    i, j = np.meshgrid(np.arange(k), np.arange(r), indexing="ij")
-    K[(i * r + j).ravel(), (j * k + i).ravel()] = 1.0
-    return K
-
-
 def residual_scale(problem: FactorProblem, x: NDArray) -> float:
     """The rounding level of the residuals at x: ``n eps`` times the size of their terms."""
-    return 8.0 * problem.blocks.n * _EPS * problem.scale_c(x)
+    return rounding_level(problem.blocks.n, problem.scale_c(x), RESIDUAL_ROUNDING_FACTOR)

@@ -38,10 +38,27 @@ from numpy.typing import NDArray
 from scipy.linalg import lapack
 
 from .spectral_factor import FactorProblem, residual_scale
+from .tolerances import (
+    ARMIJO_C1,
+    DECREASE_ROUNDING_FACTOR,
+    FEASIBLE_RESIDUAL_FACTOR,
+    FILTER_GAMMA_F,
+    FILTER_GAMMA_THETA,
+    FILTER_THETA_MAX_FACTOR,
+    GN_MIN_STEP,
+    MIN_STEP,
+    NEWTON_GTOL,
+    QR_RANK_RTOL,
+    RADIUS_SHRINK_MIN,
+    SQP_FEAS_RTOL,
+    TR_BISECT_RTOL,
+    TR_SHIFT_RTOL,
+    TRUNCATE_RTOL,
+    rounding_level,
+)
 
 __all__ = ["NewtonReport", "project", "find_feasible", "newton", "sqp", "escape_direction"]
 
-_EPS = float(np.finfo(float).eps)
 
 
 def _householder(Mt: NDArray, pivoting: bool = False):
@@ -82,7 +99,7 @@ def _lstsq(M: NDArray, b: NDArray) -> NDArray:
     if m <= n:
         ht, Rf, _ = _householder(M.T)
         d = np.abs(np.diag(Rf))
-        if d.size and d.min() > 1e-11 * d.max():
+        if d.size and d.min() > QR_RANK_RTOL * d.max():
             y = np.zeros(n)
             y[:m] = sl.solve_triangular(Rf, b, trans="T", check_finite=False)
             return _apply_q(ht, y, overwrite=True)
@@ -91,7 +108,7 @@ def _lstsq(M: NDArray, b: NDArray) -> NDArray:
 
 # ============================================================================ methods
 def project(problem: FactorProblem, x: NDArray, *, max_iter: int = 12,
-            tol_factor: float = 100.0) -> tuple[NDArray, bool, int]:
+            tol_factor: float = FEASIBLE_RESIDUAL_FACTOR) -> tuple[NDArray, bool, int]:
     """Gauss-Newton (minimum-norm steps, normalizations kept) from x onto the residuals' zero set.
 
     Returns ``(x, converged, iterations)``: converged when ``||c|| <= tol_factor *``
@@ -123,7 +140,7 @@ def project(problem: FactorProblem, x: NDArray, *, max_iter: int = 12,
     return best[1], bool(ok), max_iter
 
 
-def find_feasible(problem: FactorProblem, x: NDArray, *, max_iter: int = 60, truncate: float = 1e-5,
+def find_feasible(problem: FactorProblem, x: NDArray, *, max_iter: int = 60, truncate: float = TRUNCATE_RTOL,
                   expired: Callable[[], bool] | None = None) -> tuple[FactorProblem, NDArray, bool, int]:
     """Gauss-Newton with a backtracking line search on ``||c||`` from an infeasible start.
 
@@ -136,7 +153,7 @@ def find_feasible(problem: FactorProblem, x: NDArray, *, max_iter: int = 60, tru
     c = problem.c(x)
     nc = float(np.linalg.norm(c))
     for it in range(max_iter):
-        if nc <= 100.0 * residual_scale(problem, x) * np.sqrt(c.size):
+        if nc <= FEASIBLE_RESIDUAL_FACTOR * residual_scale(problem, x) * np.sqrt(c.size):
             return problem, x, True, it
         if expired is not None and expired():
             return problem, x, False, it
@@ -149,11 +166,11 @@ def find_feasible(problem: FactorProblem, x: NDArray, *, max_iter: int = 60, tru
         T = problem.tangent_rows(x, gauge=False)
         dx = _lstsq(np.vstack([J, T]), np.concatenate([-c, np.zeros(T.shape[0])]))
         alpha = 1.0
-        while alpha > 1e-6:
+        while alpha > GN_MIN_STEP:
             xn = problem.normalize(x + alpha * dx)
             cn = problem.c(xn)
             nn = float(np.linalg.norm(cn))
-            if nn < (1.0 - 1e-4 * alpha) * nc:
+            if nn < (1.0 - ARMIJO_C1 * alpha) * nc:
                 break
             alpha *= 0.5
         else:
@@ -206,10 +223,10 @@ class _Factored:
     def __init__(self, M: NDArray):
         ht, Rf, piv = _householder(M.T)                        # blocked: fast; rank-revealing below
         d = np.abs(np.diag(Rf))
-        if d.size and d.min() <= 1e-11 * d.max():  # dependent rows: the pivoted factorization
+        if d.size and d.min() <= QR_RANK_RTOL * d.max():  # dependent rows: the pivoted factorization
             ht, Rf, piv = _householder(M.T, pivoting=True)
             d = np.abs(np.diag(Rf))
-        self.rank = int(np.sum(d > 1e-11 * d.max())) if d.size else 0
+        self.rank = int(np.sum(d > QR_RANK_RTOL * d.max())) if d.size else 0
         N = M.shape[1]
         E = np.zeros((N, N - self.rank), order="F")
         E[self.rank:, :] = np.eye(N - self.rank)
@@ -297,7 +314,7 @@ def _tr_step_tridiagonal(H: NDArray, g: NDArray, radius: float) -> NDArray | Non
         if x is not None and np.linalg.norm(x) <= radius:
             return q_apply(x, False)
     lo = max(0.0, -wmin)
-    shift = 1e-12 * max(1.0, float(np.max(np.abs(w))))
+    shift = TR_SHIFT_RTOL * max(1.0, float(np.max(np.abs(w))))
 
     def size(lam: float) -> float:
         x = solve(lam, b)
@@ -326,7 +343,7 @@ def _multiplier(size: Callable[[float], float], lo: float, hi: float, radius: fl
             lo = mid
         else:
             hi = mid
-        if hi - lo <= 1e-12 * hi:
+        if hi - lo <= TR_BISECT_RTOL * hi:
             break
     return hi
 
@@ -343,7 +360,7 @@ def _tr_step(w: NDArray, E: NDArray, g: NDArray, radius: float) -> NDArray:
         if np.linalg.norm(d) <= radius:
             return E @ d
     lo = max(0.0, -wmin)
-    shift = 1e-12 * max(1.0, float(np.max(np.abs(w))))
+    shift = TR_SHIFT_RTOL * max(1.0, float(np.max(np.abs(w))))
 
     def size(lam):
         return float(np.linalg.norm(b / (w + lam)))
@@ -415,8 +432,8 @@ def _polish(problem: FactorProblem, x: NDArray) -> tuple[NDArray, float]:
     return x, problem.f(x)
 
 
-def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: float = 1e-10,
-           truncate: float = 1e-5, expired: Callable[[], bool] | None = None,
+def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: float = NEWTON_GTOL,
+           truncate: float = TRUNCATE_RTOL, expired: Callable[[], bool] | None = None,
            log: list | None = None) -> NewtonReport:
     """Newton's method for ``min f`` on the feasible manifold ``c = 0`` from a feasible x.
 
@@ -463,7 +480,8 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
         dx = Z @ _reduced_step(Hz, gz, radius)
         ndx = float(np.linalg.norm(dx))
         slope = float(grad @ dx)
-        if -slope <= 16.0 * _EPS * max(1.0, abs(f)):  # the predicted decrease is rounding
+        # the predicted decrease is rounding
+        if -slope <= rounding_level(1, max(1.0, abs(f)), DECREASE_ROUNDING_FACTOR):
             x, f = _polish(problem, x)
             return NewtonReport(x, True, it, f, gz_norm, mu, "converged (decrease at rounding level)",
                                 truncated, problem)
@@ -472,11 +490,11 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
         merit = f + float(mu @ problem.c(x))
         alpha = 1.0
         accepted = False
-        while alpha > 1e-8:
+        while alpha > MIN_STEP:
             xn, ok = _chord_project(problem, x + alpha * dx, fac, J.shape[0])
             if ok:
                 fn = problem.f(xn)
-                if fn + float(mu @ problem.c(xn)) <= merit + 1e-4 * alpha * slope:
+                if fn + float(mu @ problem.c(xn)) <= merit + ARMIJO_C1 * alpha * slope:
                     accepted = True
                     break
             alpha *= 0.5
@@ -485,7 +503,7 @@ def newton(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, gtol: flo
         if not accepted:
             reason = "no decrease along the Newton direction"
             break
-        radius = max(radius, 2.0 * ndx) if alpha == 1.0 else max(alpha * ndx, 1e-8 * radius)
+        radius = max(radius, 2.0 * ndx) if alpha == 1.0 else max(alpha * ndx, RADIUS_SHRINK_MIN * radius)
         x, f = xn, fn
     return NewtonReport(x, False, it + 1, f, gz_norm, mu, reason, truncated, problem)
 
@@ -495,8 +513,8 @@ def _filter_accepts(filt: list, theta: float, f: float) -> bool:
     return all(theta < tj or f < fj for tj, fj in filt)
 
 
-def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: float = 1e-6,
-        truncate: float = 1e-5, expired: Callable[[], bool] | None = None,
+def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: float = SQP_FEAS_RTOL,
+        truncate: float = TRUNCATE_RTOL, expired: Callable[[], bool] | None = None,
         log: list | None = None) -> NewtonReport:
     """SQP from an infeasible x until it is nearly feasible (``||c|| <= feas_rel *`` the size of the
     residuals' terms), the objective reduced on the way.
@@ -526,9 +544,9 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
     gz_norm = float("inf")
     c = problem.c(x)
     theta0 = float(np.linalg.norm(c))
-    theta_max = 1e4 * max(1.0, theta0)
+    theta_max = FILTER_THETA_MAX_FACTOR * max(1.0, theta0)
     filt: list[tuple[float, float]] = [(theta_max, -np.inf)]
-    g_th, g_f = 1e-5, 1e-5
+    g_th, g_f = FILTER_GAMMA_THETA, FILTER_GAMMA_F
     radius = max(1.0, float(np.linalg.norm(x)))
     for it in range(max_iter):
         if expired is not None and expired():
@@ -565,12 +583,12 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
         m = float(grad @ dx)
         alpha = 1.0
         accepted = False
-        while alpha > 1e-8:
+        while alpha > MIN_STEP:
             xn = problem.normalize(x + alpha * dx)
             th_n, f_n = float(np.linalg.norm(problem.c(xn))), problem.f(xn)
             if np.isfinite(th_n) and np.isfinite(f_n) and _filter_accepts(filt, th_n, f_n):
                 switching = m < 0 and alpha * (-m) ** 2.3 > theta ** 1.1
-                if switching and f_n <= f + 1e-4 * alpha * m:
+                if switching and f_n <= f + ARMIJO_C1 * alpha * m:
                     accepted = True
                     break
                 if not switching and (th_n <= (1 - g_th) * theta or f_n <= f - g_f * theta):
@@ -583,7 +601,7 @@ def sqp(problem: FactorProblem, x: NDArray, *, max_iter: int = 100, feas_rel: fl
         if not accepted:
             return NewtonReport(x, False, it, f, gz_norm, mu, "the filter line search failed", truncated,
                                 problem)
-        radius = max(radius, 2.0 * ndx) if alpha == 1.0 else max(alpha * ndx, 1e-8 * radius)
+        radius = max(radius, 2.0 * ndx) if alpha == 1.0 else max(alpha * ndx, RADIUS_SHRINK_MIN * radius)
         x = xn
     return NewtonReport(x, False, it + 1, problem.f(x), gz_norm, mu, "iteration limit", truncated, problem)
 

@@ -65,6 +65,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .._backends import import_cvxpy
+from ..analysis.linalg import sym
 from ..errors import ValidationError
 from ..model.model_set import ModelSet
 from ..model.regions import Region
@@ -175,10 +176,6 @@ class RobustLMI:
         return L
 
 
-def _sym(M):
-    return 0.5 * (M + M.T)
-
-
 def region_lmi(region: Region, P, Z, margin: float, kron=None):
     """``(L_D + 2 margin I) (x) P + M_D (x) Z' + M_D' (x) Z`` (must be ``<= 0``).
 
@@ -243,17 +240,17 @@ def lmi_blocks(
         Z = P @ data["A"][i] - Y @ data["C"][i]
         reg = spec.regions[i]
         if reg is not None:
-            out["region"].append(_sym(-region_lmi(reg, P, Z, spec.margin, None if cp is None else cp.kron)))
+            out["region"].append(sym(-region_lmi(reg, P, Z, spec.margin, None if cp is None else cp.kron)))
         if spec.needs_noise:
             PB = _noise_input(P, Y, data["Bw"][i], data["Dv"][i], hstack)
             k = PB.shape[1]
         if spec.objective == "h2" or spec.h2_max is not None:
             W = values["W"][i]
             if spec.discrete:
-                out["h2"].append(_sym(bmat([[P - rho * eye(n), Z.T], [Z, P]])))
+                out["h2"].append(sym(bmat([[P - rho * eye(n), Z.T], [Z, P]])))
             else:
-                out["h2"].append(_sym(-(Z + Z.T + rho * eye(n))))
-            out["h2"].append(_sym(bmat([[W, PB.T], [PB, P]])))
+                out["h2"].append(sym(-(Z + Z.T + rho * eye(n))))
+            out["h2"].append(sym(bmat([[W, PB.T], [PB, P]])))
             h2m = spec.h2_max
             bound = values["nu"] if (spec.objective == "h2" or h2m is None) else rho * h2m**2
             out["h2"].append(bound - trace(W))
@@ -266,28 +263,28 @@ def lmi_blocks(
                 M = bmat(
                     [[P, Z, PB], [Z.T, P - rho * eye(n), zeros((n, k))], [PB.T, zeros((k, n)), g2 * eye(k)]]
                 )
-                out["hinf"].append(_sym(M))
+                out["hinf"].append(sym(M))
             else:
                 M = bmat([[Z + Z.T + rho * eye(n), PB], [PB.T, -g2 * eye(k)]])
-                out["hinf"].append(_sym(-M))
+                out["hinf"].append(sym(-M))
             if spec.objective == "hinf" and spec.hinf_max is not None:
                 out["hinf"].append(spec.hinf_max**2 - values["nu"])
     if spec.objective in ("cond", "gain"):
-        out["norm"].append(_sym(P - eye(n)))
+        out["norm"].append(sym(P - eye(n)))
         if spec.objective == "cond":
-            out["norm"].append(_sym(values["t"] * eye(n) - P))
+            out["norm"].append(sym(values["t"] * eye(n) - P))
     else:
-        out["norm"].append(_sym(P))  # P >= 0 (its strictness comes from the other blocks)
+        out["norm"].append(sym(P))  # P >= 0 (its strictness comes from the other blocks)
     if spec.homogeneous and spec.needs_noise:
         out["norm"].append(rho)
     p = Y.shape[1]
     if spec.objective == "gain":
         s = values["s"]
-        out["gain"].append(_sym(bmat([[s * eye(n), Y], [Y.T, s * eye(p)]])))
+        out["gain"].append(sym(bmat([[s * eye(n), Y], [Y.T, s * eye(p)]])))
     if spec.max_gain is not None:
         sg = values["sigma"]
-        out["gain"].append(_sym(P - sg * eye(n)))
-        out["gain"].append(_sym(bmat([[spec.max_gain * sg * eye(n), Y], [Y.T, spec.max_gain * sg * eye(p)]])))
+        out["gain"].append(sym(P - sg * eye(n)))
+        out["gain"].append(sym(bmat([[spec.max_gain * sg * eye(n), Y], [Y.T, spec.max_gain * sg * eye(p)]])))
     return out
 
 

@@ -643,9 +643,8 @@ class PoleTargetDesigner:
     starts, seed : int
         Well-conditioned multi-start; seed also for ``kalman_for_poles``.
     reuse : bool
-        ``method="inverse"``: re-use the fixed-gain SDP (cvxpy parameters) across the points of a
-        worker (default) or rebuild it for every point
-        (:func:`optdesign.design.inverse_kalman.sdp_reuse`).
+        No effect (kept for one release): ``kalman_for_poles`` builds its own problem on every call
+        (the deprecated :func:`optdesign.design.inverse_kalman.sdp_reuse` is a no-op).
     """
 
     problem: str | None = None
@@ -713,11 +712,10 @@ class PoleTargetDesigner:
             vals = gain_values(plant, res.L)
             vals["pole_error"] = res.record()["pole_error"]
         elif self.method == "inverse":
-            from ..design.inverse_kalman import kalman_for_poles, sdp_reuse
+            from ..design.inverse_kalman import kalman_for_poles
 
             kw = {"objective": self.objective} if self.objective else {}
-            with sdp_reuse(self.reuse):
-                res = kalman_for_poles(plant, target, method=self.inverse_method, seed=self.seed, **kw)
+            res = kalman_for_poles(plant, target, method=self.inverse_method, seed=self.seed, **kw)
             vals = gain_values(plant, res.L)
             vals["pole_error"] = float(res.pole_error)
             vals["trace_Q"] = float(np.trace(res.Q)) if res.Q is not None else float("nan")

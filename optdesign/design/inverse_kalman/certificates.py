@@ -76,14 +76,14 @@ def one_output_verdict(plant, target, common, res, dl):
     issue on honest answers: an inaccurate SDP used to return no certificate at all)."""
     if res.success or res.certificate is not None or common["structure"] != "full":
         return res
-    L = res.details.get("L_placed", res.L)
+    L = res.extra.get("L_placed", res.L)
     try:
         L = placed_gain(plant, target) if L is None else L
         circ = circle_condition(plant, L, R=np.asarray(plant.R, dtype=float))
     except (ValidationError, np.linalg.LinAlgError):
         return res
     if not circ.violation_certain:  # holds, or a violation inside its rounding floor: no proof
-        res.details["circle"] = circ
+        res.extra["circle"] = circ
         return res
     ineq = "T V T* >= R" if plant.is_discrete else "T R T* >= R"
     cert = InfeasibilityCertificate(
@@ -91,7 +91,7 @@ def one_output_verdict(plant, target, common, res, dl):
         reason=(f"the return-difference inequality {ineq} fails at the gain fixed by the poles: lambda_min = "
                 f"{circ.min_eigenvalue:.4g} at omega = {circ.omega_worst:.6g} rad/s"),
         omega=circ.omega_worst, min_eigenvalue=circ.min_eigenvalue, circle=circ)
-    details = {**res.details, "sdp_message": res.message}
+    details = {**res.extra, "sdp_message": res.message}
     return empty_result(common, Status.INFEASIBLE, f"infeasible: {cert}", cert, res.solver_stats,
                         details=details)
 

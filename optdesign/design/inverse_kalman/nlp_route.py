@@ -147,7 +147,7 @@ class NLPRoute:
         natives = ", ".join(e["native"] for e in self.details["starts"]) or "not run"
         res = run_sdp(self.plant, self.target, self.common, self.Qn, self.solver, self.tol, self.seed,
                       self.dl)
-        res.details["nlp"] = self.details
+        res.extra["nlp"] = self.details
         msg = (f"NLP ({self.formulation} formulation): IPOPT reached no verified optimum ({natives}); one "
                f"output fixes L, so the fixed-gain SDP at that gain gives the answer: {res.message}")
         return dataclasses.replace(res, message=msg)
@@ -158,7 +158,7 @@ class NLPRoute:
         res = fixed_gain_design(self.plant, self.target, self.common, self.Qn, self.solver, self.tol,
                                  self.seed, self.dl, L=L)
         if res.success:
-            res.details["nlp"] = self.details
+            res.extra["nlp"] = self.details
             return dataclasses.replace(res, message=f"L from {source}; Q the optimum of that gain's family "
                                                     f"by "
                                                     f"the fixed-gain SDP: {res.message}")
@@ -259,7 +259,7 @@ class NLPRoute:
         else:
             why = tried
         near = ("" if reached is None else
-                f"; the closest poles found are {reached:.3g} away (details['closest'])")
+                f"; the closest poles found are {reached:.3g} away (extra['closest'])")
         return empty_result(self.common, Status.NOT_FOUND,
                       f"no verified design, feasibility unknown: {why}{near} -- a local search is evidence, "
                       f"not proof", None, stats, details=self.details)

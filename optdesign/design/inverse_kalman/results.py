@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -11,6 +12,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ...classical.riccati import format_pole as _fmt
+from ...errors import OptDesignDeprecationWarning
 from ...model.plant import Plant
 from ...results import Certificate, DesignResult
 from ..estimator import estimator_of
@@ -129,7 +131,7 @@ class InverseKalmanResult(DesignResult):
     plant : Plant
     extra : dict
         Diagnostics: backend reports of every stage, the SDP gain, NLP starts, the closest poles
-        of a search that found nothing, ...; also ``details``.
+        of a search that found nothing, ...  (``details``: a deprecated alias.)
     """
 
     L: NDArray[np.float64] | None = None
@@ -150,7 +152,10 @@ class InverseKalmanResult(DesignResult):
 
     @property
     def details(self) -> dict[str, Any]:
-        """The run's diagnostics (``extra``)."""
+        """Deprecated alias of ``extra`` (the result base's diagnostics field): warns
+        :class:`~optdesign.errors.OptDesignDeprecationWarning`; goes in the next release."""
+        warnings.warn("InverseKalmanResult.details is deprecated: use .extra (the same dict; the alias "
+                      "goes in the next release)", OptDesignDeprecationWarning, stacklevel=2)
         return self.extra
 
     def estimator(self, *, form: str | None = None, output: str = "auto"):

@@ -1,8 +1,8 @@
 """The visible route of the inverse-Kalman verbs (issue 26, item 2): what ran, in order, and which
-stage answered -- built in one place per verb from what the stages record (``details`` /
-``extra``: ``sdp_report``, ``margin_report``, ``whitened``, ``physical_attempt``,
-``fixed_gain_attempt``, ``spectral_sdp_report``, ``L_source``, ``nlp_message``; the solver
-statistics; the certificate), so ``method`` is what was asked and ``route`` what ran."""
+stage answered -- built in one place per verb from what the stages record (``extra``:
+``sdp_report``, ``margin_report``, ``whitened``, ``physical_attempt``, ``fixed_gain_attempt``,
+``spectral_sdp_report``, ``L_source``, ``nlp_message``; the solver statistics; the certificate),
+so ``method`` is what was asked and ``route`` what ran."""
 
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ def _detail(rep: Any) -> str:
 
 def _route_stages(res: Any) -> list[Stage]:
     """The stages of the SDP / NLP / sequential routes, from what they recorded."""
-    d = res.details if hasattr(res, "details") else {}
+    d = res.extra if hasattr(res, "extra") else {}
     stages: list[Stage] = []
     if "nlp_message" in d:
         src = d.get("L_source")

@@ -113,12 +113,12 @@ def fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl, L=None):
         return res
     Lw = res.L if L is None else L
     if Lw is None:
-        Lw = res.details.get("L_placed")
+        Lw = res.extra.get("L_placed")
     if Lw is None or whitening(plant, Lw, np.asarray(plant.R, dtype=float)) is None:
         return res
     alt = run_fixed_gain_sdp(plant, target, common, Qn, solver, tol, seed, dl, L=Lw, whiten=True)
     if alt.success:
-        alt.details["physical_attempt"] = res.message
+        alt.extra["physical_attempt"] = res.message
         return alt
     return res
 
@@ -134,7 +134,7 @@ def run_sdp(plant, target, common, Qn, solver, tol, seed, dl):
     objective SDP was inaccurate (the feasibility SDP's point returned instead: the objective
     not optimized) is compared with the spectral SDP's, and the better verified one kept."""
     res = fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl)
-    raw = res.details.get("sdp_objective_unpolished")
+    raw = res.extra.get("sdp_objective_unpolished")
     drift = (abs(res.objective_value - raw) / max(1e-300, abs(raw)) if raw is not None and
              np.isfinite(res.objective_value) and abs(raw) > 0 else 0.0)
     # the polish moves the SDP point onto an exact solution; where the family is badly
@@ -146,7 +146,7 @@ def run_sdp(plant, target, common, Qn, solver, tol, seed, dl):
     if terms is None or dl.expired:
         return one_output_verdict(plant, target, common, res, dl)
     alt = run_spectral_sdp(plant, target, common, Qn, solver, tol, terms, dl)
-    alt.details["fixed_gain_attempt"] = res.message
+    alt.extra["fixed_gain_attempt"] = res.message
     if res.success:
         if not alt.success:
             return res
@@ -158,7 +158,7 @@ def run_sdp(plant, target, common, Qn, solver, tol, seed, dl):
         return alt
     if alt.L is not None and (res.L is None or len(alt.verification.failed) < len(res.verification.failed)):
         if res.L is None and res.status.is_infeasible:
-            alt.details["fixed_gain_certificate"] = res.certificate
+            alt.extra["fixed_gain_certificate"] = res.certificate
         return alt  # a design close to the target whose checks fail: better than no design
     return one_output_verdict(plant, target, common, res, dl)
 

@@ -15,7 +15,7 @@ from ...backends import cvxpy_backend
 from ...backends.clarabel_fixed_gain import riccati_of_gain
 from ...backends.cvxpy_backend import default_sdp_solver, solve_cvxpy
 from ...engines.polish import face_polish
-from ...errors import SolverError
+from ...errors import OptDesignDeprecationWarning, SolverError
 from ...formulate.inverse_kalman import (
     build_fixed_gain_sdp,
 )
@@ -39,7 +39,7 @@ def sdp_reuse(enabled: bool):
     caller-held problem objects.
     """
     warnings.warn("sdp_reuse() has no effect: kalman_for_poles no longer caches SDPs between calls",
-                  DeprecationWarning, stacklevel=3)
+                  OptDesignDeprecationWarning, stacklevel=3)
     yield
 
 

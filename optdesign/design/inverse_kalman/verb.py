@@ -129,7 +129,7 @@ def kalman_for_poles(
         determinant or trace identity every Kalman filter satisfies, the frequency where the
         return-difference inequality fails at the gain the poles fix (one output), or an accurate
         convex SDP.  When a local search finds nothing the status is ``NOT_FOUND`` (feasibility
-        unknown; the closest poles found are in ``details["closest"]``), never ``INFEASIBLE``.
+        unknown; the closest poles found are in ``extra["closest"]``), never ``INFEASIBLE``.
         A solver failure gives its status and the reason in ``message``.  When no route verifies a
         design, the result is the best unverified one (``success`` False, a solver's optimum as
         ``optimal_inaccurate``, the failed checks named in ``message``): the smallest largest check
@@ -469,8 +469,8 @@ def run_sdp_outputs(plant, target, common, Qn, solver, tol, seed, dl, settings=N
                f"found: {nlp.message}{seq_msg}")
         return dataclasses.replace(nlp, message=msg)
     res = fixed_gain_design(plant, target, common, Qn, solver, tol, seed, dl, L=L)
-    res.details["L_source"] = source
-    res.details["nlp_message"] = nlp.message
+    res.extra["L_source"] = source
+    res.extra["nlp_message"] = nlp.message
     if res.success:
         msg = (f"L from {source} ({plant.p} outputs: the poles do not fix L), Q from the fixed-gain "
                + res.message)
