@@ -59,7 +59,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import Deadline
+from .._deadline import Deadline, dense_time_refusal
 from .._validate import as_int, as_matrix, as_positive_float, as_square, check_psd, sym_tol
 from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_error, filter_are_residual, sort_poles
 from ..errors import (
@@ -332,7 +332,10 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
         columns of ``sys.B`` are G, of ``sys.D`` the noise feedthrough H, folded into R and N).
     time_limit : float, optional
         Seconds.  When the solve itself uses it up, the independent cross-check is not run and
-        the status is ``time_limit`` (the filter is returned, not verified).
+        the status is ``time_limit`` (the filter is returned, not verified).  A Riccati solve
+        (one LAPACK call: it cannot be stopped) whose calibrated estimate
+        (:func:`~optdesign._deadline.dense_time_refusal`) alone exceeds the limit is not started:
+        a ``ValidationError`` naming ``time_limit`` and the estimate.
 
     Returns
     -------
@@ -346,8 +349,10 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
         ``plant`` is not a Plant or a state-space system (a transfer function: with how to convert
         it, ``control.ss(sys)``); a ``TypeError`` and a ``ValidationError``.
     ValidationError
-        ``plant`` has no Q or no R, ``method`` is unknown, bad ``sensors`` / ``known`` (named), Q
-        with more rows than a system has inputs, not n x n, and neither ``G=`` nor ``known=``.
+        ``time_limit`` shorter than the estimated time of the Riccati solve alone (the message
+        gives the estimate); ``plant`` has no Q or no R, ``method`` is unknown, bad ``sensors`` /
+        ``known`` (named), Q with more rows than a system has inputs, not n x n, and neither ``G=``
+        nor ``known=``.
     NotPositiveSemidefiniteError
         N makes ``[[Q, N], [N', R]]`` indefinite.
     NotPositiveDefiniteError
@@ -382,6 +387,11 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
                    extra: dict[str, Any] | None = None) -> KalmanFilter:
     """Solve, verify and package the steady-state filter of a converted system."""
     plant = data.plant
+    why = dense_time_refusal([("care_qz" if method == "scipy" else "hamiltonian_schur", plant.n)], deadline,
+                             f"the {method} Riccati solve at n = {plant.n}")
+    if why:   # issue 26: a solve that cannot be stopped is not started past the time limit
+        raise ValidationError(f"time_limit={deadline.limit:g} s cannot be kept: {why}; give time_limit=None "
+                              f"(or a longer one) to run it")
     Ne, Rb = _noise_data(plant, N, data.H)
     work = _reduced_plant(plant, Ne, Rb)
     t0 = time.perf_counter()
