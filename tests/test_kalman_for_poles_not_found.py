@@ -20,6 +20,7 @@ answer is ``not_found`` (never ``infeasible``), which is what the first test gua
 promoted to plain tests.
 """
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -66,3 +67,27 @@ def test_the_engine_finds_the_worst_case():
 def test_kalman_for_poles_designs_the_feasible_target(name):
     plant, poles, _ = _case(name)
     assert kalman_for_poles(plant, poles, time_limit=60).success
+
+
+def test_an_engine_that_finds_nothing_is_in_the_route(monkeypatch):
+    """Before: the engine's ``not_found`` was dropped (``run_engine`` returned None) and the route
+    named only the fallback (``nlp [backend]: not_found``), hiding 2 s of engine starts."""
+    import optdesign.design.inverse_kalman.engine_route as er
+
+    real = er.solve_inverse_kalman
+
+    def finds_nothing(setup, target, **kw):
+        res = real(setup, target, **kw)
+        return replace(res, L=None, P=None, Q=None, Qw=None, status=Status.NOT_FOUND,
+                       message="no Kalman filter with these poles found from 3 start(s)")
+
+    monkeypatch.setattr(er, "solve_inverse_kalman", finds_nothing)
+    rng = np.random.default_rng(7)
+    A = rng.standard_normal((4, 4)) - 3.0 * np.eye(4)
+    plant = Plant(A, rng.standard_normal((2, 4)), R=np.eye(2))
+    P = sla.solve_continuous_are(A.T, plant.C.T, np.eye(4), np.eye(2))
+    res = kalman_for_poles(plant, np.linalg.eigvals(A - P @ plant.C.T @ plant.C))
+    assert res.route[0].name == "inverse_kalman_engine" and res.route[0].outcome == "not_found"
+    assert len(res.route) >= 2 and res.route.answered is not None
+    assert res.route.answered.name != "inverse_kalman_engine"
+    assert res.success

@@ -312,6 +312,8 @@ class InverseKalmanProblem:
                 engine = run_engine(self.engine(dl), target, common, self.Qn, tol, seed, dl, warm)
                 if engine is not None and (engine.success or engine.status == Status.TIME_LIMIT):
                     return engine, engine
+                if engine is not None and engine.L is None:   # the engine found nothing: the other
+                    return self._route(method, target, common, seed, dl), engine   # routes answer
                 err = None if engine is None else uncomputable_poles(plant, engine, target, tol)
                 if err is not None and engine is not None:  # the other routes cannot help
                     own = engine.verification["pole_error"].value
