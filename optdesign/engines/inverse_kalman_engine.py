@@ -88,7 +88,7 @@ from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Status
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_result import POLE_FLOOR_CAP, EngineResult, engine_result, sdp_record
-from .inverse_kalman_setup import EngineSetup, engine_applies, prepare_inverse_kalman
+from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup, engine_applies, prepare_inverse_kalman
 from .inverse_kalman_starts import decision_starts, rescue_starts, stable_mask
 from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
 from .polish import refine_gain
@@ -99,8 +99,6 @@ __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inver
            "engine_applies", "ONE_OUTPUT_FIRST_TRY", "ONE_OUTPUT_FIRST_TRY_MIN_DIM",
            "ONE_OUTPUT_IPM_MIN_DIM"]
 
-#: floor of a norm used as a divisor or scale (far below any scale of the data, above underflow)
-SCALE_FLOOR = 1e-300
 #: candidate ranks of an interior-point PSD matrix: eigenvalue gaps of at least this ratio (its
 #: vanishing eigenvalues sit orders below the others, by the barrier's complementarity) ...
 RANK_GAP_RATIO = 100.0
@@ -110,8 +108,8 @@ RANK_EIG_FLOOR = 1e-13
 #: relative: a PSD W with zero eigenvalues gets a factor, its other eigenvalues moved by rounding only)
 START_REGULARIZATION = 1e-12
 #: a new column of V along a negative dual-slack direction starts at this fraction of ``||V||``
-#: (small: the projection onto the feasible set moves the point little; floor ``SCALE_FLOOR``-like
-#: ``ESCAPE_NORM_FLOOR`` for a vanishing V)
+#: (small: the projection onto the feasible set moves the point little), ``||V||`` taken at least
+#: ``ESCAPE_NORM_FLOOR`` (~4500 eps: a vanishing V still gets a column above rounding)
 ESCAPE_STEP = 1e-3
 ESCAPE_NORM_FLOOR = 1e-12
 #: a warm start's eigenvalues are raised to this fraction of its largest (positive definite:

@@ -6,8 +6,6 @@ covariance they are measured by.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.linalg as sl
 from numpy.typing import NDArray
@@ -16,10 +14,8 @@ from .._deadline import Deadline
 from ..classical.placement import pole_error
 from ..formulate.inverse_kalman import spectral_terms
 from ..model.plant import Plant
+from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup
 from .spectral_factor import initial_null_vectors, spectral_blocks
-
-if TYPE_CHECKING:
-    from .inverse_kalman_setup import EngineSetup
 
 __all__ = ["stable_mask", "scipy_kalman", "scaled_start", "placement_scale", "decision_starts",
            "rescue_starts", "SCALE_GRID", "NOMINAL_EIG_FLOOR", "RESCUE_FACTORS"]
@@ -33,8 +29,6 @@ NOMINAL_EIG_FLOOR = 1e-3
 #: the rescue starts' scales, as multiples of the scaled identity's (measured on repeated targets:
 #: the feasible Q may be one or two decades from every scaled identity)
 RESCUE_FACTORS = (10.0, 0.1, 100.0)
-#: floor of a norm used as a divisor (far below any scale of the data, above underflow)
-_SCALE_FLOOR = 1e-300
 
 
 def stable_mask(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
@@ -91,7 +85,7 @@ def placement_scale(setup: EngineSetup, target: NDArray) -> float | None:
     except np.linalg.LinAlgError:
         return None
     c = float(np.linalg.norm(L0 @ np.asarray(setup.plant.R, dtype=float) @ L0.T, 2))
-    c /= max(_SCALE_FLOOR, float(np.linalg.norm(setup.Gd, 2)) ** 2)
+    c /= max(SCALE_FLOOR, float(np.linalg.norm(setup.Gd, 2)) ** 2)
     return c if np.isfinite(c) and c > 0 else None
 
 
@@ -112,7 +106,7 @@ def decision_starts(setup: EngineSetup, target: NDArray, Qn: NDArray | None, cou
     out.append(("scaled identity", a * np.eye(k)))
     if Qn is not None:
         w, U = np.linalg.eigh(0.5 * (Qn + Qn.T))
-        Wn = (U * np.maximum(w, NOMINAL_EIG_FLOOR * max(float(w[-1]), _SCALE_FLOOR))) @ U.T
+        Wn = (U * np.maximum(w, NOMINAL_EIG_FLOOR * max(float(w[-1]), SCALE_FLOOR))) @ U.T
         out.append(("scaled nominal", scaled_start(setup, target, Wn, deadline) * Wn))
     if c is not None:
         out.append(("placement-scaled identity", c * np.eye(k)))
