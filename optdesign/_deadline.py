@@ -17,7 +17,8 @@ from typing import Any
 from .errors import ValidationError
 
 __all__ = ["Deadline", "as_time_limit", "memory_budget", "dense_kkt_refusal", "dense_time_estimate",
-           "dense_time_refusal", "FLOPS_PER_SECOND", "DENSE_N3", "MIN_REFUSAL_SECONDS"]
+           "dense_time_refusal", "FLOPS_PER_SECOND", "DENSE_N3", "DENSE_N4",
+           "MIN_REFUSAL_SECONDS"]
 
 
 def as_time_limit(value: Any, name: str = "time_limit") -> float | None:
@@ -161,6 +162,10 @@ def dense_kkt_refusal(size: int, deadline: Deadline | None, what: str, iteration
 #: ordered QZ of the 2n pencil: 160-247)
 DENSE_N3: dict[str, float] = {"eigvals": 3.0, "eig": 4.0, "schur": 3.0, "lyapunov": 8.0,
                               "hamiltonian_schur": 20.0, "care_qz": 150.0}
+#: the same for work of order n^4 (``DENSE_N4[kind] * n^4 / FLOPS_PER_SECOND``): ``resolvents`` the two
+#: complex LU solves per target of the inverse Kalman engine's spectral terms (measured 2.1, 1.2, 0.97
+#: at n = 100, 200, 300 and falling with n: 0.5 kept as the lower bound)
+DENSE_N4: dict[str, float] = {"resolvents": 0.5}
 
 
 #: an estimate below this many seconds never refuses: the overrun is then at most this, and a tiny
@@ -170,9 +175,11 @@ MIN_REFUSAL_SECONDS = 0.1
 
 
 def dense_time_estimate(calls: Sequence[tuple[str, int]]) -> float:
-    """CPU seconds of the dense calls ``[(kind, n), ...]`` (kinds of :data:`DENSE_N3`): a calibrated
-    lower bound, ``sum DENSE_N3[kind] n^3 / FLOPS_PER_SECOND``."""
-    return float(sum(DENSE_N3[kind] * float(n) ** 3 for kind, n in calls)) / FLOPS_PER_SECOND
+    """CPU seconds of the dense calls ``[(kind, n), ...]`` (kinds of :data:`DENSE_N3` or
+    :data:`DENSE_N4`): a calibrated lower bound, ``sum DENSE_N3[kind] n^3 / FLOPS_PER_SECOND`` (n^4
+    for the kinds of ``DENSE_N4``)."""
+    return float(sum(DENSE_N3[kind] * float(n) ** 3 if kind in DENSE_N3 else DENSE_N4[kind] * float(n) ** 4
+                     for kind, n in calls)) / FLOPS_PER_SECOND
 
 
 def dense_time_refusal(calls: Sequence[tuple[str, int]], deadline: Deadline | None, what: str) -> str:
@@ -192,6 +199,7 @@ def dense_time_refusal(calls: Sequence[tuple[str, int]], deadline: Deadline | No
         return ""
     kinds = ", ".join(f"{kind} at n = {n}" for kind, n in calls)
     return (f"{what} needs at least {secs:.3g} s of uninterruptible dense linear algebra ({kinds}; "
-            f"estimated as c n^3 flops at {FLOPS_PER_SECOND:.0e} flop/s, c calibrated from measured calls "
-            f"at n = 200-400 on one core), more than the {left:.3g} s left of time_limit={deadline.limit:g}: "
+            f"estimated as c n^3 (n^4) flops at {FLOPS_PER_SECOND:.0e} flop/s, c calibrated from "
+            f"measured calls at n = 100-400 on one core), more than the {left:.3g} s left of "
+            f"time_limit={deadline.limit:g}: "
             f"not attempted")

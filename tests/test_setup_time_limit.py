@@ -22,6 +22,7 @@ from optdesign._deadline import (
     dense_time_estimate,
     dense_time_refusal,
 )
+from optdesign.engines.inverse_kalman_engine import prepare_inverse_kalman, solve_inverse_kalman
 from optdesign.errors import ValidationError
 from optdesign.regions import Disk, HalfPlane
 from optdesign.results import Status
@@ -115,3 +116,17 @@ def test_no_limit_is_never_refused_up_front():
     """Without a limit (and with a generous one) small problems run as before."""
     plant = Plant([[0, 1], [-6, -5]], [[1, 0]], R=[[1]])
     assert od.kalman_for_poles(plant, [-5, -8], time_limit=100.0).success
+
+
+def test_engine_refuses_its_quartic_resolvents():
+    """The engine's spectral terms (two solves of order n per target: O(n^4), no deadline check
+    inside) took 5 s of a 2 s limit at n = 300; now refused when their estimate outlasts it."""
+    rng = np.random.default_rng(3)
+    n = 200
+    A = rng.standard_normal((n, n)) / np.sqrt(n) - 2.0 * np.eye(n)
+    plant = Plant(A, rng.standard_normal((3, n)), R=np.eye(3))
+    dl = Deadline(TINY)
+    res = solve_inverse_kalman(prepare_inverse_kalman(plant, deadline=dl), -2.0 - np.arange(n) / n,
+                               time_limit=dl)
+    assert res.status == Status.TIME_LIMIT and res.L is None
+    assert "resolvents at n = 200" in res.message and "n^4" in res.message

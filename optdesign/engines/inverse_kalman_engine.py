@@ -69,7 +69,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import Deadline, dense_kkt_refusal
+from .._deadline import Deadline, dense_kkt_refusal, dense_time_refusal
 from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
 from ..backends.clarabel_fixed_gain import (
     CLARABEL_OPTIONS,
@@ -536,6 +536,10 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
         msg = f"infeasible: a target pole is not {where}, and every steady-state Kalman filter is stable"
         return engine_result(setup, target, Status.INFEASIBLE, msg, t0, cpu0,
                        details={"certificate": {"kind": "unstable_target"}}, **common)
+    why = dense_time_refusal([("resolvents", plant.n)], deadline, f"the engine's resolvents at n = {plant.n}")
+    if why:   # issue 26: n solves of order n, O(n^4), not interruptible between stages
+        return engine_result(setup, target, Status.TIME_LIMIT, f"no design: {why}", t0, cpu0,
+                             details={"refused": why}, **common)
     if setup.one_output_route:
         L = single_output_gain(plant.A, plant.C, target, plant.dt, setup.eig_A)
         fast = None if L is None else _one_output_form(setup, target, L, deadline, t0, cpu0, tol)
