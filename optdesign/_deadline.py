@@ -153,20 +153,20 @@ def dense_kkt_refusal(size: int, deadline: Deadline | None, what: str, iteration
 
 #: CPU seconds of one uninterruptible dense LAPACK call on a plant of order n, as
 #: ``DENSE_N3[kind] * n^3 / FLOPS_PER_SECOND``.  The coefficients are *calibrated*, not flop counts:
-#: measured with single-threaded OpenBLAS on the development machine at n = 200 and 400 (issue 26;
-#: ``benchmarks/bench_setup_time_limit.py --calibrate``), the smaller of the two kept, so that the
+#: measured with single-threaded OpenBLAS on the development machine at n = 200 and 400, twice
+#: (issue 26; ``benchmarks/bench_setup_time_limit.py --calibrate``, results in
+#: ``benchmarks/results/setup_time_limit.md``), rounded below the smallest measurement, so that the
 #: estimate is a lower bound (a refusal never turns away work that would have fit):
-#: ``eigvals`` numpy's eigenvalues (3-5), ``eig`` with eigenvectors (4-7), ``schur`` scipy's real
-#: Schur form (3-6), ``lyapunov`` a continuous Lyapunov solve (8-9), ``hamiltonian_schur`` the Schur
-#: form of the 2n x 2n Hamiltonian (22-28), ``care_qz`` scipy's ``solve_continuous_are`` (its
-#: ordered QZ of the 2n pencil: 160-247)
-DENSE_N3: dict[str, float] = {"eigvals": 3.0, "eig": 4.0, "schur": 3.0, "lyapunov": 8.0,
-                              "hamiltonian_schur": 20.0, "care_qz": 150.0}
+#: ``eigvals`` numpy's eigenvalues (measured 2.3-5), ``eig`` with eigenvectors (3.5-7), ``schur``
+#: scipy's real Schur form (3.1-6), ``lyapunov`` a continuous Lyapunov solve (6.5-9),
+#: ``hamiltonian_schur`` the Schur form of the 2n x 2n Hamiltonian (19.6-28), ``care_qz`` scipy's
+#: ``solve_continuous_are`` (its ordered QZ of the 2n pencil: 130-247)
+DENSE_N3: dict[str, float] = {"eigvals": 2.0, "eig": 3.0, "schur": 2.5, "lyapunov": 6.0,
+                              "hamiltonian_schur": 18.0, "care_qz": 120.0}
 #: the same for work of order n^4 (``DENSE_N4[kind] * n^4 / FLOPS_PER_SECOND``): ``resolvents`` the two
-#: complex LU solves per target of the inverse Kalman engine's spectral terms (measured 2.1, 1.2, 0.97
-#: at n = 100, 200, 300 and falling with n: 0.5 kept as the lower bound)
-DENSE_N4: dict[str, float] = {"resolvents": 0.5}
-
+#: complex LU solves per target of the inverse Kalman engine's spectral terms (measured 1.1-2.1,
+#: 0.63-1.2, 0.58-0.97 at n = 100, 200, 300, falling with n: 0.4 kept as the lower bound)
+DENSE_N4: dict[str, float] = {"resolvents": 0.4}
 
 #: an estimate below this many seconds never refuses: the overrun is then at most this, and a tiny
 #: limit on a small plant keeps the verbs' documented behaviour (a first step, a filter returned as
