@@ -72,6 +72,9 @@ def test_kalman_refuses_a_riccati_solve_longer_than_the_limit(big):
         od.kalman(big, time_limit=TINY)
     with pytest.raises(ValidationError, match=r"hamiltonian_schur at n = 600"):
         od.kalman(big, method="hamiltonian", time_limit=TINY)
+    # kalmd refuses before its discretization (a matrix exponential of order 2n)
+    with pytest.raises(ValidationError, match=r"time_limit=0\.001 s cannot be kept: the scipy Riccati"):
+        od.kalmd(big, 0.1, time_limit=TINY)
 
 
 def test_kalman_for_poles_answers_time_limit_at_once(big):

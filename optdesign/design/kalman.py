@@ -387,11 +387,7 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
                    extra: dict[str, Any] | None = None) -> KalmanFilter:
     """Solve, verify and package the steady-state filter of a converted system."""
     plant = data.plant
-    why = dense_time_refusal([("care_qz" if method == "scipy" else "hamiltonian_schur", plant.n)], deadline,
-                             f"the {method} Riccati solve at n = {plant.n}")
-    if why:   # issue 26: a solve that cannot be stopped is not started past the time limit
-        raise ValidationError(f"time_limit={deadline.limit:g} s cannot be kept: {why}; give time_limit=None "
-                              f"(or a longer one) to run it")
+    _refuse_long_solve(method, plant.n, deadline)
     Ne, Rb = _noise_data(plant, N, data.H)
     work = _reduced_plant(plant, Ne, Rb)
     t0 = time.perf_counter()
@@ -461,6 +457,17 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
                         status=Status.TIME_LIMIT if deadline.expired else Status.SOLVED,
                         message=message, solver_stats=stats, verification=verification, extra=info,
                         route=route)
+
+
+def _refuse_long_solve(method: str, n: int, deadline: Deadline) -> None:
+    """Raise when the Riccati solve alone (one LAPACK call: it cannot be stopped) is estimated to
+    outlast the time left (:func:`~optdesign._deadline.dense_time_refusal`; issue 26: hours at
+    n = 5000 under ``time_limit=5``)."""
+    why = dense_time_refusal([("care_qz" if method == "scipy" else "hamiltonian_schur", n)], deadline,
+                             f"the {method} Riccati solve at n = {n}")
+    if why:
+        raise ValidationError(f"time_limit={deadline.limit:g} s cannot be kept: {why}; give time_limit=None "
+                              f"(or a longer one) to run it")
 
 
 def _stage_kind(method: str) -> str:
@@ -599,6 +606,7 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
                               "discretize yourself and call kalman(..., N=...)")
     _, R = _noise_matrices(cp)
     n = cp.n
+    _refuse_long_solve(method, n, deadline)   # before the discretization (a matrix exponential of 2n)
     Ad, Qd = van_loan(cp.A, cp.process_noise(), Ts)
     Bd = None
     if cp.B is not None:
