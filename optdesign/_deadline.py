@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from typing import Any
 
 from .errors import ValidationError
 
-__all__ = ["Deadline", "as_time_limit", "memory_budget", "dense_kkt_refusal", "FLOPS_PER_SECOND"]
+__all__ = ["Deadline", "as_time_limit", "memory_budget", "dense_kkt_refusal", "dense_time_estimate",
+           "dense_time_refusal", "FLOPS_PER_SECOND", "DENSE_N3", "DENSE_N4",
+           "MIN_REFUSAL_SECONDS"]
 
 
 def as_time_limit(value: Any, name: str = "time_limit") -> float | None:
@@ -146,3 +149,57 @@ def dense_kkt_refusal(size: int, deadline: Deadline | None, what: str, iteration
         return (f"{what} needs about {secs:.3g} s ({iterations} factorizations of a dense {size} x {size} "
                 f"KKT block), more than the {deadline.remaining():.3g} s left: not attempted")
     return ""
+
+
+#: CPU seconds of one uninterruptible dense LAPACK call on a plant of order n, as
+#: ``DENSE_N3[kind] * n^3 / FLOPS_PER_SECOND``.  The coefficients are *calibrated*, not flop counts:
+#: measured with single-threaded OpenBLAS on the development machine at n = 200 and 400, twice
+#: (issue 26; ``benchmarks/bench_setup_time_limit.py --calibrate``, results in
+#: ``benchmarks/results/setup_time_limit.md``), rounded below the smallest measurement, so that the
+#: estimate is a lower bound (a refusal never turns away work that would have fit):
+#: ``eigvals`` numpy's eigenvalues (measured 2.3-5), ``eig`` with eigenvectors (3.5-7), ``schur``
+#: scipy's real Schur form (3.1-6), ``lyapunov`` a continuous Lyapunov solve (6.5-9),
+#: ``hamiltonian_schur`` the Schur form of the 2n x 2n Hamiltonian (19.6-28), ``care_qz`` scipy's
+#: ``solve_continuous_are`` (its ordered QZ of the 2n pencil: 130-247)
+DENSE_N3: dict[str, float] = {"eigvals": 2.0, "eig": 3.0, "schur": 2.5, "lyapunov": 6.0,
+                              "hamiltonian_schur": 18.0, "care_qz": 120.0}
+#: the same for work of order n^4 (``DENSE_N4[kind] * n^4 / FLOPS_PER_SECOND``): ``resolvents`` the two
+#: complex LU solves per target of the inverse Kalman engine's spectral terms (measured 1.1-2.1,
+#: 0.63-1.2, 0.58-0.97 at n = 100, 200, 300, falling with n: 0.4 kept as the lower bound)
+DENSE_N4: dict[str, float] = {"resolvents": 0.4}
+
+#: an estimate below this many seconds never refuses: the overrun is then at most this, and a tiny
+#: limit on a small plant keeps the verbs' documented behaviour (a first step, a filter returned as
+#: ``time_limit``); refusals are for set-ups of seconds to hours (issue 26: n = 5000)
+MIN_REFUSAL_SECONDS = 0.1
+
+
+def dense_time_estimate(calls: Sequence[tuple[str, int]]) -> float:
+    """CPU seconds of the dense calls ``[(kind, n), ...]`` (kinds of :data:`DENSE_N3` or
+    :data:`DENSE_N4`): a calibrated lower bound, ``sum DENSE_N3[kind] n^3 / FLOPS_PER_SECOND`` (n^4
+    for the kinds of ``DENSE_N4``)."""
+    return float(sum(DENSE_N3[kind] * float(n) ** 3 if kind in DENSE_N3 else DENSE_N4[kind] * float(n) ** 4
+                     for kind, n in calls)) / FLOPS_PER_SECOND
+
+
+def dense_time_refusal(calls: Sequence[tuple[str, int]], deadline: Deadline | None, what: str) -> str:
+    """Why a set-up made of uninterruptible dense calls is not started under ``deadline`` ("" when it
+    may fit, or without a limit): the estimate of :func:`dense_time_estimate` beyond the time left
+    (and beyond :data:`MIN_REFUSAL_SECONDS`).
+
+    Each call, once started, cannot be stopped (LAPACK has no cancellation), so the only honest way
+    to keep ``time_limit`` is not to start one that alone outlasts it (issue 26: at n = 5000 a single
+    Schur form takes 1-2 minutes, a CARE hours).  The message gives the estimate and says how it is
+    made."""
+    if deadline is None or not deadline.limited:
+        return ""
+    secs = dense_time_estimate(calls)
+    left = deadline.remaining()
+    if secs <= max(left, MIN_REFUSAL_SECONDS):
+        return ""
+    kinds = ", ".join(f"{kind} at n = {n}" for kind, n in calls)
+    return (f"{what} needs at least {secs:.3g} s of uninterruptible dense linear algebra ({kinds}; "
+            f"estimated as c n^3 (n^4) flops at {FLOPS_PER_SECOND:.0e} flop/s, c calibrated from "
+            f"measured calls at n = 100-400 on one core), more than the {left:.3g} s left of "
+            f"time_limit={deadline.limit:g}: "
+            f"not attempted")

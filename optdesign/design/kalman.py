@@ -59,7 +59,7 @@ import numpy as np
 import scipy.linalg
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import Deadline
+from .._deadline import Deadline, dense_time_refusal
 from .._validate import as_int, as_matrix, as_positive_float, as_square, check_psd, sym_tol
 from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_error, filter_are_residual, sort_poles
 from ..errors import (
@@ -332,7 +332,10 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
         columns of ``sys.B`` are G, of ``sys.D`` the noise feedthrough H, folded into R and N).
     time_limit : float, optional
         Seconds.  When the solve itself uses it up, the independent cross-check is not run and
-        the status is ``time_limit`` (the filter is returned, not verified).
+        the status is ``time_limit`` (the filter is returned, not verified).  A Riccati solve
+        (one LAPACK call: it cannot be stopped) whose calibrated estimate
+        (:func:`~optdesign._deadline.dense_time_refusal`) alone exceeds the limit is not started:
+        a ``ValidationError`` naming ``time_limit`` and the estimate.
 
     Returns
     -------
@@ -346,8 +349,10 @@ def kalman(plant: Any, *, method: str = "scipy", Q: ArrayLike | None = None, R: 
         ``plant`` is not a Plant or a state-space system (a transfer function: with how to convert
         it, ``control.ss(sys)``); a ``TypeError`` and a ``ValidationError``.
     ValidationError
-        ``plant`` has no Q or no R, ``method`` is unknown, bad ``sensors`` / ``known`` (named), Q
-        with more rows than a system has inputs, not n x n, and neither ``G=`` nor ``known=``.
+        ``time_limit`` shorter than the estimated time of the Riccati solve alone (the message
+        gives the estimate); ``plant`` has no Q or no R, ``method`` is unknown, bad ``sensors`` /
+        ``known`` (named), Q with more rows than a system has inputs, not n x n, and neither ``G=``
+        nor ``known=``.
     NotPositiveSemidefiniteError
         N makes ``[[Q, N], [N', R]]`` indefinite.
     NotPositiveDefiniteError
@@ -382,6 +387,7 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
                    extra: dict[str, Any] | None = None) -> KalmanFilter:
     """Solve, verify and package the steady-state filter of a converted system."""
     plant = data.plant
+    _refuse_long_solve(method, plant.n, deadline)
     Ne, Rb = _noise_data(plant, N, data.H)
     work = _reduced_plant(plant, Ne, Rb)
     t0 = time.perf_counter()
@@ -451,6 +457,17 @@ def _steady_filter(data: SystemData, method: str, N: ArrayLike | None, deadline:
                         status=Status.TIME_LIMIT if deadline.expired else Status.SOLVED,
                         message=message, solver_stats=stats, verification=verification, extra=info,
                         route=route)
+
+
+def _refuse_long_solve(method: str, n: int, deadline: Deadline) -> None:
+    """Raise when the Riccati solve alone (one LAPACK call: it cannot be stopped) is estimated to
+    outlast the time left (:func:`~optdesign._deadline.dense_time_refusal`; issue 26: hours at
+    n = 5000 under ``time_limit=5``)."""
+    why = dense_time_refusal([("care_qz" if method == "scipy" else "hamiltonian_schur", n)], deadline,
+                             f"the {method} Riccati solve at n = {n}")
+    if why:
+        raise ValidationError(f"time_limit={deadline.limit:g} s cannot be kept: {why}; give time_limit=None "
+                              f"(or a longer one) to run it")
 
 
 def _stage_kind(method: str) -> str:
@@ -606,6 +623,7 @@ def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None =
                               "discretize yourself and call kalman(..., N=...)")
     _, R = _noise_matrices(cp)
     n = cp.n
+    _refuse_long_solve(method, n, deadline)   # before the discretization (a matrix exponential of 2n)
     Ad, Qd = van_loan(cp.A, cp.process_noise(), Ts)
     Bd = None
     if cp.B is not None:

@@ -69,10 +69,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .._deadline import Deadline, dense_kkt_refusal
+from .._deadline import Deadline, dense_kkt_refusal, dense_time_refusal
 from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
-from ..analysis.metrics import eigenvalue_rounding_floor
 from ..backends.clarabel_fixed_gain import (
+    CLARABEL_OPTIONS,
     GAIN_RELATION_RTOL,
     FixedGainFamily,
     FixedGainSolution,
@@ -81,14 +81,15 @@ from ..backends.clarabel_fixed_gain import (
     solve_fixed_gain,
 )
 from ..classical.placement import pole_error
-from ..classical.riccati import filter_are_error, filter_are_residual, filter_gain
+from ..classical.riccati import filter_gain
 from ..errors import ValidationError
 from ..formulate.inverse_kalman import spectral_terms
 from ..formulate.inverse_kalman.common import single_output_gain
-from ..results import Check, DesignResult, SolverStats, Status, Verification
+from ..results import Status
 from .fixed_gain_ipm import solve_fixed_gain_ipm
-from .inverse_kalman_setup import EngineSetup, engine_applies, prepare_inverse_kalman
-from .inverse_kalman_starts import decision_starts, rescue_starts, scipy_kalman, stable_mask
+from .inverse_kalman_result import POLE_FLOOR_CAP, EngineResult, engine_result, sdp_record
+from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup, engine_applies, prepare_inverse_kalman
+from .inverse_kalman_starts import decision_starts, rescue_starts, stable_mask
 from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
 from .polish import refine_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
@@ -98,54 +99,25 @@ __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inver
            "engine_applies", "ONE_OUTPUT_FIRST_TRY", "ONE_OUTPUT_FIRST_TRY_MIN_DIM",
            "ONE_OUTPUT_IPM_MIN_DIM"]
 
-_EPS = float(np.finfo(float).eps)
-#: the pole tolerance is never raised above this, however ill-conditioned the poles (as the verb)
-POLE_FLOOR_CAP = 1e-6
-
-
-# ============================================================================ result
-@dataclass(frozen=True, kw_only=True, eq=False)
-class EngineResult(DesignResult):
-    """Outcome of :func:`solve_inverse_kalman` (physical units).
-
-    Attributes
-    ----------
-    L : (n, p) ndarray or None
-    P, Q : (n, n) ndarray or None
-    Qw : ndarray or None
-        ``"input"``: (m, m); ``"diagonal"``: (m, m) diagonal.
-    status : Status
-    message : str
-    objective_value : float
-        ``trace(Q)`` (min_trace), ``||Qdec - Q_nominal||_F`` (nearest) or ``lambda_min(Qdec)``
-        (feasibility), with ``Qdec`` = Q (full) or Qw.
-    iterations : int
-        SQP, Gauss-Newton and Newton iterations over all starts.
-    rank : int or None
-        Rank of the decision covariance.
-    verification : Verification
-        Independent checks (numpy poles, the Riccati residual, PSD, a scipy Riccati re-solve
-        with the returned Q reproducing L and the poles).
-    solver_stats : SolverStats
-    target_poles : (n,) complex ndarray
-    details : dict
-        Several outputs: per-start records (``"starts"``: kind, iterations of each stage, value,
-        rank, CPU time), the certificate SDP (``"sdp"``), the KKT test of the returned point
-        (``"kkt"``: smallest eigenvalue of the dual slack relative to its norm, complementarity,
-        passed) and ``"best_start"``.  One output: the SDP (``"sdp"``), the gain the poles fix
-        (``"L_unique"``).  An infeasible target: ``"certificate"`` (``kind`` ``"unstable_target"``,
-        ``"sdp_infeasible"`` or ``"sdp_margin"``, with the unique gain ``L`` and the ``margin``).
-        A target where the spectral form is singular: ``"applicable": False``.
-    """
-
-    L: NDArray[np.float64] | None
-    P: NDArray[np.float64] | None
-    Q: NDArray[np.float64] | None
-    Qw: NDArray[np.float64] | None
-    objective_value: float
-    iterations: int
-    rank: int | None
-    details: dict = field(default_factory=dict)
+#: candidate ranks of an interior-point PSD matrix: eigenvalue gaps of at least this ratio (its
+#: vanishing eigenvalues sit orders below the others, by the barrier's complementarity) ...
+RANK_GAP_RATIO = 100.0
+#: ... among eigenvalues above this fraction of the largest (~450 eps: below, rounding alone)
+RANK_EIG_FLOOR = 1e-13
+#: the full-rank start factor: the Cholesky of ``W + START_REGULARIZATION trace(W) I`` (~4500 eps
+#: relative: a PSD W with zero eigenvalues gets a factor, its other eigenvalues moved by rounding only)
+START_REGULARIZATION = 1e-12
+#: a new column of V along a negative dual-slack direction starts at this fraction of ``||V||``
+#: (small: the projection onto the feasible set moves the point little), ``||V||`` taken at least
+#: ``ESCAPE_NORM_FLOOR`` (~4500 eps: a vanishing V still gets a column above rounding)
+ESCAPE_STEP = 1e-3
+ESCAPE_NORM_FLOOR = 1e-12
+#: a warm start's eigenvalues are raised to this fraction of its largest (positive definite:
+#: Gauss-Newton starts at full rank; 1e-6 keeps its condition number below 1e6)
+WARM_EIG_FLOOR = 1e-6
+#: a one-output SDP margin ``t < -MARGIN_CERTIFICATE_TOL max(1, |Wdec|)`` certifies infeasibility:
+#: 1000x Clarabel's feasibility tolerance (``CLARABEL_OPTIONS["tol_feas"]`` = 1e-10)
+MARGIN_CERTIFICATE_TOL = 1e3 * CLARABEL_OPTIONS["tol_feas"]
 
 
 @dataclass
@@ -198,10 +170,11 @@ def _rank_of(W: NDArray) -> list[int]:
     w = np.sort(np.linalg.eigvalsh(0.5 * (W + W.T)))[::-1]
     if w[0] <= 0:
         return []
-    w = np.maximum(w, 1e-300)
+    w = np.maximum(w, SCALE_FLOOR)
     ratios = w[:-1] / w[1:]
-    cand = [int(i + 1) for i in np.argsort(-ratios) if ratios[i] >= 100.0 and w[i] > 1e-13 * w[0]]
-    return list(dict.fromkeys(cand[:3] + [int(np.sum(w > 1e-13 * w[0]))]))
+    cand = [int(i + 1) for i in np.argsort(-ratios)
+            if ratios[i] >= RANK_GAP_RATIO and w[i] > RANK_EIG_FLOOR * w[0]]
+    return list(dict.fromkeys(cand[:3] + [int(np.sum(w > RANK_EIG_FLOOR * w[0]))]))
 
 
 def _factor_of(W: NDArray, r: int, diagonal: bool) -> NDArray:
@@ -235,7 +208,7 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
 
     None when no feasible point is reached (``rec`` records what was tried)."""
     diagonal = setup.structure == "diagonal"
-    scale = max(float(np.linalg.norm(W, 2)), 1e-300)
+    scale = max(float(np.linalg.norm(W, 2)), SCALE_FLOOR)
     blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd, scale)
     nominal = None if Qn is None else Qn / scale
     Ws = 0.5 * (W + W.T) / scale
@@ -271,7 +244,7 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
         return None
     full = not diagonal
     prob = problem(setup.k, lower=full)
-    Wr = Ws + 1e-12 * np.trace(Ws) * np.eye(Ws.shape[0])
+    Wr = Ws + START_REGULARIZATION * np.trace(Ws) * np.eye(Ws.shape[0])
     V0 = np.linalg.cholesky(Wr) if full else _factor_of(Wr, setup.k, diagonal)
     prob, x, ok, it2 = find_feasible(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)),
                                      expired=lambda: deadline.expired)
@@ -379,7 +352,7 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
         if u is None or prob.rank >= blocks.k:
             break
         V, t, g = prob.unpack(x)
-        V = np.column_stack([V, 1e-3 * max(1e-12, float(np.linalg.norm(V))) * u])
+        V = np.column_stack([V, ESCAPE_STEP * max(ESCAPE_NORM_FLOOR, float(np.linalg.norm(V))) * u])
         new = FactorProblem(blocks, prob.rank + 1, prob.objective, prob.nominal, False, prob.fixed_g,
                             prob.g_fixed)
         xn, ok, _ = project(new, new.pack(V, t, g))
@@ -397,7 +370,7 @@ _SQP_MAX_ITER = 40
 #: relative tolerance of the dual slack's smallest eigenvalue in the KKT test
 _KKT_TOL = 1e-9
 #: relative agreement of the certificate SDP's optimum with the Newton point (1000x Clarabel's gap)
-_AGREE = 1e3 * 1e-10
+_AGREE = 1e3 * CLARABEL_OPTIONS["tol_gap_rel"]
 
 
 def _kkt(cand: _Candidate) -> dict[str, float]:
@@ -410,13 +383,13 @@ def _kkt(cand: _Candidate) -> dict[str, float]:
     prob, x = cand.problem, cand.x
     S = prob.dual_slack(x, cand.multipliers)
     V, _, _ = prob.unpack(x)
-    ns = max(float(np.linalg.norm(S, 2)), 1e-300)
+    ns = max(float(np.linalg.norm(S, 2)), SCALE_FLOOR)
     if prob.diagonal:
         d = np.diag(S)
         return {"min_eig": float(np.min(d)) / ns,
                 "complementarity": float(np.max(np.abs(d * np.diag(V)))) / ns,
                 "passed": bool(np.min(d) >= -_KKT_TOL * ns)}
-    comp = float(np.linalg.norm(S @ V)) / (ns * max(float(np.linalg.norm(V)), 1e-300))
+    comp = float(np.linalg.norm(S @ V)) / (ns * max(float(np.linalg.norm(V)), SCALE_FLOOR))
     me = float(np.linalg.eigvalsh(S)[0]) / ns
     return {"min_eig": me, "complementarity": comp, "passed": bool(me >= -_KKT_TOL)}
 
@@ -473,87 +446,6 @@ def _design(setup: EngineSetup, cand: _Candidate):
     return L, P, Q, Qw, (np.diag(Qdec).copy() if setup.structure == "diagonal" else Qdec)
 
 
-def _verify(setup: EngineSetup, target: NDArray, L: NDArray, P: NDArray, Q: NDArray, Qw: NDArray | None,
-            tol: float) -> Verification:
-    """Independent checks: numpy poles of ``A - L C``, the Riccati residual and forward error of P
-    with Q, PSD eigenvalues, and a scipy Riccati re-solve with Q that must give L and the poles.
-
-    Tolerances come from the data: the pole tolerance is ``max(tol, min(floor, 1e-6))`` with the
-    rounding floor of the eigenvalues of ``A - L C``; the gains may differ by what the forward
-    errors of the two Riccati solutions explain, plus the rounding of L itself (``4 (e1 + e2) ||P||
-    ||C' S^-1|| / max(1, ||L||) + 10 n eps (1 + kappa)``, kappa the condition number of the unit
-    eigenvectors of ``A - L C``, at most 1e-6); PSD eigenvalues down to ``-10 n eps`` (P: minus its
-    forward error).
-    """
-    plant = setup.plant
-    A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
-    n = plant.n
-    F = A - L @ C
-    floor = min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP)
-    ptol = max(tol, floor)
-    poles = np.linalg.eigvals(F)
-    rnd = 10.0 * n * _EPS
-    err = filter_are_error(plant.replace(G=None, Q=None), P, Qs=Q)
-    checks = [
-        Check.at_most("pole_error", pole_error(poles, target), ptol,
-                      "max relative distance of eig(A - L C) to the targets (tolerance: tol or the rounding "
-                      "floor of those poles)"),
-        Check.at_most("riccati_residual", filter_are_residual(plant.replace(G=None, Q=None), P, Qs=Q), 1e-8,
-                      "relative residual of the filter ARE for the returned P with the returned Q"),
-        Check.at_most("forward_error", err.relative, 1e-6, "a posteriori relative error of P"),
-        Check.at_least("Q_min_eig", float(np.linalg.eigvalsh(Q)[0]) / max(1.0, float(np.linalg.norm(Q, 2))),
-                       -rnd, "smallest eigenvalue of Q / max(1, ||Q||)"),
-        Check.at_least("P_min_eig", float(np.linalg.eigvalsh(P)[0]) / max(1.0, float(np.linalg.norm(P, 2))),
-                       -(err.relative + rnd), "smallest eigenvalue of P / max(1, ||P||)"),
-    ]
-    if Qw is not None:
-        G = setup.Gd
-        checks.append(Check.at_least("Qw_min_eig", float(np.linalg.eigvalsh(Qw)[0]) / max(
-            1.0, float(np.linalg.norm(Qw, 2))), -rnd, "smallest eigenvalue of Qw / max(1, ||Qw||)"))
-        mis = float(np.linalg.norm(G @ Qw @ G.T - Q)) / max(1.0, float(np.linalg.norm(Q)))
-        checks.append(Check.at_most("structure", mis, rnd, "||G Qw G' - Q|| / max(1, ||Q||)"))
-    kal = scipy_kalman(plant, Q)
-    if kal is None:
-        checks.append(Check.at_most("are_resolve_gain", float("inf"), 0.0,
-                                    "scipy's Riccati solver gave no stabilizing solution with the "
-                                    "returned Q"))
-        return Verification.of(checks)
-    La, Pa, pa = kal
-    err_a = filter_are_error(plant.replace(G=None, Q=None), Pa, Qs=Q)
-    S = C @ P @ C.T + R if plant.is_discrete else R
-    sens = float(np.linalg.norm(P)) * float(np.linalg.norm(np.linalg.solve(S, C).T, 2))
-    nl = max(1.0, float(np.linalg.norm(L)))
-    X = np.linalg.eig(F)[1]
-    kappa = float(np.linalg.cond(X / np.linalg.norm(X, axis=0)))
-    gtol = min(POLE_FLOOR_CAP, 4.0 * (err.relative + err_a.relative) * sens / nl + rnd * (1.0 + kappa))
-    checks.append(Check.at_most("are_resolve_gain", float(np.linalg.norm(La - L)) / nl, gtol,
-                                "||L_scipy - L|| / max(1, ||L||), L_scipy from scipy's Riccati solver "
-                                "with the returned Q (tolerance: what the forward errors of the two P "
-                                "explain, plus the rounding of L itself, 10 n eps kappa(eigenvectors of "
-                                "A - L C))"))
-    checks.append(Check.at_most("are_resolve_poles", pole_error(pa, target),
-                                max(tol, min(eigenvalue_rounding_floor(A - La @ C), POLE_FLOOR_CAP)),
-                                "poles of that re-solve vs the targets"))
-    return Verification.of(checks)
-
-
-def _result(setup, target, status, message, t0, cpu0, *, design=None, objective=float("nan"), iterations=0,
-            rank=None, tol=1e-8, details=None, native="") -> EngineResult:
-    L = P = Q = Qw = None
-    ver = Verification.of([])
-    if design is not None:
-        L, P, Q, Qw = design
-        ver = _verify(setup, target, L, P, Q, Qw, tol) if setup.verify else Verification.of([])
-        if setup.verify and not ver.passed:
-            message += "; failed checks: " + ", ".join(c.name for c in ver.failed)
-    stats = SolverStats(backend="spectral-newton+clarabel", native_status=native,
-                        time=time.perf_counter() - t0, iterations=iterations,
-                        extra={"cpu_time": time.process_time() - cpu0})
-    return EngineResult(L=L, P=P, Q=Q, Qw=Qw, status=status, message=message, objective_value=objective,
-                        iterations=iterations, rank=rank, verification=ver, solver_stats=stats,
-                        target_poles=target, details=details or {})
-
-
 def _nominal(setup: EngineSetup, Q_nominal) -> NDArray | None:
     if setup.objective != "nearest":
         return None
@@ -579,7 +471,8 @@ def _warm(setup: EngineSetup, warm_start) -> NDArray | None:
     w, U = np.linalg.eigh(W)
     if w[-1] <= 0:
         raise ValidationError("warm_start must have a positive eigenvalue; found none")
-    return (U * np.maximum(w, 1e-6 * w[-1])) @ U.T  # positive definite (Gauss-Newton starts at full rank)
+    # positive definite (Gauss-Newton starts at full rank)
+    return (U * np.maximum(w, WARM_EIG_FLOOR * w[-1])) @ U.T
 
 
 def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: ArrayLike | None = None,
@@ -641,8 +534,12 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
     if not np.all(stable_mask(target, plant.is_discrete)):
         where = "inside the unit circle" if plant.is_discrete else "in the open left half-plane"
         msg = f"infeasible: a target pole is not {where}, and every steady-state Kalman filter is stable"
-        return _result(setup, target, Status.INFEASIBLE, msg, t0, cpu0,
+        return engine_result(setup, target, Status.INFEASIBLE, msg, t0, cpu0,
                        details={"certificate": {"kind": "unstable_target"}}, **common)
+    why = dense_time_refusal([("resolvents", plant.n)], deadline, f"the engine's resolvents at n = {plant.n}")
+    if why:   # issue 26: n solves of order n, O(n^4), not interruptible between stages
+        return engine_result(setup, target, Status.TIME_LIMIT, f"no design: {why}", t0, cpu0,
+                             details={"refused": why}, **common)
     if setup.one_output_route:
         L = single_output_gain(plant.A, plant.C, target, plant.dt, setup.eig_A)
         fast = None if L is None else _one_output_form(setup, target, L, deadline, t0, cpu0, tol)
@@ -652,18 +549,11 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
     if terms is None:
         msg = ("not applicable: a target pole is an eigenvalue of A or of its mirror image (or a "
                "discrete target is 0), where the spectral conditions are singular")
-        return _result(setup, target, Status.SOLVER_ERROR, msg, t0, cpu0, details={"applicable": False},
+        return engine_result(setup, target, Status.SOLVER_ERROR, msg, t0, cpu0, details={"applicable": False},
                        **common)
     if plant.p == 1:
         return _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol)
     return _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol)
-
-
-def _sdp_record(sol: FixedGainSolution | None) -> dict[str, Any]:
-    if sol is None:
-        return {}
-    return {"status": sol.status.value, "native": sol.native_status, "iterations": sol.iterations,
-            "solve_time": sol.solve_time}
 
 
 #: Clarabel's settings for the first, cheaper one-output solve (objective ``"min_trace"``, whose optima
@@ -706,7 +596,7 @@ def _single_output(setup, target, terms, Qn, deadline, t0, cpu0, tol) -> EngineR
                             f"the direct form of the fixed-gain SDP at n = {plant.n}")
     if why:  # issue 26: O(n^4) memory and O(n^6) time, past time_limit and into the OOM killer
         status = Status.TIME_LIMIT if deadline.limited and "s left" in why else Status.NOT_FOUND
-        return _result(setup, target, status, f"no design: {why}", t0, cpu0, tol=tol,
+        return engine_result(setup, target, status, f"no design: {why}", t0, cpu0, tol=tol,
                        details={"refused": why})
     g = np.ones((len(terms), 1), dtype=complex)
     L, _ = spectral_blocks(terms, R, setup.Gd).gain(g)
@@ -777,7 +667,7 @@ def _one_output_form(setup: EngineSetup, target: NDArray, L: NDArray, deadline: 
     details = {"sdp": {"status": "optimal", "native": sol.native_status, "iterations": sol.iterations,
                        "form": "n constraints", "newton_iterations": sol.newton_iterations},
                "L_unique": L, "gain_refined": bool(miss < first), "kkt": sol.kkt}
-    return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, None),
+    return engine_result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, None),
                    objective=float(np.trace(Q)), iterations=sol.iterations, rank=sol.rank, tol=tol,
                    details=details, native=sol.native_status)
 
@@ -799,24 +689,24 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
     if sol is None:
         sol = solve_fixed_gain(fam, setup.structure, plant.G, setup.objective, Qn, options=options,
                                deadline=deadline)
-    details: dict[str, Any] = {"sdp": _sdp_record(sol), "L_unique": L}
+    details: dict[str, Any] = {"sdp": sdp_record(sol), "L_unique": L}
     common = dict(tol=tol, native=sol.native_status, details=details)
     if sol.status.is_infeasible:
         details["certificate"] = {"kind": "sdp_infeasible", "L": L}
         msg = (f"infeasible: no Q >= 0 of structure {setup.structure!r} has a Kalman gain with these "
                f"poles (the fixed-gain SDP at the unique gain is infeasible: Clarabel {sol.native_status})")
-        return _result(setup, target, sol.status, msg, t0, cpu0, **common)
+        return engine_result(setup, target, sol.status, msg, t0, cpu0, **common)
     if not sol.status.is_solved or sol.Wdec is None:
         status = Status.TIME_LIMIT if deadline.expired else sol.status
-        return _result(setup, target, status, f"the fixed-gain SDP failed: Clarabel {sol.native_status}",
-                       t0, cpu0, **common)
+        return engine_result(setup, target, status,
+                             f"the fixed-gain SDP failed: Clarabel {sol.native_status}", t0, cpu0, **common)
     wscale = max(1.0, float(np.max(np.abs(sol.Wdec))))
-    if sol.t is not None and sol.t < -1e-7 * wscale:
+    if sol.t is not None and sol.t < -MARGIN_CERTIFICATE_TOL * wscale:
         details["certificate"] = {"kind": "sdp_margin", "margin": sol.t, "L": L}
         msg = (f"infeasible: the largest smallest eigenvalue of the decision covariance over the Q "
                f"family of the unique gain is {sol.t:.4g} < 0")
-        return _result(setup, target, Status.INFEASIBLE, msg, t0, cpu0, objective=sol.t, **common)
-    scale = max(1e-300, float(np.linalg.norm(sol.Wdec)))
+        return engine_result(setup, target, Status.INFEASIBLE, msg, t0, cpu0, objective=sol.t, **common)
+    scale = max(SCALE_FLOOR, float(np.linalg.norm(sol.Wdec)))
     blocks = spectral_blocks(terms, R, setup.Gd, scale)
     cand = _from_sdp(setup, blocks, g, sol, scale, Qn, fixed=True)
     how = "polished on its face"
@@ -825,7 +715,7 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
         how = "not exact on any face; Newton from its PSD part"
     if cand is None:
         msg = "the fixed-gain SDP point fits no face of the PSD cone, and no Newton repair reached one"
-        return _result(setup, target, Status.NUMERICAL_ERROR, msg, t0, cpu0, **common)
+        return engine_result(setup, target, Status.NUMERICAL_ERROR, msg, t0, cpu0, **common)
     cand = _optimize(cand, deadline)
     kkt = details["kkt"] = _kkt(cand)
     L, P, Q, Qw, Wdec = _design(setup, cand)
@@ -838,7 +728,7 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
     msg = (f"one output: the poles fix L; fixed-gain SDP ({solver} {sol.native_status}) {how} (rank "
            f"{cand.problem.rank}, Newton {cand.history[-1]['reason'] if cand.history else 'not run'}"
            f"{'; KKT certificate' if kkt.get('passed') else ''})")
-    return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
+    return engine_result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
                    objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=cand.iterations,
                    rank=cand.problem.rank, **common)
 
@@ -876,10 +766,10 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
         status = Status.TIME_LIMIT if deadline.expired else Status.NOT_FOUND
         msg = (f"no Kalman filter with these poles found from {len(records)} start(s) (a local search: "
                f"feasibility unknown)")
-        return _result(setup, target, status, msg, t0, cpu0, iterations=iterations, tol=tol,
+        return engine_result(setup, target, status, msg, t0, cpu0, iterations=iterations, tol=tol,
                        details=details)
     best, sol, agreed = _certify(setup, best, Qn, deadline)
-    details.update(sdp=_sdp_record(sol), best_start=best.kind, kkt=_kkt(best))
+    details.update(sdp=sdp_record(sol), best_start=best.kind, kkt=_kkt(best))
     L, P, Q, Qw, Wdec = _design(setup, best)
     kkt_ok = bool(details["kkt"].get("passed"))
     if deadline.expired:
@@ -899,7 +789,7 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
                + ("" if agreed else " and does not agree"))
     msg = (f"{plant.p} outputs: a local optimum over L from {len(records)} start(s) (best: {best.kind}; rank "
            f"{best.problem.rank}); {how}")
-    return _result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
+    return engine_result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
                    objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=iterations,
                    rank=best.problem.rank, tol=tol, details=details,
                    native="" if sol is None else sol.native_status)

@@ -6,8 +6,6 @@ covariance they are measured by.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 import scipy.linalg as sl
 from numpy.typing import NDArray
@@ -16,13 +14,21 @@ from .._deadline import Deadline
 from ..classical.placement import pole_error
 from ..formulate.inverse_kalman import spectral_terms
 from ..model.plant import Plant
+from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup
 from .spectral_factor import initial_null_vectors, spectral_blocks
 
-if TYPE_CHECKING:
-    from .inverse_kalman_engine import EngineSetup
-
 __all__ = ["stable_mask", "scipy_kalman", "scaled_start", "placement_scale", "decision_starts",
-           "rescue_starts"]
+           "rescue_starts", "SCALE_GRID", "NOMINAL_EIG_FLOOR", "RESCUE_FACTORS"]
+
+#: the scales of a start tried for its Kalman poles: 25 points, log-spaced over 12 decades around 1
+#: (a start whose best scale is at an end of this grid has none close: the placement scale is used)
+SCALE_GRID = np.logspace(-6, 6, 25)
+#: the scaled nominal start's eigenvalues are raised to this fraction of its largest (positive
+#: definite, condition number at most 1e3: a factor of full rank for the SQP)
+NOMINAL_EIG_FLOOR = 1e-3
+#: the rescue starts' scales, as multiples of the scaled identity's (measured on repeated targets:
+#: the feasible Q may be one or two decades from every scaled identity)
+RESCUE_FACTORS = (10.0, 0.1, 100.0)
 
 
 def stable_mask(z: NDArray, discrete: bool) -> NDArray[np.bool_]:
@@ -54,7 +60,7 @@ def scaled_start(setup: EngineSetup, target: NDArray, base: NDArray, deadline: D
     """The scale ``a`` (log grid 1e-6 .. 1e6) whose ``a base`` has Kalman poles closest to the
     targets (1 when none has a Kalman filter; the best so far when the deadline expires)."""
     best = (1.0, float("inf"))
-    for a in np.logspace(-6, 6, 25):
+    for a in SCALE_GRID:
         if deadline.expired:
             break
         kal = scipy_kalman(setup.plant, setup.Gd @ (a * base) @ setup.Gd.T)
@@ -79,7 +85,7 @@ def placement_scale(setup: EngineSetup, target: NDArray) -> float | None:
     except np.linalg.LinAlgError:
         return None
     c = float(np.linalg.norm(L0 @ np.asarray(setup.plant.R, dtype=float) @ L0.T, 2))
-    c /= max(1e-300, float(np.linalg.norm(setup.Gd, 2)) ** 2)
+    c /= max(SCALE_FLOOR, float(np.linalg.norm(setup.Gd, 2)) ** 2)
     return c if np.isfinite(c) and c > 0 else None
 
 
@@ -92,14 +98,15 @@ def decision_starts(setup: EngineSetup, target: NDArray, Qn: NDArray | None, cou
     (:func:`placement_scale`) replaces it for the random starts and adds its own identity."""
     k = setup.k
     a = scaled_start(setup, target, np.eye(k), deadline)
-    c = placement_scale(setup, target) if not (1e-6 < a < 1e6 or deadline.expired) else None
+    inside = SCALE_GRID[0] < a < SCALE_GRID[-1]
+    c = placement_scale(setup, target) if not (inside or deadline.expired) else None
     out: list[tuple[str, NDArray]] = []
     if warm is not None:
         out.append(("warm start", warm))
     out.append(("scaled identity", a * np.eye(k)))
     if Qn is not None:
         w, U = np.linalg.eigh(0.5 * (Qn + Qn.T))
-        Wn = (U * np.maximum(w, 1e-3 * max(float(w[-1]), 1e-300))) @ U.T
+        Wn = (U * np.maximum(w, NOMINAL_EIG_FLOOR * max(float(w[-1]), SCALE_FLOOR))) @ U.T
         out.append(("scaled nominal", scaled_start(setup, target, Wn, deadline) * Wn))
     if c is not None:
         out.append(("placement-scaled identity", c * np.eye(k)))
@@ -118,7 +125,7 @@ def rescue_starts(setup: EngineSetup, target: NDArray, count: int, seed: int,
     target may be far from every scaled identity: measured on repeated targets)."""
     k = setup.k
     a = scaled_start(setup, target, np.eye(k), deadline)
-    scales = [c for c in (placement_scale(setup, target), 10.0 * a, 0.1 * a, 100.0 * a) if c is not None]
+    scales = [c for c in (placement_scale(setup, target), *(f * a for f in RESCUE_FACTORS)) if c is not None]
     rng = np.random.default_rng(seed + 7919)
     out = []
     for i in range(max(1, count)):

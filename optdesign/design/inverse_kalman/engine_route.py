@@ -36,7 +36,9 @@ def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: 
     """The engine's design, verified independently -- also when it fails a check (the verb then
     weighs it against the other routes' designs: ``best_unverified`` (common.py)) -- or None (fall
     back to the other routes): the engine does not apply (a target at an eigenvalue of A or of its
-    mirror image) or found no design.  A time limit that runs out inside the engine is returned as
+    mirror image).  A search that found no design is returned without one (status ``not_found``,
+    the starts in ``extra["engine"]``): the verb then runs the other routes and lists the engine's
+    attempt in the route.  A time limit that runs out inside the engine is returned as
     such (nothing is lost: the other routes would have no time either)."""
     plant, structure, objective = setup.plant, common["structure"], common["objective"]
     try:
@@ -71,6 +73,9 @@ def run_engine(setup: EngineSetup, target: NDArray, common: dict[str, Any], Qn: 
         return empty_result(common, Status.TIME_LIMIT, f"time limit reached in the inverse Kalman engine "
                             f"({dl}): {er.message}", None, make_stats("engine", "time_limit", dl.elapsed),
                             details=extra)
+    if er.status == Status.NOT_FOUND:   # ran and found nothing: kept for the route (issue 26), no design
+        return empty_result(common, Status.NOT_FOUND, f"inverse Kalman engine: {er.message}", None,
+                            make_stats("engine", "not_found", dl.elapsed), details=extra)
     return None
 
 

@@ -11,7 +11,7 @@ from typing import Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..._deadline import Deadline
+from ..._deadline import Deadline, dense_time_refusal
 from ..._validate import as_frequencies, as_matrix, as_positive_float, renamed
 from ...analysis.robustness import circle_condition, resolve_R
 from ...backends.report import one_warning_per_call
@@ -76,8 +76,10 @@ def is_kalman_optimal(
     tol : float
         Relative tolerance: optimal when ``t >= -tol * max(1, ||Q||)``.
     time_limit : float, optional
-        Seconds of wall time for the SDP stages; when it runs out before a verdict the status is
-        ``time_limit`` (never a false "not optimal").
+        Seconds of wall time, set-up included; when it runs out before a verdict the status is
+        ``time_limit`` (never a false "not optimal").  A question whose uninterruptible dense
+        set-up (the eigenvalues of ``A - L C``) alone is estimated to outlast it is not started
+        (status ``time_limit`` at once, the estimate in ``message``).
 
     Returns
     -------
@@ -161,8 +163,14 @@ def decide_optimality(plant, L, R, omega, solver, tol, time_limit) -> KalmanOpti
     tol = as_positive_float("tol", tol)
     if omega is not None:
         omega = as_frequencies("omega", omega)
-    poles = np.linalg.eigvals(plant.A - L @ plant.C)
     ctx = OptimalityContext(plant, L, R, t0)
+    # issue 26: the set-up counts -- the eigenvalues of A - L C (and for L = 0 the Hamiltonian Schur
+    # form of the independent Riccati check) are single LAPACK calls that cannot be stopped
+    calls = [("eigvals", plant.n)] + ([("hamiltonian_schur", plant.n)] if not np.any(L) else [])
+    why = dense_time_refusal(calls, deadline, f"is_kalman_optimal at n = {plant.n}")
+    if why:
+        return ctx.inconclusive(Status.TIME_LIMIT, f"no verdict: {why}", float("nan"), None, [], None)
+    poles = np.linalg.eigvals(plant.A - L @ plant.C)
     disc = plant.is_discrete
     if not np.all(stable_poles(poles, disc)):
         worst = poles[np.argmax(np.abs(poles))] if disc else poles[np.argmax(poles.real)]

@@ -91,7 +91,12 @@ def inverse_kalman_route(res: Any, *, early: str | None = None, engine: Any = No
                             getattr(engine.solver_stats, "native_status", "")))
         if from_engine:
             return Route(stages)
-    stages += _route_stages(res)
+    rest = _route_stages(res)
+    if not rest and engine is not None and engine.L is None and res is not engine:
+        # the engine found nothing: the route that answered after it (or also found nothing)
+        rest = [Stage(f"{res.method}", "backend", "answered" if answered else Status(res.status).value,
+                      res.solver_stats.native_status if res.solver_stats else "")]
+    stages += rest
     if nominal is not None and res is not None and res.L is not None and res.L is nominal.L:
         stages = [Stage("nominal_noise", "direct", "answered", "its pole checks pass")] + stages[1:]
         return Route(stages)

@@ -10,7 +10,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..._backends import import_clarabel
-from ..._deadline import Deadline
+from ..._deadline import Deadline, dense_time_refusal
 from ..._validate import as_int, as_poles, as_positive_float, renamed
 from ...backends.report import one_warning_per_call
 from ...classical.placement import pole_error
@@ -25,7 +25,7 @@ from ...formulate.inverse_kalman import (
 )
 from ...model.coerce import as_plant
 from ...model.plant import Plant
-from ...results import Status
+from ...results import Route, Stage, Status
 from ..verification import POLE_FLOOR_CAP, pole_tolerance
 from .certificates import identity_certificate
 from .common import (
@@ -120,7 +120,10 @@ def kalman_for_poles(
     time_limit : float, optional
         Seconds of wall time.  Every stage gets what is left (IPOPT ``max_wall_time``, the SDP
         solvers' time limits) and no new start or search begins after it; when it runs out the
-        result has status ``time_limit`` and the best verified design found so far, if any.
+        result has status ``time_limit`` and the best verified design found so far, if any.  The
+        set-up counts: a design whose uninterruptible dense set-up (the eigenvalues of A, the
+        eigenvectors of ``A - L C``) alone is estimated to outlast the limit is not started
+        (status ``time_limit`` at once, the estimate in ``message``; :func:`setup_refusal`).
 
     Returns
     -------
@@ -162,11 +165,40 @@ def kalman_for_poles(
     >>> res.success, res.L.ravel().round(9).tolist()
     (True, [8.0, -6.0])
     """
+    dl = Deadline(time_limit)   # the set-up (validation, observability, the engine's state) counts
     structure = renamed("q_structure", q_structure, "structure", structure, "full")
     solver = renamed("sdp_solver", sdp_solver, "solver", solver, None)
+    plant = as_plant(plant, R=R, G=G)
+    check_choice("method", method, METHODS)
+    check_choice("objective", objective, OBJECTIVES)
+    check_choice("q_structure", structure, STRUCTURES)
+    target = as_poles("poles", poles, plant.n)
+    refused = setup_refusal(plant, target, method, objective, structure, dl)
+    if refused is not None:
+        return refused
     problem = InverseKalmanProblem(plant, q_structure=structure, objective=objective, Q_nominal=Q_nominal,
-                                   sdp_solver=solver, R=R, G=G, tol=tol, nlp_options=nlp_options)
-    return problem.solve(poles, method=method, seed=seed, time_limit=time_limit)
+                                   sdp_solver=solver, tol=tol, nlp_options=nlp_options)
+    return problem.solve(target, method=method, seed=seed, time_limit=dl)
+
+
+def setup_refusal(plant: Plant, target: NDArray, method: str, objective: str, structure: str,
+                  dl: Deadline) -> InverseKalmanResult | None:
+    """The ``time_limit`` answer, given up front, of a design whose uninterruptible dense set-up alone
+    outlasts the time left (None when it may fit): every route computes the eigenvalues of A and
+    verifies with the eigenvectors of ``A - L C`` -- two LAPACK calls of order n that cannot be
+    stopped once started (:func:`~optdesign._deadline.dense_time_refusal`: a calibrated lower
+    bound).  Issue 26: at n = 5000 the set-up ran past ``time_limit=5`` for minutes."""
+    why = dense_time_refusal([("eigvals", plant.n), ("eig", plant.n)], dl,
+                             f"kalman_for_poles at n = {plant.n}")
+    if not why:
+        return None
+    common = dict(target_poles=target, method="sdp" if method == "auto" else method, objective=objective,
+                  structure=structure, plant=plant)
+    res = empty_result(common, Status.TIME_LIMIT, f"no design: {why}", None,
+                       make_stats("none", t=dl.elapsed), details={"refused": why})
+    stage = Stage("setup_estimate", "check", "time_limit",
+                  "refused up front: the set-up alone outlasts the limit")
+    return dataclasses.replace(res, route=Route([stage]))
 
 
 class InverseKalmanProblem:
@@ -231,7 +263,8 @@ class InverseKalmanProblem:
         method : {"auto", "sdp", "nlp", "sequential"}
             As for :func:`kalman_for_poles`.
         seed : int
-        time_limit : float, optional
+        time_limit : float or Deadline, optional
+            Seconds (a Deadline: the caller's budget, already running).
         warm_start : InverseKalmanResult or array_like, optional
             A previous answer (or its decision covariance) for a nearby target: the engine starts
             from it.
@@ -240,11 +273,14 @@ class InverseKalmanProblem:
         -------
         InverseKalmanResult
         """
-        dl = Deadline(time_limit)
+        dl = Deadline.of(time_limit)
         plant, structure, objective, tol = self.plant, self.structure, self.objective, self.tol
         check_choice("method", method, METHODS)
         seed = as_int("seed", seed, 0)
         target = as_poles("poles", poles, plant.n)
+        refused = setup_refusal(plant, target, method, objective, structure, dl)
+        if refused is not None:
+            return refused
         if method == "sequential" and structure != "full":
             raise ValidationError("method='sequential' (Solheim) gives a full Q; use q_structure='full'")
         common = dict(target_poles=target, method="sdp" if method == "auto" else method, objective=objective,
@@ -279,6 +315,8 @@ class InverseKalmanProblem:
                 engine = run_engine(self.engine(dl), target, common, self.Qn, tol, seed, dl, warm)
                 if engine is not None and (engine.success or engine.status == Status.TIME_LIMIT):
                     return engine, engine
+                if engine is not None and engine.L is None:   # the engine found nothing: the other
+                    return self._route(method, target, common, seed, dl), engine   # routes answer
                 err = None if engine is None else uncomputable_poles(plant, engine, target, tol)
                 if err is not None and engine is not None:  # the other routes cannot help
                     own = engine.verification["pole_error"].value

@@ -6,13 +6,15 @@ from typing import Any
 
 from numpy.typing import ArrayLike
 
-from ..._deadline import Deadline, as_time_limit
+from ..._deadline import Deadline, as_time_limit, dense_time_refusal
 from ..._validate import renamed
 from ...backends.report import one_warning_per_call
+from ...model.coerce import as_plant
 from ...model.plant import Plant
 from ...model.regions import Region
+from ...results import Route, Stage, Status
 from .problem import Objective, WellConditionedProblem
-from .results import ObserverDesign
+from .results import ObserverDesign, no_design
 
 __all__ = ["well_conditioned_observer"]
 
@@ -101,7 +103,9 @@ def well_conditioned_observer(
         Seconds of wall time (None: no limit).  The engine checks it at every iteration, IPOPT gets
         the time left (``max_wall_time``); no start after the first begins once it is spent (the
         first start always makes its first step, so a quick verified design is not lost to a tiny
-        budget).
+        budget).  The set-up counts: a design whose uninterruptible dense set-up (the eigenvalues
+        and eigenvectors of the closed loop) alone is estimated to outlast the limit is not started
+        (status ``time_limit`` at once, no gain, the estimate in ``message``).
     progress : bool or None
         Report the starts on stderr (None: only when stderr is a terminal).
 
@@ -181,6 +185,16 @@ def well_conditioned_observer(
     deadline = Deadline(as_time_limit(time_limit))
     gain_mask = renamed("gain_mask", gain_mask, "structure", structure, None, stacklevel=3)
     nlp_solver = renamed("nlp_solver", nlp_solver, "solver", solver, "ipopt", stacklevel=3)
+    plant = as_plant(plant)
+    # issue 26: the set-up counts -- every route computes the eigenvalues and eigenvectors of the
+    # closed loop (two LAPACK calls that cannot be stopped): not started when they alone outlast it
+    why = dense_time_refusal([("eigvals", plant.n), ("eig", plant.n)], deadline,
+                             f"well_conditioned_observer at n = {plant.n}")
+    if why:
+        stage = Stage("setup_estimate", "check", "time_limit",
+                      "refused up front: the set-up alone outlasts the limit")
+        return no_design(plant, str(objective), Status.TIME_LIMIT, f"no design: {why}", None, region=region,
+                         route=Route([stage]))
     problem = WellConditionedProblem(plant, objective=objective, poles=poles, region=region,
                                      gain_mask=gain_mask, max_gain=max_gain, kappa2_max=kappa2_max,
                                      eta_max=eta_max, starts=starts, seed=seed, nlp_solver=nlp_solver,
