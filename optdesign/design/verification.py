@@ -104,6 +104,7 @@ from ..classical.riccati import (
     relative_residual,
     sort_poles,
 )
+from ..engines.tolerances import FORWARD_ERROR_TOL, POLE_FLOOR_CAP, RICCATI_RESIDUAL_TOL
 from ..errors import OptDesignError, RiccatiError
 from ..model.plant import Plant
 from ..results import Check
@@ -162,12 +163,11 @@ CHECK_NAMES = frozenset({
     "lmi_region", "lmi_h2_bound", "lmi_hinf_bound", "dense_region", "farkas_radius", "found",
 })
 
-#: relative residual of the filter Riccati equation accepted (the residual is scale-free)
-RESIDUAL_TOL = 1e-8
-#: estimated relative forward error of P accepted
-FORWARD_ERROR_TOL = 1e-6
-#: the pole tolerance is never raised above this, however ill-conditioned the poles
-POLE_FLOOR_CAP = 1e-6
+#: relative residual of the filter Riccati equation accepted (the residual is scale-free);
+#: estimated relative forward error of P accepted; the pole tolerance is never raised above
+#: POLE_FLOOR_CAP, however ill-conditioned the poles.  One value each for the engines' own checks and
+#: this module: defined in :mod:`optdesign.engines.tolerances` (an engine cannot import design/).
+RESIDUAL_TOL = RICCATI_RESIDUAL_TOL
 #: the safety factor on first-order error estimates (they are estimates, not bounds)
 ESTIMATE_FACTOR = 4.0
 #: relative eigen-residual ``||X Z - Z Lambda||_F / (||X||_F ||Z||_F)`` required of a solver's eigenbasis

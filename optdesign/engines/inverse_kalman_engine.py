@@ -94,6 +94,17 @@ from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
 from .polish import refine_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
+from .tolerances import (
+    CLARABEL_MARGIN_FACTOR,
+    ESCAPE_NORM_FLOOR,
+    ESCAPE_STEP,
+    FIRST_TRY_TOL,
+    IK_KKT_TOL,
+    INVERSE_KALMAN_POLE_TOL,
+    RANK_EIG_FLOOR,
+    START_REGULARIZATION,
+    WARM_EIG_FLOOR,
+)
 
 __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inverse_kalman",
            "engine_applies", "ONE_OUTPUT_FIRST_TRY", "ONE_OUTPUT_FIRST_TRY_MIN_DIM",
@@ -102,22 +113,9 @@ __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inver
 #: candidate ranks of an interior-point PSD matrix: eigenvalue gaps of at least this ratio (its
 #: vanishing eigenvalues sit orders below the others, by the barrier's complementarity) ...
 RANK_GAP_RATIO = 100.0
-#: ... among eigenvalues above this fraction of the largest (~450 eps: below, rounding alone)
-RANK_EIG_FLOOR = 1e-13
-#: the full-rank start factor: the Cholesky of ``W + START_REGULARIZATION trace(W) I`` (~4500 eps
-#: relative: a PSD W with zero eigenvalues gets a factor, its other eigenvalues moved by rounding only)
-START_REGULARIZATION = 1e-12
-#: a new column of V along a negative dual-slack direction starts at this fraction of ``||V||``
-#: (small: the projection onto the feasible set moves the point little), ``||V||`` taken at least
-#: ``ESCAPE_NORM_FLOOR`` (~4500 eps: a vanishing V still gets a column above rounding)
-ESCAPE_STEP = 1e-3
-ESCAPE_NORM_FLOOR = 1e-12
-#: a warm start's eigenvalues are raised to this fraction of its largest (positive definite:
-#: Gauss-Newton starts at full rank; 1e-6 keeps its condition number below 1e6)
-WARM_EIG_FLOOR = 1e-6
 #: a one-output SDP margin ``t < -MARGIN_CERTIFICATE_TOL max(1, |Wdec|)`` certifies infeasibility:
 #: 1000x Clarabel's feasibility tolerance (``CLARABEL_OPTIONS["tol_feas"]`` = 1e-10)
-MARGIN_CERTIFICATE_TOL = 1e3 * CLARABEL_OPTIONS["tol_feas"]
+MARGIN_CERTIFICATE_TOL = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_feas"]
 
 
 @dataclass
@@ -347,7 +345,7 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
                              "truncated": rep.truncated})
         if deadline.expired or prob.diagonal:
             break
-        S_tol = _KKT_TOL * max(1.0, float(np.linalg.norm(prob.dual_slack(x, rep.multipliers), 2)))
+        S_tol = IK_KKT_TOL * max(1.0, float(np.linalg.norm(prob.dual_slack(x, rep.multipliers), 2)))
         u = escape_direction(prob, x, rep.multipliers, S_tol)
         if u is None or prob.rank >= blocks.k:
             break
@@ -367,10 +365,8 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
 #: none; beyond, the SQP mostly oscillates at n >= 20 -- the restoration is cheaper)
 _SQP_MAX_ITER = 40
 
-#: relative tolerance of the dual slack's smallest eigenvalue in the KKT test
-_KKT_TOL = 1e-9
 #: relative agreement of the certificate SDP's optimum with the Newton point (1000x Clarabel's gap)
-_AGREE = 1e3 * CLARABEL_OPTIONS["tol_gap_rel"]
+_AGREE = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_gap_rel"]
 
 
 def _kkt(cand: _Candidate) -> dict[str, float]:
@@ -388,10 +384,10 @@ def _kkt(cand: _Candidate) -> dict[str, float]:
         d = np.diag(S)
         return {"min_eig": float(np.min(d)) / ns,
                 "complementarity": float(np.max(np.abs(d * np.diag(V)))) / ns,
-                "passed": bool(np.min(d) >= -_KKT_TOL * ns)}
+                "passed": bool(np.min(d) >= -IK_KKT_TOL * ns)}
     comp = float(np.linalg.norm(S @ V)) / (ns * max(float(np.linalg.norm(V)), SCALE_FLOOR))
     me = float(np.linalg.eigvalsh(S)[0]) / ns
-    return {"min_eig": me, "complementarity": comp, "passed": bool(me >= -_KKT_TOL)}
+    return {"min_eig": me, "complementarity": comp, "passed": bool(me >= -IK_KKT_TOL)}
 
 
 def _certify(setup: EngineSetup, best: _Candidate, Qn: NDArray | None, deadline: Deadline,
@@ -477,7 +473,7 @@ def _warm(setup: EngineSetup, warm_start) -> NDArray | None:
 
 def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: ArrayLike | None = None,
                          starts: int = 3, seed: int = 0, time_limit: float | Deadline | None = None,
-                         tol: float = 1e-8, warm_start: ArrayLike | None = None) -> EngineResult:
+                         tol: float = INVERSE_KALMAN_POLE_TOL, warm_start: ArrayLike | None = None) -> EngineResult:
     """The Kalman filter with the target poles whose Q is best for the setup's objective.
 
     Parameters
@@ -564,7 +560,8 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
 #: again at :data:`~optdesign.backends.clarabel_fixed_gain.CLARABEL_OPTIONS` and the design decided as
 #: before.  Measured (``benchmarks/results/inverse_kalman_one_output_tolerances.md``): 5 Clarabel
 #: iterations instead of 8-9 at n = 20, the same statuses and optima (to 3e-13 relative) on 49 targets.
-ONE_OUTPUT_FIRST_TRY: dict[str, Any] = {"tol_gap_abs": 1e-6, "tol_gap_rel": 1e-6, "tol_feas": 1e-6,
+ONE_OUTPUT_FIRST_TRY: dict[str, Any] = {"tol_gap_abs": FIRST_TRY_TOL, "tol_gap_rel": FIRST_TRY_TOL,
+                                        "tol_feas": FIRST_TRY_TOL,
                                         "iterative_refinement_max_iter": 3}
 #: the first try only where Clarabel dominates: ``n - p`` at least this (its dense KKT matrix has over
 #: 200 rows).  Measured (``--first-try``, ``--stages``): at n = 10 the polish from the looser point costs

@@ -23,23 +23,14 @@ from ..classical.riccati import filter_are_error, filter_are_residual
 from ..results import Check, DesignResult, SolverStats, Verification
 from .inverse_kalman_setup import EngineSetup
 from .inverse_kalman_starts import scipy_kalman
+from .tolerances import FORWARD_ERROR_TOL, POLE_FLOOR_CAP, RICCATI_RESIDUAL_TOL, rounding_level
 
 __all__ = ["EngineResult", "verify_engine_design", "engine_result", "sdp_record", "POLE_FLOOR_CAP",
            "RICCATI_RESIDUAL_TOL", "FORWARD_ERROR_TOL", "ROUNDING_FACTOR"]
 
-_EPS = float(np.finfo(float).eps)
 #: the rounding allowance of a computed matrix of order n: ``ROUNDING_FACTOR n eps`` (a few roundings
 #: per entry of an O(n)-term inner product, with a margin of 10)
 ROUNDING_FACTOR = 10.0
-#: relative residual of the filter ARE a returned (P, Q) must meet: 1e-8 = ~5e7 eps, the residual of
-#: the Newton points measured on the cross-validation targets stays below 1e-11 (as the verb's table)
-RICCATI_RESIDUAL_TOL = 1e-8
-#: a posteriori relative forward error of P allowed (the same value as ``POLE_FLOOR_CAP``: P is not
-#: required to be more accurate than the poles it places)
-FORWARD_ERROR_TOL = 1e-6
-#: the pole tolerance is never raised above this, however ill-conditioned the poles (the value of
-#: ``optdesign.design.verification.POLE_FLOOR_CAP``, which an engine does not import: layers)
-POLE_FLOOR_CAP = 1e-6
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -105,7 +96,7 @@ def verify_engine_design(setup: EngineSetup, target: NDArray, L: NDArray, P: NDA
     floor = min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP)
     ptol = max(tol, floor)
     poles = np.linalg.eigvals(F)
-    rnd = ROUNDING_FACTOR * n * _EPS
+    rnd = rounding_level(n, 1.0, ROUNDING_FACTOR)
     err = filter_are_error(plant.replace(G=None, Q=None), P, Qs=Q)
     checks = [
         Check.at_most("pole_error", pole_error(poles, target), ptol,

@@ -19,11 +19,11 @@ from ..formulate.inverse_kalman import OBJECTIVES, STRUCTURES, spectral_terms
 from ..model.plant import Plant
 from .one_output_sdp import OneOutputForm, one_output_form, one_output_form_of_plant
 
+#: floor of a norm used as a divisor or a scale in the inverse Kalman engines (the engines' one floor)
+from .tolerances import NORM_FLOOR as SCALE_FLOOR
+
 __all__ = ["EngineSetup", "prepare_inverse_kalman", "engine_applies", "SCALE_FLOOR"]
 
-#: floor of a norm used as a divisor or a scale in the inverse Kalman engines modules (far below any
-#: scale of the data, above underflow: the smallest normal double is 2.2e-308)
-SCALE_FLOOR = 1e-300
 
 
 @dataclass(frozen=True, eq=False)

@@ -16,6 +16,7 @@ from ..formulate.inverse_kalman import spectral_terms
 from ..model.plant import Plant
 from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup
 from .spectral_factor import initial_null_vectors, spectral_blocks
+from .tolerances import NOMINAL_EIG_FLOOR
 
 __all__ = ["stable_mask", "scipy_kalman", "scaled_start", "placement_scale", "decision_starts",
            "rescue_starts", "SCALE_GRID", "NOMINAL_EIG_FLOOR", "RESCUE_FACTORS"]
@@ -23,9 +24,6 @@ __all__ = ["stable_mask", "scipy_kalman", "scaled_start", "placement_scale", "de
 #: the scales of a start tried for its Kalman poles: 25 points, log-spaced over 12 decades around 1
 #: (a start whose best scale is at an end of this grid has none close: the placement scale is used)
 SCALE_GRID = np.logspace(-6, 6, 25)
-#: the scaled nominal start's eigenvalues are raised to this fraction of its largest (positive
-#: definite, condition number at most 1e3: a factor of full rank for the SQP)
-NOMINAL_EIG_FLOOR = 1e-3
 #: the rescue starts' scales, as multiples of the scaled identity's (measured on repeated targets:
 #: the feasible Q may be one or two decades from every scaled identity)
 RESCUE_FACTORS = (10.0, 0.1, 100.0)

@@ -51,6 +51,10 @@ __all__ = [
     "TR_SHIFT_RTOL", "TR_BISECT_RTOL", "FILTER_THETA_MAX_FACTOR", "FILTER_GAMMA_THETA", "FILTER_GAMMA_F",
     # normal closed loop search (Levenberg-Marquardt)
     "NORMAL_ROUNDING_FACTOR", "LM_DAMPING_START", "LM_DAMPING_MIN", "LM_DAMPING_MAX", "LM_DIAG_FLOOR",
+    # inverse Kalman engine
+    "RANK_EIG_FLOOR", "START_REGULARIZATION", "ESCAPE_STEP", "ESCAPE_NORM_FLOOR", "WARM_EIG_FLOOR",
+    "IK_KKT_TOL", "CLARABEL_MARGIN_FACTOR", "INVERSE_KALMAN_POLE_TOL", "FIRST_TRY_TOL", "RICCATI_RESIDUAL_TOL",
+    "FORWARD_ERROR_TOL", "POLE_FLOOR_CAP", "NOMINAL_EIG_FLOOR",
 ]
 
 #: unit roundoff of float64 (2.2e-16)
@@ -245,3 +249,45 @@ LM_DAMPING_MIN = 1e-12
 LM_DAMPING_MAX = 1e10
 #: added to the diagonal scaling ``diag(J'J)`` so that a zero column still gets damping
 LM_DIAG_FLOOR = 1e-12
+
+# ======================== inverse Kalman engine
+# (engines/inverse_kalman_engine.py, inverse_kalman_result.py, inverse_kalman_starts.py)
+
+#: candidate ranks of an interior-point PSD matrix count only eigenvalues above this fraction of the
+#: largest (~450 eps: below, rounding alone; the gap test is the engine's ``RANK_GAP_RATIO``)
+RANK_EIG_FLOOR = 1e-13
+#: the full-rank start factor: the Cholesky of ``W + START_REGULARIZATION trace(W) I`` (~4500 eps
+#: relative: a PSD W with zero eigenvalues gets a factor, its other eigenvalues moved by rounding only)
+START_REGULARIZATION = 1e-12
+#: a new column of V along a negative dual-slack direction starts at this fraction of ``||V||``
+#: (small: the projection onto the feasible set moves the point little), ``||V||`` taken at least
+#: ``ESCAPE_NORM_FLOOR`` (~4500 eps: a vanishing V still gets a column above rounding)
+ESCAPE_STEP = 1e-3
+ESCAPE_NORM_FLOOR = 1e-12
+#: a warm start's eigenvalues are raised to this fraction of its largest (positive definite:
+#: Gauss-Newton starts at full rank; 1e-6 keeps its condition number below 1e6)
+WARM_EIG_FLOOR = 1e-6
+#: relative tolerance of the dual slack's smallest eigenvalue in the KKT test
+IK_KKT_TOL = 1e-9
+#: the engine's certificates and agreement tests allow 1000x Clarabel's own tolerances
+#: (``tol_feas``, ``tol_gap_rel`` of ``CLARABEL_OPTIONS``): a margin or a gap that large is not the
+#: interior-point method's stopping slack
+CLARABEL_MARGIN_FACTOR = 1e3
+#: default relative tolerance of the engine's placed poles (``solve_inverse_kalman(tol=)``): the
+#: verb's pole tolerance before its data-derived floor (``max(tol, min(floor, POLE_FLOOR_CAP))``)
+INVERSE_KALMAN_POLE_TOL = 1e-8
+#: the one-output SDP's loose first try: Clarabel's gap and feasibility tolerances (measured in
+#: ``benchmarks/results/inverse_kalman_one_output_tolerances.md``; the polish finishes the point)
+FIRST_TRY_TOL = 1e-6
+#: relative residual of the filter ARE a returned (P, Q) must meet: 1e-8 = ~5e7 eps, the residual of
+#: the Newton points measured on the cross-validation targets stays below 1e-11 (as the verb's table)
+RICCATI_RESIDUAL_TOL = 1e-8
+#: a posteriori relative forward error of P allowed (the same value as ``POLE_FLOOR_CAP``: P is not
+#: required to be more accurate than the poles it places)
+FORWARD_ERROR_TOL = 1e-6
+#: the pole tolerance is never raised above this, however ill-conditioned the poles (the engines' and
+#: the design layer's verification share it: ``optdesign.design.verification`` imports it)
+POLE_FLOOR_CAP = 1e-6
+#: the scaled nominal start's eigenvalues are raised to this fraction of its largest (positive
+#: definite, condition number at most 1e3: a factor of full rank for the SQP)
+NOMINAL_EIG_FLOOR = 1e-3
