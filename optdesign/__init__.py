@@ -58,7 +58,7 @@ _LAZY: dict[str, str] = {
     "kalmd": "optdesign.design.kalman",
     "kalman_finite_horizon": "optdesign.design.kalman",
     "KalmanSequence": "optdesign.design.kalman",
-    "van_loan": "optdesign.design.kalman",
+    "van_loan": "optdesign.classical.sampling",
     # systems in and out
     "as_plant": "optdesign.model.coerce",
     "as_system": "optdesign.model.coerce",

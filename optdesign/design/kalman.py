@@ -62,6 +62,7 @@ from numpy.typing import ArrayLike, NDArray
 from .._deadline import Deadline, dense_time_refusal
 from .._validate import as_int, as_matrix, as_positive_float, as_square, check_psd, sym_tol
 from ..classical.riccati import RESIDUAL_TOL, filter_are, filter_are_error, filter_are_residual, sort_poles
+from ..classical.sampling import van_loan
 from ..errors import (
     ArgumentTypeError,
     NotPositiveDefiniteError,
@@ -501,54 +502,6 @@ def _short(text: str, limit: int = 120) -> str:
 
 
 # ------------------------------------------------------------------ kalmd
-def van_loan(A: ArrayLike, W: ArrayLike, Ts: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    r"""``Ad = e^(A Ts)`` and ``Qd = int_0^Ts e^(A t) W e^(A' t) dt`` by one matrix exponential.
-
-    ``expm([[-A, W], [0, A']] Ts) = [[., E12], [0, E22]]`` gives ``Ad = E22'`` and ``Qd = Ad E12``
-    (Van Loan 1978, Theorem 1), symmetrized.
-
-    Parameters
-    ----------
-    A : (n, n) array_like
-    W : (n, n) array_like
-        Symmetric PSD (``G Q G'``).
-    Ts : float
-        Sampling period, > 0.
-
-    Returns
-    -------
-    Ad, Qd : (n, n) ndarray
-
-    Raises
-    ------
-    ValidationError, DimensionError, NotFiniteError
-        Bad ``Ts`` or matrices (named).
-
-    References
-    ----------
-    Van Loan, C. F., IEEE TAC 23(3) (1978) 395-404.
-
-    Examples
-    --------
-    >>> from optdesign import van_loan
-    >>> Ad, Qd = van_loan([[0., 1.], [0., 0.]], [[0., 0.], [0., 1.]], 0.1)  # double integrator
-    >>> Ad.tolist()
-    [[1.0, 0.1], [0.0, 1.0]]
-    >>> (Qd * 3e4).round(6).tolist()        # [[Ts^3/3, Ts^2/2], [Ts^2/2, Ts]], times 3e4
-    [[10.0, 150.0], [150.0, 3000.0]]
-    """
-    A = as_square("A", A)
-    n = A.shape[0]
-    W = check_psd("W", as_square("W", W, n))
-    Ts = as_positive_float("Ts", Ts)
-    Mx = np.zeros((2 * n, 2 * n))
-    Mx[:n, :n], Mx[:n, n:], Mx[n:, n:] = -A, W, A.T
-    E = scipy.linalg.expm(Mx * Ts)
-    Ad = E[n:, n:].T
-    Qd = Ad @ E[:n, n:]
-    return Ad, 0.5 * (Qd + Qd.T)
-
-
 def kalmd(plant: Any, Ts: float, *, method: str = "scipy", Q: ArrayLike | None = None,
           R: ArrayLike | None = None, G: ArrayLike | None = None, N: ArrayLike | None = None,
           sensors: Any = None, known: Any = None, time_limit: float | None = None) -> KalmanFilter:

@@ -174,7 +174,7 @@ def _q_basis(plant: Plant, q_structure: Any) -> tuple[NDArray, NDArray, bool]:
 
 
 def _setup(plant: Plant, q_structure: Any, dt: Any) -> AlsSetup:
-    from .kalman import van_loan
+    from ..classical.sampling import van_loan
 
     G, Qb, diag = _q_basis(plant, q_structure)
     Rb = als.symmetric_basis(plant.p, "full")
@@ -226,7 +226,7 @@ def _default_gain(plant: Plant, st: AlsSetup) -> tuple[NDArray, str]:
 
 
 def _van_loan_W(plant: Plant, Ts: float) -> NDArray:
-    from .kalman import van_loan
+    from ..classical.sampling import van_loan
 
     return van_loan(plant.A, plant.process_noise(), Ts)[1]
 

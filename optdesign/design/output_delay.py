@@ -80,6 +80,7 @@ from ..analysis.robustness import (
     search_stopped,
     worst_case_parts,
 )
+from ..classical.sampling import van_loan
 from ..errors import RiccatiError, ValidationError
 from ..results import Check, DesignResult, Route, SolverStats, Stage, Status, Verification
 
@@ -325,21 +326,6 @@ class OutputDelayKalman(DesignResult):
 
 
 # --------------------------------------------------------------------------- solvers
-def _van_loan(A: NDArray, W: NDArray, dt: float) -> tuple[NDArray, NDArray]:
-    """``exp(A dt)`` and ``int_0^dt e^{As} W e^{A's} ds``."""
-    from scipy.linalg import expm
-
-    n = A.shape[0]
-    M = np.zeros((2 * n, 2 * n))
-    M[:n, :n] = -A
-    M[:n, n:] = W
-    M[n:, n:] = A.T
-    E = expm(M * dt)
-    Phi = E[n:, n:].T
-    Qd = Phi @ E[:n, n:]
-    return Phi, 0.5 * (Qd + Qd.T)
-
-
 #: The validated delayed-output system ``(A, C0, C1, W, R, h)``.
 _System = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64],
                 NDArray[np.float64], float]
@@ -423,7 +409,7 @@ def _solve_sample(A, C0, C1, W, R, h, N):
 
     n, p = A.shape[0], C0.shape[0]
     dt = h / N
-    Phi, Qd = _van_loan(A, W, dt)
+    Phi, Qd = van_loan(A, W, dt)
     dim = n * (N + 1)
     F = np.zeros((dim, dim))
     F[:n, :n] = Phi
