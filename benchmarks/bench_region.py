@@ -9,7 +9,7 @@ Run:  python benchmarks/bench_region.py run {new,base} --set {subset,full} --obj
 "fast")`` (``--route``); ``run base`` re-runs this script in a subprocess
 with ``PYTHONPATH`` set to a checkout of the commit before issue 28 (``BASE_COMMIT``), made once with::
 
-    git worktree add /tmp/region-base 130742f
+    mkdir /tmp/region-base-d9d35ed && git archive d9d35ed | tar -x -C /tmp/region-base-d9d35ed
 
 (as ``bench_sweep_grid.py`` measures its baseline).  Each design is one call of
 ``well_conditioned_observer(plant, region=..., objective=..., time_limit=TIME_LIMIT)``; CPU is
@@ -33,8 +33,8 @@ from pathlib import Path
 import _common  # noqa: F401  (single-threaded BLAS before numpy)
 import numpy as np
 
-BASE_COMMIT = "130742f"
-BASE_DIR = "/tmp/region-base"
+BASE_COMMIT = "d9d35ed"
+BASE_DIR = "/tmp/region-base-d9d35ed"
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
 SUBSET_COMPLEIB = ("compleib_rea2", "compleib_dis1", "compleib_he5", "compleib_ac6")

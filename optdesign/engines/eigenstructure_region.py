@@ -86,6 +86,12 @@ REGION_WARM_STAGES: tuple[tuple[int | None, float], ...] = REGION_STAGES[-2:]
 _MIN_OVERLAP = 0.5
 #: BFGS iterations per stage in region mode
 _REGION_MAX_ITER = 300
+#: relative decrease (over the BFGS window) below which a stage stops, per kappa2 order k: loose early
+#: stages as in the fixed-pole engine (their minimizers are discarded by the next stage), the exact
+#: function to the accuracy the fixed-pole polish works at
+_REGION_FTOL: dict[int | None, float] = {4: 1e-7, 64: 1e-7, 1024: 1e-7, 16384: 1e-7, None: 1e-9}
+#: re-anchorings per stage of a member whose line search stopped at the edge of its chart
+_MAX_REANCHOR = 3
 
 
 @dataclass(frozen=True)
@@ -726,25 +732,11 @@ def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
     nrf, npf = _structure(fixed.poles, pinned)
     model = RegionModel(eng, nrf, npf, region, pinned, interior)
     X = model.coords_of(fixed, xa[None, :] if st.warm else np.stack([x0, xa]))
-    reasons = ["converged"] * X.shape[0]
     stages = REGION_WARM_STAGES if st.warm else REGION_STAGES
-    for k, mu in stages if objective == "kappa2" else ((None, REGION_STAGES[-1][1]),):
-        if dl.expired:
-            timed_out, reasons = True, ["time_limit"] * X.shape[0]
-            break
-        model.set_anchor(X)
-
-        def fun(Z, members, _k=k, _mu=mu):
-            return model.evaluate_batch(Z, objective, _k, _mu, members)
-
-        if not np.all(np.isfinite(fun(X, None)[0])):  # the barrier needs strictly feasible starts
-            reasons = ["infeasible start"] * X.shape[0]
-            break
-        res, _ = bfgs_minimize_batch(fun, X, max_iter=_REGION_MAX_ITER, ftol=1e-9 if k is None else 1e-7,
-                                     deadline=dl, pass_index=True)
-        X = np.stack([r.x for r in res])
-        reasons = [r.reason for r in res]
-        its, evs = its + sum(r.iterations for r in res), evs + sum(r.evaluations for r in res)
+    if objective != "kappa2":
+        stages = ((None, REGION_STAGES[-1][1]),)
+    X, reasons, ib, eb, tb = _region_stages(model, X, objective, stages, dl)
+    its, evs, timed_out = its + ib, evs + eb, timed_out | tb
     if "infeasible start" not in reasons:
         for i in range(X.shape[0]):
             fm, xc = model.fixed(X[i], i)
@@ -762,6 +754,50 @@ def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl):
     design = (best[1], best[2], best[3]) if best is not None else (None, None, None)
     rec = StartRecord(st.origin, k2, val, v0, its, evs, reason, time.process_time() - ts, *design)
     return rec, best, timed_out
+
+
+def _region_stages(model: RegionModel, X: NDArray, objective: str,
+                   stages: Sequence[tuple[int | None, float]], dl: Deadline):
+    """The continuation of region mode from the members ``X`` (s, size), all in lockstep.
+
+    Each member's inverse-Hessian approximation is carried from stage to stage (as in the fixed-pole
+    engine's :func:`~optdesign.engines.eigenstructure_fixed.run_starts`).  A member whose line search
+    fails at the edge of its chart (a trial step that would rotate a subspace past
+    :data:`_MIN_OVERLAP` from its anchor) is re-anchored at its current point and continues the stage
+    (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.
+    ``(X, reasons, iterations, evaluations, timed_out)``.
+    """
+    s = X.shape[0]
+    reasons = ["converged"] * s
+    H: list[NDArray | None] = [None] * s
+    its = evs = 0
+    for k, mu in stages:
+        if dl.expired:
+            return X, ["time_limit"] * s, its, evs, True
+        model.set_anchor(X)
+        if not np.all(np.isfinite(model.evaluate_batch(X, objective, k, mu)[0])):
+            return X, ["infeasible start"] * s, its, evs, False  # the barrier needs strictly feasible starts
+        todo = np.arange(s)
+        ftol = _REGION_FTOL.get(k, _REGION_FTOL[None])
+        for _ in range(_MAX_REANCHOR + 1):
+            def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
+                return model.evaluate_batch(Z, objective, _k, _mu, _todo[idx])
+
+            res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=_REGION_MAX_ITER, ftol=ftol, deadline=dl,
+                                          pass_index=True, H0=[H[i] for i in todo])
+            f_before = model.evaluate_batch(X[todo], objective, k, mu, todo)[0]
+            again = []
+            for j, i in enumerate(todo):
+                r = res[j]
+                X[i], H[i], reasons[i] = r.x, Hs[j], r.reason
+                its, evs = its + r.iterations, evs + r.evaluations
+                if r.reason == "line search" and f_before[j] - r.f > ftol * max(1.0, abs(r.f)):
+                    again.append(i)
+            if not again or dl.expired:
+                break
+            todo = np.asarray(again)
+            model.set_anchor(X)
+    return X, reasons, its, evs, dl.expired
 
 
 def _region_order(model: RegionModel, poles: NDArray) -> NDArray[np.complex128]:
