@@ -99,6 +99,11 @@ _DUP_FTOL = 1e-8
 #: ... and their sorted poles to this times the poles' scale (``sqrt`` of the decrease tolerance:
 #: near a smooth minimizer ``f - f* ~ |x - x*|^2``)
 _DUP_PTOL = 3e-4
+#: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
+#: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
+#: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members
+_PRUNE_AFTER = 1
+_KEEP = 4
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
 _MAX_REANCHOR = 3
 
@@ -811,7 +816,8 @@ def _run_starts(eng, region, starts: Sequence[RegionStart], pinned, objective, r
             mine = reasons[k0 : k0 + m]
             if "infeasible start" not in mine:
                 for i in range(k0, k0 + m):
-                    _polish(eng, region, objective, model, Xg[i], i, s, dl)
+                    if reasons[i] not in ("pruned", "duplicate"):  # a better member went on from there
+                        _polish(eng, region, objective, model, Xg[i], i, s, dl)
         best = s["best"]
         val = best[0] if best is not None else math.inf
         k2 = math.inf
@@ -875,7 +881,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             model.set_anchor(X[owner == g])
 
     timed_out = False
-    for k, mu in stages:
+    for si, (k, mu) in enumerate(stages):
         if dl.expired:
             timed_out = True
             for i in np.flatnonzero(alive):
@@ -911,12 +917,24 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             todo = np.asarray(again)
             anchor()
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
+        if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
+            _prune(X, alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
     out = []
     for g in range(len(batch)):
         sel = owner == g
         out.append((X[sel], [reasons[i] for i in np.flatnonzero(sel)], its[sel], evs[sel], timed_out))
     return out
+
+
+def _prune(X, alive, reasons, evaluate, k, mu) -> None:
+    """Keep the :data:`_KEEP` members of lowest value running (the others ``"pruned"``)."""
+    idx = np.flatnonzero(alive)
+    if idx.size <= _KEEP:
+        return
+    f = evaluate(X[idx], idx, k, mu)[0]
+    for j in np.argsort(f)[_KEEP:]:
+        reasons[idx[j]], alive[idx[j]] = "pruned", False
 
 
 def _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu) -> None:

@@ -40,6 +40,7 @@ _REASONS: dict[str, Status] = {
     "converged": Status.OPTIMAL,
     "line search": Status.OPTIMAL,
     "duplicate": Status.OPTIMAL,
+    "pruned": Status.OPTIMAL,
     "direct": Status.SOLVED,
     "max_iter": Status.OPTIMAL_INACCURATE,
     "max_eval": Status.OPTIMAL_INACCURATE,
@@ -55,6 +56,8 @@ def engine_status(reason: str) -> Status:
 
 def _message(reason: str, stage: str) -> str:
     why = {"duplicate": "reached the point of an earlier start (stopped there)",
+           "pruned": "stopped after the second continuation stage: others were better there (their best "
+                     "design kept)",
            "direct": "the gain is fixed by the poles (computed directly)",
            "max_iter": "iteration limit of the last BFGS stage (a verified improvement on the start, "
                        "not certified as a local minimum)",
