@@ -154,7 +154,9 @@ def test_starts_stop_at_the_lower_bound_of_kappa2():
     assert d.solver_stats.extra["planned_starts"] == default_starts(3) == 6
     ac4 = problems.load("compleib_ac4").plant
     d = well_conditioned_observer(ac4, region=suggested_region(ac4))
-    assert d.success and len(d.starts) < 8 and d.kappa2 == pytest.approx(1.0, abs=1e-6)
+    # region mode runs its starts in lockstep (issue 28): the bound stops the continuation stages of
+    # every start together, so the records are all there; the message says why it stopped
+    assert d.success and len(d.starts) <= 8 and d.kappa2 == pytest.approx(1.0, abs=1e-6)
     assert "is its lower bound (a global optimum)" in d.message
     # a bound the design does not reach: every start runs
     pr = problems.load("pp_byers3")

@@ -797,7 +797,7 @@ def _run_starts(eng, region, starts: Sequence[RegionStart], pinned, objective, r
     stages = REGION_WARM_STAGES if live and live[0]["st"].warm else REGION_STAGES
     if objective != "kappa2":
         stages = ((None, REGION_STAGES[-1][1]),)
-    res = _region_stages(batch, objective, stages, dl) if batch else []
+    res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
     share = (time.process_time() - t0) / max(1, len(live))
     out = []
     for s in states:
@@ -844,7 +844,7 @@ def _polish(eng, region, objective, model: RegionModel, x: NDArray, member: int,
 
 
 def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
-                   stages: Sequence[tuple[int | None, float]], dl: Deadline):
+                   stages: Sequence[tuple[int | None, float]], dl: Deadline, stop_at: float | None = None):
     """The continuation of region mode, every member of every model in one BFGS batch.
 
     ``batch``: ``(model, X)`` per pole pattern, ``X`` (s, size) its members (anchored).  Each
@@ -854,8 +854,9 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
     :data:`_MIN_OVERLAP` from its anchor) is re-anchored at its current point and continues the stage
     (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.  A member
     that is not strictly inside at a stage's start (the barrier needs it) stops there
-    (``"infeasible start"``).  Per model ``(X, reasons, iterations (s,), evaluations (s,),
-    timed_out)``.
+    (``"infeasible start"``).  After a stage where a member's exact objective attains ``stop_at``
+    (its lower bound: a global optimum) only the members there go on.  Per model ``(X, reasons, iterations
+    (s,), evaluations (s,), timed_out)``.
     """
     models = [m for m, _ in batch]
     sizes = [X.shape[0] for _, X in batch]
@@ -917,6 +918,8 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             todo = np.asarray(again)
             anchor()
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
+        if stop_at is not None:
+            _attained(models, owner, X, alive, reasons, objective, stop_at)
         if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
             _prune(X, alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
@@ -925,6 +928,26 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         sel = owner == g
         out.append((X[sel], [reasons[i] for i in np.flatnonzero(sel)], its[sel], evs[sel], timed_out))
     return out
+
+
+def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> None:
+    """When a running member's exact objective (kappa2 or kappa_fro of its eigenvectors) is at most
+    ``stop_at`` (its lower bound: a global optimum), only the members there go on (the others
+    ``"pruned"``)."""
+    exact = np.full(X.shape[0], math.inf)
+    for g, model in enumerate(models):
+        mine = np.flatnonzero(owner == g)
+        sel = np.flatnonzero(alive[mine])
+        if not sel.size:
+            continue
+        try:
+            f = spectral_objective(model._members(X[mine])["W"][sel], objective, None, gradient=False)[0]
+        except np.linalg.LinAlgError:
+            continue
+        exact[mine[sel]] = np.exp(f)
+    if np.any(exact <= stop_at):
+        for i in np.flatnonzero(alive & (exact > stop_at)):
+            reasons[i], alive[i] = "pruned", False
 
 
 def _prune(X, alive, reasons, evaluate, k, mu) -> None:

@@ -56,7 +56,7 @@ def engine_status(reason: str) -> Status:
 
 def _message(reason: str, stage: str) -> str:
     why = {"duplicate": "reached the point of an earlier start (stopped there)",
-           "pruned": "stopped after the second continuation stage: others were better there (their best "
+           "pruned": "stopped early in the continuation, other starts being better there (its best "
                      "design kept)",
            "direct": "the gain is fixed by the poles (computed directly)",
            "max_iter": "iteration limit of the last BFGS stage (a verified improvement on the start, "

@@ -141,7 +141,7 @@ def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evalua
     if status.is_solved and len(records) < planned and attains(bound, obj, v, cand):
         msg += (f"; stopped after {len(records)} of {planned} starts: {objective} = {bound:g} is its lower "
                 "bound (a global optimum)")
-    elif status.is_solved and attains(bound, obj, v, cand) and cand.native == "direct":
+    elif status.is_solved and attains(bound, obj, v, cand):
         msg += f"; {objective} = {bound:g} is its lower bound (a global optimum)"
     stats = SolverStats(
         backend=cand.backend, native_status=cand.native,
