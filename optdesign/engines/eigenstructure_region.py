@@ -74,9 +74,12 @@ __all__ = [
 ]
 
 #: continuation of the region mode: (order k of the kappa2 bound or None for the exact function,
-#: barrier weight mu) per stage
+#: barrier weight mu) per stage.  mu starts at 1e-3 (issue 28, measured: from 1e-2 the first stage
+#: pushes a pole off the boundary where the optimum has it -- COMPleib AC17 ends at kappa2 1.67521
+#: from every start, even from IPOPT's optimum 1.64565; from 1e-4 a random n = 5, p = 1 plant ends at
+#: 248.6 instead of 121.1)
 REGION_STAGES: tuple[tuple[int | None, float], ...] = (
-    (4, 1e-2), (64, 1e-3), (1024, 1e-4), (16384, 1e-6), (None, 1e-8)
+    (4, 1e-3), (64, 1e-4), (1024, 1e-5), (16384, 1e-7), (None, 1e-9)
 )
 #: continuation of the fixed-pole optimization at a start's poles (before its poles are freed)
 REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION
@@ -104,6 +107,11 @@ _DUP_PTOL = 3e-4
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members
 _PRUNE_AFTER = 1
 _KEEP = 4
+#: every cold start runs the continuation twice, with the barrier weights of :data:`REGION_STAGES`
+#: times each of these (issue 28, measured: with 1 only COMPleib DIS5 ends at kappa2 49.87 instead of
+#: 49.45, with 10 only AC17 at 1.6752 instead of 1.6457 -- a boundary optimum the larger barrier
+#: pushes off; both in one batch, pruned per schedule)
+_BARRIER_SCALES = (1.0, 10.0)
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
 _MAX_REANCHOR = 3
 
@@ -784,17 +792,20 @@ def _run_starts(eng, region, starts: Sequence[RegionStart], pinned, objective, r
         groups.setdefault(s["key"], []).append(s)
     batch = []
     t0 = time.process_time()
-    for (nrf, npf), mine in groups.items():
-        model = RegionModel(eng, nrf, npf, region, pinned, interior)
-        rows, ar, ap = [], [], []
-        for s in mine:
-            rows.append(model.coords_of(s["fixed"], s["members"]))
-            ar.append(model.anchor_r)
-            ap.append(model.anchor_p)
-            s["model"], s["first"] = model, sum(x.shape[0] for x in rows[:-1])
-        model.anchor_r, model.anchor_p = np.concatenate(ar), np.concatenate(ap)
-        batch.append((model, np.concatenate(rows)))
-    stages = REGION_WARM_STAGES if live and live[0]["st"].warm else REGION_STAGES
+    warm = bool(live) and live[0]["st"].warm
+    scales = (1.0,) if warm or objective != "kappa2" else _BARRIER_SCALES
+    for scale in scales:
+        for (nrf, npf), mine in groups.items():
+            model = RegionModel(eng, nrf, npf, region, pinned, interior)
+            rows, ar, ap = [], [], []
+            for s in mine:
+                rows.append(model.coords_of(s["fixed"], s["members"]))
+                ar.append(model.anchor_r)
+                ap.append(model.anchor_p)
+                s.setdefault("parts", []).append((len(batch), sum(x.shape[0] for x in rows[:-1])))
+            model.anchor_r, model.anchor_p = np.concatenate(ar), np.concatenate(ap)
+            batch.append((model, np.concatenate(rows), scale))
+    stages = REGION_WARM_STAGES if warm else REGION_STAGES
     if objective != "kappa2":
         stages = ((None, REGION_STAGES[-1][1]),)
     res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
@@ -806,18 +817,19 @@ def _run_starts(eng, region, starts: Sequence[RegionStart], pinned, objective, r
             continue
         ts = time.process_time()
         mine = ["converged"]
-        if "skip" not in s:
-            g = [m for m, _ in batch].index(s["model"])
+        for g, k0 in s.get("parts", []) if "skip" not in s else []:
             Xg, reasons, its, evs, tb = res[g]
-            model, k0, m = s["model"], s["first"], s["members"].shape[0]
+            model, m = batch[g][0], s["members"].shape[0]
             s["its"] += int(its[k0 : k0 + m].sum())
             s["evs"] += int(evs[k0 : k0 + m].sum())
             s["timed_out"] |= tb
-            mine = reasons[k0 : k0 + m]
-            if "infeasible start" not in mine:
-                for i in range(k0, k0 + m):
-                    if reasons[i] not in ("pruned", "duplicate"):  # a better member went on from there
-                        _polish(eng, region, objective, model, Xg[i], i, s, dl)
+            mine = mine + reasons[k0 : k0 + m]
+            if "infeasible start" in reasons[k0 : k0 + m]:
+                continue
+            for i in range(k0, k0 + m):
+                if reasons[i] not in ("pruned", "duplicate"):  # a better member went on from there
+                    _polish(eng, region, objective, model, Xg[i], i, s, dl)
+        mine = mine[1:] or mine
         best = s["best"]
         val = best[0] if best is not None else math.inf
         k2 = math.inf
@@ -843,11 +855,12 @@ def _polish(eng, region, objective, model: RegionModel, x: NDArray, member: int,
     s["timed_out"] |= rp == "time_limit"
 
 
-def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
+def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: str,
                    stages: Sequence[tuple[int | None, float]], dl: Deadline, stop_at: float | None = None):
     """The continuation of region mode, every member of every model in one BFGS batch.
 
-    ``batch``: ``(model, X)`` per pole pattern, ``X`` (s, size) its members (anchored).  Each
+    ``batch``: ``(model, X, scale)`` per pole pattern and barrier schedule, ``X`` (s, size) its
+    members (anchored), ``scale`` the factor of the stages' barrier weights for them.  Each
     member's inverse-Hessian approximation is carried from stage to stage (as in the fixed-pole
     engine's :func:`~optdesign.engines.eigenstructure_fixed.run_starts`).  A member whose line search
     fails at the edge of its chart (a trial step that would rotate a subspace past
@@ -858,11 +871,12 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
     (its lower bound: a global optimum) only the members there go on.  Per model ``(X, reasons, iterations
     (s,), evaluations (s,), timed_out)``.
     """
-    models = [m for m, _ in batch]
-    sizes = [X.shape[0] for _, X in batch]
+    models = [b[0] for b in batch]
+    scale = np.array([b[2] for b in batch])
+    sizes = [b[1].shape[0] for b in batch]
     owner = np.repeat(np.arange(len(batch)), sizes)
     local = np.concatenate([np.arange(k) for k in sizes])
-    X = np.concatenate([X for _, X in batch])
+    X = np.concatenate([b[1] for b in batch])
     total = X.shape[0]
     reasons = ["converged"] * total
     H: list[NDArray | None] = [None] * total
@@ -874,7 +888,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         for g, model in enumerate(models):
             sel = np.flatnonzero(owner[rows] == g)
             if sel.size:
-                f[sel], G[sel] = model.evaluate_batch(Z[sel], objective, k, mu, local[rows[sel]])
+                f[sel], G[sel] = model.evaluate_batch(Z[sel], objective, k, mu * scale[g], local[rows[sel]])
         return f, G
 
     def anchor():
@@ -921,7 +935,9 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         if stop_at is not None:
             _attained(models, owner, X, alive, reasons, objective, stop_at)
         if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
-            _prune(X, alive, reasons, evaluate, k, mu)
+            for sc in np.unique(scale):  # values compare within one barrier schedule
+                among = alive & np.isin(owner, np.flatnonzero(scale == sc))
+                _prune(X, among, alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
     out = []
     for g in range(len(batch)):
@@ -950,9 +966,10 @@ def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> No
             reasons[i], alive[i] = "pruned", False
 
 
-def _prune(X, alive, reasons, evaluate, k, mu) -> None:
-    """Keep the :data:`_KEEP` members of lowest value running (the others ``"pruned"``)."""
-    idx = np.flatnonzero(alive)
+def _prune(X, among, alive, reasons, evaluate, k, mu) -> None:
+    """Of the running members ``among``, keep the :data:`_KEEP` of lowest value running (the others
+    ``"pruned"``)."""
+    idx = np.flatnonzero(among)
     if idx.size <= _KEEP:
         return
     f = evaluate(X[idx], idx, k, mu)[0]
