@@ -154,7 +154,7 @@ def test_region_route_interior_optimum_at_the_lower_bound(route):
     assert "ipopt" not in d.route.names
 
 
-@pytest.mark.parametrize("route", ["auto", "fast", "engine"])
+@pytest.mark.parametrize("route", ["auto", "fast", "multistart"])
 def test_unreachable_region_is_a_certificate(route):
     """An unobservable mode outside the region is an eigenvalue of every A - LC: no gain reaches the
     region -- ``infeasible`` with its certificate, never a success."""
@@ -191,10 +191,21 @@ def test_route_eta_in_a_region_goes_to_ipopt():
 
 
 def test_default_region_route_trace():
-    """The verb's default in a region: IPOPT from every start, then the engine from IPOPT's best; the
-    route names both and which answered."""
+    """The verb's default in a region (issue 28): the placement engine from every start in lockstep,
+    no IPOPT when an engine design verifies; the route says so."""
     plant = _random_plant(3, 3, 2)
     d = well_conditioned_observer(plant, region=_REGION, starts=2)
+    assert d.success
+    assert d.route.names == ("eigenstructure_engine/region",)
+    assert d.route[0].kind == "engine" and d.route.answered is not None
+    assert d.solver_stats.extra["route"] == "engine"
+
+
+def test_multistart_route_is_the_previous_default():
+    """route='multistart': IPOPT from every start, then the engine from IPOPT's best (the default
+    before issue 28), traced as such."""
+    plant = _random_plant(3, 3, 2)
+    d = WellConditionedProblem(plant, starts=2, route="multistart").solve(region=_REGION)
     assert d.success
     assert d.route.names == ("ipopt", "eigenstructure_engine/region")
     assert d.route[0].kind == "backend" and d.route[1].kind == "polish"
