@@ -102,12 +102,12 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
 
 def report(files: list[str], out: str) -> None:
     """Pairs (base, new) per objective, in the order given: one table each."""
-    lines = ["# Region-mode designs: today's default (base) against the lockstep engine (new)", "",
-             f"Base: commit {BASE_COMMIT}, the verb's default (IPOPT from 8 starts, then one engine "
-             "start; unchanged in this checkout as `route='auto'`).  New: this checkout, kappa2 with "
-             "`route='engine'` (the placement engine from 8 starts in lockstep, IPOPT only as the "
-             "fallback), eta with the verb's default (IPOPT from 8 starts, as in the base).  CPU seconds "
-             "per design (`time.process_time`, single-threaded BLAS), "
+    lines = ["# Region-mode designs: the previous default (base) against the new default (new)", "",
+             f"Base: commit {BASE_COMMIT}, the verb's default then (IPOPT from 8 starts, then one engine "
+             "start; in this checkout `route='multistart'`).  New: this checkout, kappa2 with "
+             "`route='engine'` (= the new default `'auto'`: the placement engine from 8 starts in lockstep, "
+             "IPOPT only as the fallback), eta with the verb's default (IPOPT from 8 starts, as in the "
+             "base).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
              f"time limit {TIME_LIMIT:g} s per design.  `rel` = (new - base) / base of the objective "
              "(negative: new better).  Produced by `benchmarks/bench_region.py`.", ""]
     data = [json.loads(Path(f).read_text()) for f in files]
