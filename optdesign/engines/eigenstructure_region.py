@@ -29,6 +29,12 @@ Every start gives three candidates, each kept if better: its own gain (e.g. scip
 caller's naive poles), the fixed-pole optimum at its poles, and the region optimum followed by
 a fixed-pole polish at the final poles -- so the design is never worse than any start.
 
+All starts run in lockstep (issue 28): the free-pole stages of every start, for each real/complex
+pole pattern on one model, in one BFGS batch; each start twice, with the barrier schedule of
+:data:`REGION_STAGES` and ten times it (:data:`_BARRIER_SCALES`); a member whose line search stops
+at its chart's edge is re-anchored and goes on; members at the point of a better one stop after
+each stage, and after the second stage only the best :data:`_KEEP` of each schedule go on.
+
 References
 ----------
 Kautsky, Nichols & Van Dooren (1985); Chilali & Gahinet (1996) for the regions; P.-A. Absil,
