@@ -1,7 +1,7 @@
 """The engine route of the well-conditioned observer: the dedicated eigenstructure placement engine
 (:mod:`optdesign.engines.eigenstructure`) for fixed poles (:func:`place_fixed`, every start in
-lockstep) and for poles free in a region (:func:`place_region`, one call per start so that the
-time budget, the lower bound of the objective and the progress report act between starts).
+lockstep) and for poles free in a region (:func:`place_region`, every start in lockstep too: the
+time budget acts between its rounds, the objective's lower bound between its stages).
 
 The engine's answers are not trusted: every start's gain, with the engine's eigenbasis and pole
 order, is verified by the verb's own evaluation (:func:`~.evaluation.evaluate_candidate`).
