@@ -2,14 +2,14 @@
 default route side by side (issue 28).
 
 Run:  python benchmarks/bench_region.py run {new,base} --set {subset,full} --objective {kappa2,eta} --json F
-          [--route fast|auto|nlp|engine|default]
+          [--route auto|engine|fast|multistart|nlp|default]
       python benchmarks/bench_region.py report BASE.json NEW.json [...] --out benchmarks/results/region.md
 
-``run new`` imports the checkout this script lives in and designs with ``WellConditionedProblem(route=
-"fast")`` (``--route``); ``run base`` re-runs this script in a subprocess
+``run new`` imports the checkout this script lives in and designs with the verb's default (``--route R``:
+``WellConditionedProblem(route=R)``); ``run base`` re-runs this script in a subprocess
 with ``PYTHONPATH`` set to a checkout of the commit before issue 28 (``BASE_COMMIT``), made once with::
 
-    git worktree add /tmp/region-base 130742f
+    mkdir /tmp/region-base-d9d35ed && git archive d9d35ed | tar -x -C /tmp/region-base-d9d35ed
 
 (as ``bench_sweep_grid.py`` measures its baseline).  Each design is one call of
 ``well_conditioned_observer(plant, region=..., objective=..., time_limit=TIME_LIMIT)``; CPU is
@@ -33,8 +33,8 @@ from pathlib import Path
 import _common  # noqa: F401  (single-threaded BLAS before numpy)
 import numpy as np
 
-BASE_COMMIT = "130742f"
-BASE_DIR = "/tmp/region-base"
+BASE_COMMIT = "d9d35ed"
+BASE_DIR = "/tmp/region-base-d9d35ed"
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
 SUBSET_COMPLEIB = ("compleib_rea2", "compleib_dis1", "compleib_he5", "compleib_ac6")
@@ -102,12 +102,12 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
 
 def report(files: list[str], out: str) -> None:
     """Pairs (base, new) per objective, in the order given: one table each."""
-    lines = ["# Region-mode designs: today's default (base) against route 'fast' (new)", "",
-             f"Base: commit {BASE_COMMIT}, the verb's default (IPOPT from 8 starts, then one engine start; "
-             "unchanged in this checkout as `route='auto'`).  New: this checkout, `route='fast'` (the engine "
-             "from 8 starts, IPOPT from the first 2 with the light polish, the engine from IPOPT's best; "
-             "eta: IPOPT from 8 starts as before).  CPU seconds per design (`time.process_time`, "
-             "single-threaded BLAS), "
+    lines = ["# Region-mode designs: the previous default (base) against the new default (new)", "",
+             f"Base: commit {BASE_COMMIT}, the verb's default then (IPOPT from 8 starts, then one engine "
+             "start; in this checkout `route='multistart'`).  New: this checkout, kappa2 with "
+             "`route='engine'` (= the new default `'auto'`: the placement engine from 8 starts in lockstep, "
+             "IPOPT only as the fallback), eta with the verb's default (IPOPT from 8 starts, as in the "
+             "base).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
              f"time limit {TIME_LIMIT:g} s per design.  `rel` = (new - base) / base of the objective "
              "(negative: new better).  Produced by `benchmarks/bench_region.py`.", ""]
     data = [json.loads(Path(f).read_text()) for f in files]
@@ -161,7 +161,7 @@ def main() -> None:
     r.add_argument("--only", default=None)
     r.add_argument("--json", required=True)
     r.add_argument("--route", default=None, help="WellConditionedProblem(route=...) (new code only; "
-                   "default: 'fast' for new, the verb's default for base)")
+                   "default: the verb's default)")
     r.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     p = sub.add_parser("report")
     p.add_argument("files", nargs="+")
@@ -182,7 +182,7 @@ def main() -> None:
     expected = BASE_DIR if a.code == "base" else str(Path(__file__).resolve().parents[1])
     if not str(Path(optdesign.__file__).resolve()).startswith(expected):
         raise SystemExit(f"imported {optdesign.__file__}, expected a checkout under {expected}")
-    route = None if a.code == "base" else (a.route or "fast")
+    route = None if a.code == "base" else a.route
     run(a.set, a.objective, a.json, a.only, None if route == "default" else route)
 
 

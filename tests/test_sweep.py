@@ -401,7 +401,7 @@ def test_region_designer_refuses_an_unbounded_point_region():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        ({"route": "quick"}, r"route must be one of \('auto', 'fast', 'nlp', 'engine'\); found 'quick'"),
+        ({"route": "quick"}, r"route must be one of \('auto', 'engine', 'fast', 'multistart', 'nlp'\); found 'quick'"),
         ({"kalman_start": 1}, "kalman_start must be true or false; found 1"),
         ({"pole_scale": 0.0}, "pole_scale must be finite and > 0; found 0.0"),
     ],

@@ -29,6 +29,13 @@ Every start gives three candidates, each kept if better: its own gain (e.g. scip
 caller's naive poles), the fixed-pole optimum at its poles, and the region optimum followed by
 a fixed-pole polish at the final poles -- so the design is never worse than any start.
 
+All starts run in lockstep (issue 28): the free-pole stages of every start, for each real/complex
+pole pattern on one model, in one BFGS batch; each start twice, with the barrier schedule of
+:data:`REGION_STAGES` and ten times it; a member whose line search stops at its chart's edge is
+re-anchored and goes on; members at the point of a better one stop after each stage, and after the
+second stage only the best few of each schedule go on
+(:mod:`optdesign.engines.eigenstructure_region_lockstep`).
+
 References
 ----------
 Kautsky, Nichols & Van Dooren (1985); Chilali & Gahinet (1996) for the regions; P.-A. Absil,
@@ -54,7 +61,6 @@ from ..results import Status
 from .eigenstructure import (
     KAPPA2_CONTINUATION,
     MEASURES,
-    DefectivePolesError,
     EigenstructureEngine,
     FixedPoleModel,
     Measure,
@@ -62,8 +68,7 @@ from .eigenstructure import (
     padded_bases,
     spectral_objective,
 )
-from .eigenstructure_fixed import PlacementOutcome, StartRecord, peer_start, run_starts
-from .quasi_newton import bfgs_minimize_batch
+from .eigenstructure_fixed import PlacementOutcome, StartRecord
 
 __all__ = [
     "RegionModel",
@@ -77,9 +82,12 @@ __all__ = [
 ]
 
 #: continuation of the region mode: (order k of the kappa2 bound or None for the exact function,
-#: barrier weight mu) per stage
+#: barrier weight mu) per stage.  mu starts at 1e-3 (issue 28, measured: from 1e-2 the first stage
+#: pushes a pole off the boundary where the optimum has it -- COMPleib AC17 ends at kappa2 1.67521
+#: from every start, even from IPOPT's optimum 1.64565; from 1e-4 a random n = 5, p = 1 plant ends at
+#: 248.6 instead of 121.1)
 REGION_STAGES: tuple[tuple[int | None, float], ...] = (
-    (4, 1e-2), (64, 1e-3), (1024, 1e-4), (16384, 1e-6), (None, 1e-8)
+    (4, 1e-3), (64, 1e-4), (1024, 1e-5), (16384, 1e-7), (None, 1e-9)
 )
 #: continuation of the fixed-pole optimization at a start's poles (before its poles are freed)
 REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION
@@ -87,8 +95,6 @@ REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION
 REGION_WARM_STAGES: tuple[tuple[int | None, float], ...] = REGION_STAGES[-2:]
 #: smallest singular value of ``N(lambda)^H N_anchor`` accepted (cos 60 degrees)
 _MIN_OVERLAP = 0.5
-#: BFGS iterations per stage in region mode
-_REGION_MAX_ITER = 300
 
 
 @dataclass(frozen=True)
@@ -590,6 +596,7 @@ def place_region(
     deadline: Deadline | float | None = None,
     engine: EigenstructureEngine | None = None,
     measure: Measure = "right",
+    stop_at: float | None = None,
 ) -> PlacementOutcome:
     """Observer gain minimizing kappa2 (or kappa_fro) of ``A - L C`` with its poles free in ``region``.
 
@@ -619,11 +626,17 @@ def place_region(
         :func:`~optdesign.engines.eigenstructure_fixed.place_fixed`): ``"left"`` is state feedback's
         ``cond(X)`` of the transposed loop ``A' - C' L'`` (controller mode); the outcome's ``V`` is then
         that ``X``.
+    stop_at : float, optional
+        The objective's lower bound with the caller's accuracy (kappa2: 1 to the accuracy of a
+        computed kappa2): a start whose candidate attains it before the free-pole stages is a global
+        optimum -- the later starts are not prepared and no free-pole stage runs.
 
     Returns
     -------
     PlacementOutcome
-        ``extra["region_margin"]`` is ``region.margin(poles)`` (``< 0``: strictly inside).
+        The starts all run in lockstep (the warm ones first, in a batch of their own), one record
+        per start that ran.  ``extra["region_margin"]`` is ``region.margin(poles)`` (``< 0``:
+        strictly inside).
 
     Raises
     ------
@@ -663,12 +676,17 @@ def place_region(
         raise ValidationError("place_region needs at least one start (starts or n_samples > 0)")
     cands: list[tuple[float, NDArray, NDArray, NDArray, str]] = []  # (value, L, V, poles, stage)
     records: list[StartRecord] = []
-    timed_out = False
-    for st in all_starts:
-        if dl.expired:
-            timed_out = True
-            break
-        rec, best, to = _one_start(eng, region, st, pinned, objective, rng, dl, measure)
+    # warm starts run only the last stages: a batch of their own
+    order = sorted(range(len(all_starts)), key=lambda i: not all_starts[i].warm)
+    warm = [all_starts[i] for i in order if all_starts[i].warm]
+    cold = [all_starts[i] for i in order if not all_starts[i].warm]
+    from .eigenstructure_region_lockstep import run_lockstep  # it builds on this module's model
+
+    done = run_lockstep(eng, region, warm, pinned, objective, rng, dl, stop_at, measure) if warm else []
+    if cold and not any(b is not None and stop_at is not None and b[0] <= stop_at for _, b, _ in done):
+        done += run_lockstep(eng, region, cold, pinned, objective, rng, dl, stop_at, measure)
+    timed_out = dl.expired and len(done) < len(all_starts)
+    for rec, best, to in done:
         timed_out |= to
         records.append(rec)
         if best is not None:
@@ -696,99 +714,6 @@ def place_region(
         sum(r.iterations for r in records), sum(r.evaluations for r in records), tuple(records),
         time=time.process_time() - t0, extra={"region_margin": float(region.margin(P))},
     )
-
-
-def _one_start(eng, region, st: RegionStart, pinned, objective, rng, dl, measure: Measure = "right"):
-    """Candidates of one start: its gain, the fixed-pole optimum at its poles, and the region
-    optimum from the start and from that fixed-pole optimum (two members of one batch), each
-    polished at its final poles.  ``(record, best candidate or None, timed_out)``."""
-    ts = time.process_time()
-    interior = interior_of(region)
-    P0 = as_poles("start poles", _inside(region, as_poles("start poles", st.poles, eng.n), pinned, interior))
-    its = evs = 0
-    best: tuple | None = None
-    timed_out = False
-    try:
-        fixed = FixedPoleModel(eng, P0, measure=measure)
-    except DefectivePolesError:
-        return StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 0, "defective start", 0.0), None, False
-    L0 = st.gain if st.gain is not None else peer_start(eng.A, eng.C, fixed.poles, "YT")
-    x0 = fixed.coords_from_gain(L0) if L0 is not None else None
-    if x0 is None or not math.isfinite(fixed.metric(x0, objective)):
-        x0 = fixed.random_coords(rng)
-    v0 = fixed.metric(x0, objective)
-
-    def consider(model, x, stage):
-        nonlocal best
-        try:
-            L, V, _, _ = model.design(x)
-        except np.linalg.LinAlgError:
-            return
-        v = model.metric(x, objective)
-        if not (math.isfinite(v) and (best is None or v < best[0])):
-            return
-        # verify, do not trust: the poles of the computed gain (not the model's) must be inside
-        ev = np.linalg.eigvals(eng.A - L @ eng.C)
-        if np.all(np.isfinite(ev)) and region.margin(ev) <= 1e-7 * max(1.0, float(np.max(np.abs(ev)))):
-            best = (v, L, V, model.poles.copy(), stage)
-
-    if st.gain is not None:
-        try:  # the start's own gain, unoptimized (never worse than the caller's start)
-            gm = FixedPoleModel(eng, np.linalg.eigvals(eng.A - st.gain @ eng.C), measure=measure)
-            xg = gm.coords_from_gain(st.gain)
-            if xg is not None:
-                consider(gm, xg, "start gain")
-        except (ValidationError, DefectivePolesError):
-            pass
-    if not math.isfinite(v0):
-        return StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 1, "singular start", 0.0), best, False
-    consider(fixed, x0, "start")
-    # (A) fixed poles
-    fstages = REGION_FIXED_STAGES if objective == "kappa2" and not st.warm else (None,)
-    ((xa, ia, ea, ra),) = run_starts(fixed, x0[None, :], objective, dl, 400, fstages)
-    its, evs = its + ia, evs + ea
-    consider(fixed, xa, "fixed poles")
-    timed_out |= ra == "time_limit"
-    # (B) free poles, from the start and from (A) (a warm start: from (A) only)
-    nrf, npf = _structure(fixed.poles, pinned)
-    model = RegionModel(eng, nrf, npf, region, pinned, interior, measure)
-    X = model.coords_of(fixed, xa[None, :] if st.warm else np.stack([x0, xa]))
-    reasons = ["converged"] * X.shape[0]
-    stages = REGION_WARM_STAGES if st.warm else REGION_STAGES
-    for k, mu in stages if objective == "kappa2" else ((None, REGION_STAGES[-1][1]),):
-        if dl.expired:
-            timed_out, reasons = True, ["time_limit"] * X.shape[0]
-            break
-        model.set_anchor(X)
-
-        def fun(Z, members, _k=k, _mu=mu):
-            return model.evaluate_batch(Z, objective, _k, _mu, members)
-
-        if not np.all(np.isfinite(fun(X, None)[0])):  # the barrier needs strictly feasible starts
-            reasons = ["infeasible start"] * X.shape[0]
-            break
-        res, _ = bfgs_minimize_batch(fun, X, max_iter=_REGION_MAX_ITER, ftol=1e-9 if k is None else 1e-7,
-                                     deadline=dl, pass_index=True)
-        X = np.stack([r.x for r in res])
-        reasons = [r.reason for r in res]
-        its, evs = its + sum(r.iterations for r in res), evs + sum(r.evaluations for r in res)
-    if "infeasible start" not in reasons:
-        for i in range(X.shape[0]):
-            fm, xc = model.fixed(X[i], i)
-            consider(fm, xc, "free poles")
-            ((xp, ip, ep, rp),) = run_starts(fm, xc[None, :], objective, dl, 400, (None,))
-            its, evs = its + ip, evs + ep
-            consider(fm, xp, "free poles, polished")
-            timed_out |= rp == "time_limit"
-    val = best[0] if best is not None else math.inf
-    k2 = math.inf
-    if best is not None:
-        sv = np.linalg.svd(best[2], compute_uv=False)
-        k2 = float(sv[0] / sv[-1])
-    reason = min(reasons, key=lambda r: r != "converged")
-    design = (best[1], best[2], best[3]) if best is not None else (None, None, None)
-    rec = StartRecord(st.origin, k2, val, v0, its, evs, reason, time.process_time() - ts, *design)
-    return rec, best, timed_out
 
 
 def _region_order(model: RegionModel, poles: NDArray) -> NDArray[np.complex128]:

@@ -1,7 +1,7 @@
 """The engine route of the well-conditioned observer: the dedicated eigenstructure placement engine
 (:mod:`optdesign.engines.eigenstructure`) for fixed poles (:func:`place_fixed`, every start in
-lockstep) and for poles free in a region (:func:`place_region`, one call per start so that the
-time budget, the lower bound of the objective and the progress report act between starts).
+lockstep) and for poles free in a region (:func:`place_region`, every start in lockstep too: the
+time budget acts between its rounds, the objective's lower bound between its stages).
 
 The engine's answers are not trusted: every start's gain, with the engine's eigenbasis and pole
 order, is verified by the verb's own evaluation (:func:`~.evaluation.evaluate_candidate`).
@@ -23,7 +23,7 @@ from ...engines.eigenstructure_region import RegionStart, place_region
 from ...errors import ValidationError
 from ...model.regions import Region
 from ...results import Status
-from .evaluation import Candidate, Evaluated, attains, metric_of, start_record
+from .evaluation import Candidate, Evaluated, kappa2_agreement_tol, metric_of, start_record
 from .results import StartRecord
 
 __all__ = ["ENGINE", "engine_fixed", "engine_region", "engine_status"]
@@ -40,6 +40,7 @@ _REASONS: dict[str, Status] = {
     "converged": Status.OPTIMAL,
     "line search": Status.OPTIMAL,
     "duplicate": Status.OPTIMAL,
+    "pruned": Status.OPTIMAL,
     "direct": Status.SOLVED,
     "max_iter": Status.OPTIMAL_INACCURATE,
     "max_eval": Status.OPTIMAL_INACCURATE,
@@ -55,6 +56,8 @@ def engine_status(reason: str) -> Status:
 
 def _message(reason: str, stage: str) -> str:
     why = {"duplicate": "reached the point of an earlier start (stopped there)",
+           "pruned": "stopped early in the continuation, other starts being better there (its best "
+                     "design kept)",
            "direct": "the gain is fixed by the poles (computed directly)",
            "max_iter": "iteration limit of the last BFGS stage (a verified improvement on the start, "
                        "not certified as a local minimum)",
@@ -104,41 +107,47 @@ def engine_region(eng: EigenstructureEngine, region: Region, objective: str,
                   specs: list[tuple[str, NDArray | None, NDArray, bool]], *, seed: int, deadline: Deadline,
                   evaluate: Callable[[Candidate], Any], lower_bound: float | None, progress=None,
                   ) -> tuple[list[StartRecord], list[Evaluated]]:
-    """Poles free in ``region`` on the engine: one :func:`place_region` per start ``(origin, gain,
-    poles, warm)``.  No start after the first begins once ``deadline`` has expired or a verified
-    design attains ``lower_bound``."""
+    """Poles free in ``region`` on the engine: one :func:`place_region` with every start ``(origin,
+    gain, poles, warm)`` (the warm ones first), run in lockstep; each start's design is a candidate
+    verified by ``evaluate``.  A start that attains ``lower_bound`` (to the accuracy of a computed
+    kappa2) before the free-pole stages ends the run: a global optimum."""
+    stop_at = None if lower_bound is None else lower_bound * (1.0 + kappa2_agreement_tol(lower_bound))
     records: list[StartRecord] = []
     evaluated: list[Evaluated] = []
-    for idx, (origin, L0, P0, warm) in enumerate(specs):
-        if idx and (deadline.expired or any(attains(lower_bound, e[0], e[3], e[4]) for e in evaluated)):
-            break
-        t0 = time.perf_counter()
-        try:
-            out = place_region(eng.A, eng.C, region, objective=objective, n_samples=0, seed=seed + idx,
-                               deadline=deadline, engine=eng,
-                               starts=[RegionStart(origin, np.asarray(P0, dtype=complex), L0, warm=warm)])
-        except ValidationError as exc:  # e.g. start poles the engine cannot use
-            n, p = eng.n, eng.p
-            cand = Candidate(np.full((n, p), np.nan), None, None, Status.NOT_FOUND, "refused",
-                             f"placement engine refused the start: {exc}", 0, time.perf_counter() - t0,
-                             stage="free poles", backend=ENGINE)
-        else:
-            if not out.starts and L0 is not None:  # the budget was spent before the engine could begin
-                cand = Candidate(np.asarray(L0, dtype=float), None, None, Status.TIME_LIMIT, "time_limit",
-                                 "the start's gain itself (the time ran out before the engine could "
-                                 "improve it)", 0, time.perf_counter() - t0, stage="start gain",
-                                 backend=ENGINE)
-            elif not out.starts:
-                cand = Candidate(out.L, None, None, Status(out.status), out.status.value, out.message, 0,
-                                 time.perf_counter() - t0, stage="free poles", backend=ENGINE)
+    if not specs:
+        return records, evaluated
+    t0 = time.perf_counter()
+    n, p = eng.n, eng.p
+    try:
+        starts = [RegionStart(o, np.asarray(P0, dtype=complex), L0, warm=w) for o, L0, P0, w in specs]
+        out = place_region(eng.A, eng.C, region, objective=objective, n_samples=0, seed=seed,
+                           deadline=deadline, engine=eng, starts=starts, stop_at=stop_at)
+    except ValidationError as exc:  # e.g. start poles the engine cannot use
+        cands = [(specs[0][0], Candidate(np.full((n, p), np.nan), None, None, Status.NOT_FOUND, "refused",
+                                         f"placement engine refused the starts: {exc}", 0,
+                                         time.perf_counter() - t0, stage="free poles", backend=ENGINE))]
+    else:
+        cands = _candidates(out, "free poles", time.perf_counter() - t0)
+        for (_, cand), rec in zip(cands, out.starts, strict=True):
+            # a start with a design: optimal (inside the region), its iteration limit optimal_inaccurate
+            # as for fixed poles, a time limit time_limit; a start without one: not_found
+            if rec.L is None:
+                cand.status = Status.TIME_LIMIT if rec.reason == "time_limit" else Status.NOT_FOUND
+            elif engine_status(rec.reason) in (Status.OPTIMAL_INACCURATE, Status.TIME_LIMIT):
+                cand.status = engine_status(rec.reason)
             else:
-                ((_, cand),) = _candidates(out, "free poles", time.perf_counter() - t0)
-            # the outcome's status (optimal: a design inside the region; time_limit; not_found), an
-            # iteration limit of the last stage made optimal_inaccurate as for fixed poles
-            status = Status(out.status)
-            if status == Status.OPTIMAL and engine_status(cand.native) == Status.OPTIMAL_INACCURATE:
-                status = Status.OPTIMAL_INACCURATE
-            cand.status = status
+                cand.status = Status.OPTIMAL
+        if not cands and specs[0][1] is not None:  # the budget was spent before the engine could begin
+            L0 = np.asarray(specs[0][1], dtype=float)
+            cands = [(specs[0][0], Candidate(L0, None, None, Status.TIME_LIMIT, "time_limit",
+                                             "the start's gain itself (the time ran out before "
+                                             "the engine could improve it)", 0, time.perf_counter() - t0,
+                                             stage="start gain", backend=ENGINE))]
+        elif not cands:
+            cands = [(specs[0][0], Candidate(out.L, None, None, Status(out.status), out.status.value,
+                                             out.message, 0, time.perf_counter() - t0, stage="free poles",
+                                             backend=ENGINE))]
+    for idx, (origin, cand) in enumerate(cands):
         m, v = evaluate(cand)
         obj = metric_of(objective, m)
         records.append(start_record(idx, origin, cand, m, v, obj, cand.message))

@@ -69,7 +69,7 @@ AUTO_REGION_STARTS = 8
 AUTO_NLP_STARTS = 2
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)
-ROUTES = ("auto", "fast", "nlp", "engine")
+ROUTES = ("auto", "engine", "fast", "multistart", "nlp")
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
@@ -142,7 +142,7 @@ def result_from(plant: Plant, records: list[StartRecord], evaluated: list[Evalua
     if status.is_solved and len(records) < planned and attains(bound, obj, v, cand):
         msg += (f"; stopped after {len(records)} of {planned} starts: {objective} = {bound:g} is its lower "
                 "bound (a global optimum)")
-    elif status.is_solved and attains(bound, obj, v, cand) and cand.native == "direct":
+    elif status.is_solved and attains(bound, obj, v, cand):
         msg += f"; {objective} = {bound:g} is its lower bound (a global optimum)"
     stats = SolverStats(
         backend=cand.backend, native_status=cand.native,
@@ -231,7 +231,8 @@ class WellConditionedProblem:
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
         structural zeros): :func:`~optdesign.engines.eigenstructure_fixed.default_starts` (6 up to
         n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
-        ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros): ``AUTO_REGION_STARTS``.
+        ``"auto"``, ``"engine"``, ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros):
+        ``AUTO_REGION_STARTS``.
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -247,24 +248,22 @@ class WellConditionedProblem:
         part of an NLP's key); with it set, the decay / damping / radius of a region are NLP parameters
         (one NLP for every region of that shape), without it each region's constraints are built as
         they are.
-    route : {"auto", "fast", "nlp", "engine"}, default "auto"
-        Region mode (``_region_plan``; what ran is ``result.route``).  ``"auto"``: IPOPT (the NLPs'
-        continuation) from every start, then -- for kappa2 / kappa_fro without bounds or structural
-        zeros -- one placement-engine start from IPOPT's best design, the better of the two kept (never
-        worse than IPOPT alone).  ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros):
-        the placement engine from the starts (default ``AUTO_REGION_STARTS`` = 8: the naive poles
-        with YT, the Kalman gain, region samples), IPOPT from the first ``AUTO_NLP_STARTS`` (2)
-        of them with the light polish (``region_polish="last"``), then one engine start from IPOPT's
-        best when it beats the engine's; IPOPT alone for eta, bounds and gain masks.  Measured against
-        ``"auto"`` (issue 28, ``benchmarks/results/region.md``): 2-4x less CPU at n = 4-10 and the same
-        kappa2 on COMPleib REA2, DIS1, HE5, but worse where a later start of ``"auto"`` finds the best
-        basin (random n = 5, p = 1: 248.6 vs 149.0; n = 8, p = 2: 122.6 vs 114.2) -- hence not the
-        default.  ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which warm-starts IPOPT
-        along a sweep).  ``"engine"``: the placement engine from every start, IPOPT only where it does
-        not handle the question or as a fallback -- faster, but measured worse on some plants (a
-        random n = 3 plant: kappa2 4.84 vs IPOPT's 4.32; COMPleib AC17: 1.675 vs 1.646), better on
-        others (AC7: 22.45 vs 22.81).  Fixed poles always use the engine (IPOPT for bounds and
-        structural zeros).
+    route : {"auto", "engine", "fast", "multistart", "nlp"}, default "auto"
+        Region mode (``_region_plan``; what ran is ``result.route``).  ``"auto"`` (= ``"engine"``): for
+        kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
+        (default ``AUTO_REGION_STARTS`` = 8: the naive poles with YT, the Kalman gain, region samples),
+        all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
+        every start for eta, bounds and gain masks.  Measured against the previous default
+        (``"multistart"``; issue 28, ``benchmarks/results/region.md``): never more than 1e-3 worse on
+        the benchmark set there (COMPleib n <= 10 and random plants n = 5-10; DIS1 +4.3e-4), better on
+        several (HE5 73.97 vs 74.48, AC7 21.94 vs 22.81, UWV 925.9 vs 946.4); median CPU 3.0 s vs 6.7 s at
+        n <= 10, 14 s vs 73 s at n = 6-10.
+        ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
+        start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
+        every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish
+        (``region_polish="last"``), then the engine from IPOPT's best when it beats the engine's.
+        ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which warm-starts IPOPT along a
+        sweep).  Fixed poles always use the engine (IPOPT for bounds and structural zeros).
     kalman_start : bool, default True
         Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
         first samples poles in the region (complex-pair patterns first).
@@ -302,7 +301,8 @@ class WellConditionedProblem:
                  nlp_solver: str = "ipopt",
                  scaling: bool = True, options: dict[str, Any] | None = None,
                  allow_unstable: bool = False, pole_scale: float | None = None,
-                 route: Literal["auto", "fast", "nlp", "engine"] = "auto", kalman_start: bool = True,
+                 route: Literal["auto", "engine", "fast", "multistart", "nlp"] = "auto",
+                 kalman_start: bool = True,
                  region_polish: Literal["full", "last"] = "full") -> None:
         plant = as_plant(plant)
         check_objective(objective)
@@ -493,7 +493,7 @@ class WellConditionedProblem:
         region = self._check_region_mode(region, bounds)
         if chosen is not None:
             n_starts = chosen
-        elif self.route == "fast" and not self._needs_nlp(bounds) and self.objective != "eta":
+        elif self.route != "multistart" and not self._needs_nlp(bounds) and self.objective != "eta":
             n_starts = AUTO_REGION_STARTS
         else:
             n_starts = DEFAULT_STARTS
@@ -677,19 +677,18 @@ class WellConditionedProblem:
         """``(engine?, engine starts, IPOPT?, IPOPT starts, IPOPT polish, engine polish)`` of a region
         solve (the warm starts run in every phase that runs).
 
-        ``"fast"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine from the
-        ``n_starts`` first starts, IPOPT (light polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``)
-        from the first ``AUTO_NLP_STARTS`` of them, then the engine from IPOPT's best when it
-        is better than the engine's; IPOPT alone otherwise.  ``"auto"``: IPOPT from every start,
-        then the engine from the best (the engine only for kappa2 / kappa_fro without bounds or
-        structural zeros).  ``"nlp"``: IPOPT only.  ``"engine"``: the engine from every start (IPOPT as
-        the fallback)."""
+        ``"auto"`` / ``"engine"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine
+        from every start (IPOPT as the fallback).  ``"fast"``: the engine from every start, IPOPT (light
+        polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``) from the first ``AUTO_NLP_STARTS`` of
+        them, then the engine from IPOPT's best when it is better than the engine's.  ``"multistart"``:
+        IPOPT from every start, then the engine from the best.  ``"nlp"``, or a question the engine
+        does not take: IPOPT only."""
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
-        if mode == "engine":
+        if mode in ("auto", "engine"):
             return True, n_starts, False, 0, self.region_polish, False
-        if mode == "auto":
+        if mode == "multistart":
             return False, 0, True, n_starts, self.region_polish, True
         return True, n_starts, True, min(AUTO_NLP_STARTS, n_starts), "last", True
 

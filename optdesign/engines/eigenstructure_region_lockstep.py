@@ -1,0 +1,363 @@
+"""The lockstep runner of the eigenstructure engine's region mode (issue 28).
+
+:func:`run_lockstep` takes the starts of :func:`~optdesign.engines.eigenstructure_region.place_region`
+through the free-pole continuation together: each start prepared on its own (its gain and the
+fixed-pole optimum at its poles as candidates), then the free-pole stages of every start -- for each
+real/complex pole pattern on one :class:`~optdesign.engines.eigenstructure_region.RegionModel`, each
+start with two barrier schedules -- in one BFGS batch (one evaluation per model and round instead of
+one per start and round), members re-anchored at their chart's edge, de-duplicated and pruned
+between stages; then every surviving member polished at its final poles.
+
+References
+----------
+P.-A. Absil, R. Mahony and R. Sepulchre, Optimization Algorithms on Matrix Manifolds (Princeton, 2008),
+ch. 4 and 8 (retractions, vector transport).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._deadline import Deadline
+from .._validate import as_poles
+from ..errors import ValidationError
+from .eigenstructure import DefectivePolesError, FixedPoleModel, spectral_objective
+from .eigenstructure_fixed import StartRecord, peer_start, run_starts
+from .eigenstructure_region import (
+    REGION_FIXED_STAGES,
+    REGION_STAGES,
+    REGION_WARM_STAGES,
+    RegionModel,
+    RegionStart,
+    _inside,
+    _structure,
+    interior_of,
+)
+from .quasi_newton import bfgs_minimize_batch
+
+__all__ = ["run_lockstep"]
+
+#: BFGS iterations per stage in region mode
+_REGION_MAX_ITER = 300
+#: relative decrease (over the BFGS window) below which a stage stops, per kappa2 order k: loose early
+#: stages as in the fixed-pole engine (their minimizers are discarded by the next stage), the exact
+#: function to the accuracy the fixed-pole polish works at
+_REGION_FTOL: dict[int | None, float] = {4: 1e-7, 64: 1e-7, 1024: 1e-7, 16384: 1e-7, None: 1e-9}
+#: a candidate's poles count as inside when ``region.margin`` is at most this times their modulus (the
+#: rounding of eigvals of a matrix whose eigenvalues sit on the boundary, with a margin for kappa2 ~ 1e8)
+_MARGIN_RTOL = 1e-7
+#: two members are at one point when their values agree to this (relative; a tenth of the stages'
+#: decrease tolerance, as in the fixed-pole engine's ``_distinct``) ...
+_DUP_FTOL = 1e-8
+#: ... and their sorted poles to this times the poles' scale (``sqrt`` of the decrease tolerance:
+#: near a smooth minimizer ``f - f* ~ |x - x*|^2``)
+_DUP_PTOL = 3e-4
+#: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
+#: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
+#: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members
+_PRUNE_AFTER = 1
+_KEEP = 4
+#: every cold start runs the continuation twice, with the barrier weights of :data:`REGION_STAGES`
+#: times each of these (issue 28, measured: with 1 only COMPleib DIS5 ends at kappa2 49.87 instead of
+#: 49.45, with 10 only AC17 at 1.6752 instead of 1.6457 -- a boundary optimum the larger barrier
+#: pushes off; both in one batch, pruned per schedule)
+_BARRIER_SCALES = (1.0, 10.0)
+#: re-anchorings per stage of a member whose line search stopped at the edge of its chart
+_MAX_REANCHOR = 3
+
+
+def _consider(eng, region, objective, model, x, stage, best):
+    """``best`` or the design of ``x`` in ``model`` when it is better and its computed gain's poles
+    (not the model's) are inside the region: verify, do not trust."""
+    try:
+        L, V, _, _ = model.design(x)
+    except np.linalg.LinAlgError:
+        return best
+    v = model.metric(x, objective)
+    if not (math.isfinite(v) and (best is None or v < best[0])):
+        return best
+    ev = np.linalg.eigvals(eng.A - L @ eng.C)
+    if np.all(np.isfinite(ev)) and region.margin(ev) <= _MARGIN_RTOL * max(1.0, float(np.max(np.abs(ev)))):
+        return (v, L, V, model.poles.copy(), stage)
+    return best
+
+
+def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior, measure="right") -> dict:
+    """One start up to its free-pole stages: its gain and the fixed-pole optimum at its (moved
+    inside) poles as candidates, and the members to free (from the start and from that optimum;
+    a warm start: from the optimum only).  A dict of the start's state; ``"done"`` holds a final
+    record when the start cannot go on."""
+    ts = time.process_time()
+    state: dict = {"st": st, "best": None, "its": 0, "evs": 0, "timed_out": False, "cpu": 0.0}
+    try:
+        P0 = as_poles("start poles", st.poles, eng.n)
+        P0 = as_poles("start poles", _inside(region, P0, pinned, interior))
+        fixed = FixedPoleModel(eng, P0, measure=measure)
+    except DefectivePolesError:
+        state["done"] = StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 0, "defective start", 0.0)
+        return state
+    except ValidationError as exc:
+        state["done"] = StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 0, f"refused: {exc}", 0.0)
+        return state
+    L0 = st.gain if st.gain is not None else peer_start(eng.A, eng.C, fixed.poles, "YT")
+    x0 = fixed.coords_from_gain(L0) if L0 is not None else None
+    if x0 is None or not math.isfinite(fixed.metric(x0, objective)):
+        x0 = fixed.random_coords(rng)
+    v0 = state["v0"] = fixed.metric(x0, objective)
+    if st.gain is not None:
+        try:  # the start's own gain, unoptimized (never worse than the caller's start)
+            gm = FixedPoleModel(eng, np.linalg.eigvals(eng.A - st.gain @ eng.C), measure=measure)
+            xg = gm.coords_from_gain(st.gain)
+            if xg is not None:
+                state["best"] = _consider(eng, region, objective, gm, xg, "start gain", state["best"])
+        except (ValidationError, DefectivePolesError):
+            pass
+    if not math.isfinite(v0):
+        state["done"] = StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 1, "singular start", 0.0)
+        return state
+    state["best"] = _consider(eng, region, objective, fixed, x0, "start", state["best"])
+    fstages = REGION_FIXED_STAGES if objective == "kappa2" and not st.warm else (None,)
+    ((xa, ia, ea, ra),) = run_starts(fixed, x0[None, :], objective, dl, 400, fstages)
+    state["its"], state["evs"] = ia, ea
+    state["best"] = _consider(eng, region, objective, fixed, xa, "fixed poles", state["best"])
+    state["timed_out"] = ra == "time_limit"
+    state.update(fixed=fixed, members=xa[None, :] if st.warm else np.stack([x0, xa]),
+                 key=_structure(fixed.poles, pinned), cpu=time.process_time() - ts)
+    return state
+
+
+def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, rng, dl, stop_at=None,
+                 measure="right"):
+    """Every start in lockstep: each prepared (:func:`_prepare`), the free-pole stages of all
+    starts with the same real/complex pole pattern on one model and of all patterns in one BFGS
+    batch (:func:`_region_stages`: one evaluation per pattern and round instead of one per start
+    and round -- measured on COMPleib DIS1, an evaluation of 16 members costs 3.5x one of 1), then
+    each member polished at its final poles.  Per start ``(record, best candidate, timed_out)``; a
+    start whose candidate attains ``stop_at`` ends the run (see :func:`place_region`).  ``measure``:
+    which eigenvectors the objective measures (:class:`RegionModel`)."""
+    interior = interior_of(region)
+    states = []
+    for st in starts:
+        if dl.expired:
+            break
+        states.append(_prepare(eng, region, st, pinned, objective, rng, dl, interior, measure))
+        if stop_at is not None and states[-1]["best"] is not None and states[-1]["best"][0] <= stop_at:
+            for s in states:  # a global optimum: no free-pole stage is needed
+                s["skip"] = True
+            break
+    live = [s for s in states if "done" not in s and "skip" not in s]
+    groups: dict[tuple[int, int], list[dict]] = {}
+    for s in live:
+        groups.setdefault(s["key"], []).append(s)
+    batch = []
+    t0 = time.process_time()
+    warm = bool(live) and live[0]["st"].warm
+    scales = (1.0,) if warm or objective != "kappa2" else _BARRIER_SCALES
+    for scale in scales:
+        for (nrf, npf), mine in groups.items():
+            model = RegionModel(eng, nrf, npf, region, pinned, interior, measure)
+            rows, ar, ap = [], [], []
+            for s in mine:
+                rows.append(model.coords_of(s["fixed"], s["members"]))
+                ar.append(model.anchor_r)
+                ap.append(model.anchor_p)
+                s.setdefault("parts", []).append((len(batch), sum(x.shape[0] for x in rows[:-1])))
+            model.anchor_r, model.anchor_p = np.concatenate(ar), np.concatenate(ap)
+            batch.append((model, np.concatenate(rows), scale))
+    stages = REGION_WARM_STAGES if warm else REGION_STAGES
+    if objective != "kappa2":
+        stages = ((None, REGION_STAGES[-1][1]),)
+    res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
+    share = (time.process_time() - t0) / max(1, len(live))
+    out = []
+    for s in states:
+        if "done" in s:
+            out.append((s["done"], s["best"], False))
+            continue
+        ts = time.process_time()
+        mine = ["converged"]
+        for g, k0 in s.get("parts", []) if "skip" not in s else []:
+            Xg, reasons, its, evs, tb = res[g]
+            model, m = batch[g][0], s["members"].shape[0]
+            s["its"] += int(its[k0 : k0 + m].sum())
+            s["evs"] += int(evs[k0 : k0 + m].sum())
+            s["timed_out"] |= tb
+            mine = mine + reasons[k0 : k0 + m]
+            if "infeasible start" in reasons[k0 : k0 + m]:
+                continue
+            for i in range(k0, k0 + m):
+                if reasons[i] not in ("pruned", "duplicate"):  # a better member went on from there
+                    _polish(eng, region, objective, model, Xg[i], i, s, dl)
+        mine = mine[1:] or mine
+        best = s["best"]
+        val = best[0] if best is not None else math.inf
+        k2 = math.inf
+        if best is not None:
+            sv = np.linalg.svd(best[2], compute_uv=False)
+            k2 = float(sv[0] / sv[-1])
+        reason = min(mine, key=lambda r: r != "converged")
+        design = (best[1], best[2], best[3]) if best is not None else (None, None, None)
+        cpu = s["cpu"] + share + time.process_time() - ts
+        rec = StartRecord(s["st"].origin, k2, val, s["v0"], s["its"], s["evs"], reason, cpu, *design)
+        out.append((rec, best, s["timed_out"]))
+    return out
+
+
+def _polish(eng, region, objective, model: RegionModel, x: NDArray, member: int, s: dict, dl) -> None:
+    """The free-pole design ``x`` (member ``member`` of ``model``) and its fixed-pole polish at its
+    final poles, each a candidate of the start ``s``."""
+    fm, xc = model.fixed(x, member)
+    s["best"] = _consider(eng, region, objective, fm, xc, "free poles", s["best"])
+    ((xp, ip, ep, rp),) = run_starts(fm, xc[None, :], objective, dl, 400, (None,))
+    s["its"], s["evs"] = s["its"] + ip, s["evs"] + ep
+    s["best"] = _consider(eng, region, objective, fm, xp, "free poles, polished", s["best"])
+    s["timed_out"] |= rp == "time_limit"
+
+
+def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: str,
+                   stages: Sequence[tuple[int | None, float]], dl: Deadline, stop_at: float | None = None):
+    """The continuation of region mode, every member of every model in one BFGS batch.
+
+    ``batch``: ``(model, X, scale)`` per pole pattern and barrier schedule, ``X`` (s, size) its
+    members (anchored), ``scale`` the factor of the stages' barrier weights for them.  Each
+    member's inverse-Hessian approximation is carried from stage to stage (as in the fixed-pole
+    engine's :func:`~optdesign.engines.eigenstructure_fixed.run_starts`).  A member whose line search
+    fails at the edge of its chart (a trial step that would rotate a subspace past
+    :data:`_MIN_OVERLAP` from its anchor) is re-anchored at its current point and continues the stage
+    (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.  A member
+    that is not strictly inside at a stage's start (the barrier needs it) stops there
+    (``"infeasible start"``).  After a stage where a member's exact objective attains ``stop_at``
+    (its lower bound: a global optimum) only the members there go on.  Per model ``(X, reasons, iterations
+    (s,), evaluations (s,), timed_out)``.
+    """
+    models = [b[0] for b in batch]
+    scale = np.array([b[2] for b in batch])
+    sizes = [b[1].shape[0] for b in batch]
+    owner = np.repeat(np.arange(len(batch)), sizes)
+    local = np.concatenate([np.arange(k) for k in sizes])
+    X = np.concatenate([b[1] for b in batch])
+    total = X.shape[0]
+    reasons = ["converged"] * total
+    H: list[NDArray | None] = [None] * total
+    its, evs = np.zeros(total, int), np.zeros(total, int)
+    alive = np.ones(total, dtype=bool)
+
+    def evaluate(Z, rows, k, mu):
+        f, G = np.full(Z.shape[0], math.inf), np.zeros_like(Z)
+        for g, model in enumerate(models):
+            sel = np.flatnonzero(owner[rows] == g)
+            if sel.size:
+                f[sel], G[sel] = model.evaluate_batch(Z[sel], objective, k, mu * scale[g], local[rows[sel]])
+        return f, G
+
+    def anchor():
+        for g, model in enumerate(models):
+            model.set_anchor(X[owner == g])
+
+    timed_out = False
+    for si, (k, mu) in enumerate(stages):
+        if dl.expired:
+            timed_out = True
+            for i in np.flatnonzero(alive):
+                reasons[i] = "time_limit"
+            break
+        anchor()
+        todo = np.flatnonzero(alive)
+        bad = ~np.isfinite(evaluate(X[todo], todo, k, mu)[0])
+        for i in todo[bad]:
+            reasons[i], alive[i] = "infeasible start", False
+        todo = todo[~bad]
+        ftol = _REGION_FTOL.get(k, _REGION_FTOL[None])
+        for _ in range(_MAX_REANCHOR + 1):
+            if not todo.size:
+                break
+            f_before = evaluate(X[todo], todo, k, mu)[0]
+
+            def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
+                return evaluate(Z, _todo[idx], _k, _mu)
+
+            res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=_REGION_MAX_ITER, ftol=ftol, deadline=dl,
+                                          pass_index=True, H0=[H[i] for i in todo])
+            again = []
+            for j, i in enumerate(todo):
+                r = res[j]
+                X[i], H[i], reasons[i] = r.x, Hs[j], r.reason
+                its[i] += r.iterations
+                evs[i] += r.evaluations
+                if r.reason == "line search" and f_before[j] - r.f > ftol * max(1.0, abs(r.f)):
+                    again.append(i)
+            if not again or dl.expired:
+                break
+            todo = np.asarray(again)
+            anchor()
+        _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
+        if stop_at is not None:
+            _attained(models, owner, X, alive, reasons, objective, stop_at)
+        if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
+            for sc in np.unique(scale):  # values compare within one barrier schedule
+                among = alive & np.isin(owner, np.flatnonzero(scale == sc))
+                _prune(X, among, alive, reasons, evaluate, k, mu)
+    timed_out |= dl.expired
+    out = []
+    for g in range(len(batch)):
+        sel = owner == g
+        out.append((X[sel], [reasons[i] for i in np.flatnonzero(sel)], its[sel], evs[sel], timed_out))
+    return out
+
+
+def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> None:
+    """When a running member's exact objective (kappa2 or kappa_fro of its eigenvectors) is at most
+    ``stop_at`` (its lower bound: a global optimum), only the members there go on (the others
+    ``"pruned"``)."""
+    exact = np.full(X.shape[0], math.inf)
+    for g, model in enumerate(models):
+        mine = np.flatnonzero(owner == g)
+        sel = np.flatnonzero(alive[mine])
+        if not sel.size:
+            continue
+        try:
+            f = spectral_objective(model._members(X[mine])["W"][sel], objective, None, gradient=False)[0]
+        except np.linalg.LinAlgError:
+            continue
+        exact[mine[sel]] = np.exp(f)
+    if np.any(exact <= stop_at):
+        for i in np.flatnonzero(alive & (exact > stop_at)):
+            reasons[i], alive[i] = "pruned", False
+
+
+def _prune(X, among, alive, reasons, evaluate, k, mu) -> None:
+    """Of the running members ``among``, keep the :data:`_KEEP` of lowest value running (the others
+    ``"pruned"``)."""
+    idx = np.flatnonzero(among)
+    if idx.size <= _KEEP:
+        return
+    f = evaluate(X[idx], idx, k, mu)[0]
+    for j in np.argsort(f)[_KEEP:]:
+        reasons[idx[j]], alive[idx[j]] = "pruned", False
+
+
+def _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu) -> None:
+    """Stop the members at the point of a better one (marked ``"duplicate"``): the same value to
+    :data:`_DUP_FTOL` and the same poles to :data:`_DUP_PTOL` times their scale -- they would
+    follow the same path through the next stages (as the fixed-pole engine's ``run_starts``
+    does).  Poles, unlike coordinates, compare across pole patterns."""
+    idx = np.flatnonzero(alive)
+    if idx.size < 2:
+        return
+    f = evaluate(X[idx], idx, k, mu)[0]
+    poles = [np.sort_complex(models[owner[i]].poles(X[i])) for i in idx]
+    scale = max(1.0, max(float(np.max(np.abs(P))) for P in poles))
+    kept: list[int] = []
+    for j in np.argsort(f):
+        if not math.isfinite(f[j]):
+            continue
+        if any(abs(f[j] - f[q]) <= _DUP_FTOL * max(1.0, abs(f[q]))
+               and float(np.max(np.abs(poles[j] - poles[q]))) <= _DUP_PTOL * scale for q in kept):
+            reasons[idx[j]], alive[idx[j]] = "duplicate", False
+        else:
+            kept.append(j)
