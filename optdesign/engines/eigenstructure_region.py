@@ -69,6 +69,12 @@ from .eigenstructure import (
     spectral_objective,
 )
 from .eigenstructure_fixed import PlacementOutcome, StartRecord
+from .tolerances import (
+    CLEARANCE_FLOOR,
+    QUADRATIC_MISFIT_TOL,
+    REGION_STAGES,
+    STENCIL_MIN_SCALE,
+)
 
 __all__ = [
     "RegionModel",
@@ -81,14 +87,6 @@ __all__ = [
     "interior_of",
 ]
 
-#: continuation of the region mode: (order k of the kappa2 bound or None for the exact function,
-#: barrier weight mu) per stage.  mu starts at 1e-3 (issue 28, measured: from 1e-2 the first stage
-#: pushes a pole off the boundary where the optimum has it -- COMPleib AC17 ends at kappa2 1.67521
-#: from every start, even from IPOPT's optimum 1.64565; from 1e-4 a random n = 5, p = 1 plant ends at
-#: 248.6 instead of 121.1)
-REGION_STAGES: tuple[tuple[int | None, float], ...] = (
-    (4, 1e-3), (64, 1e-4), (1024, 1e-5), (16384, 1e-7), (None, 1e-9)
-)
 #: continuation of the fixed-pole optimization at a start's poles (before its poles are freed)
 REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION
 #: the stages of a warm start (RegionStart.warm): the last two of REGION_STAGES
@@ -493,7 +491,7 @@ class QuadraticConstraints:
     """
 
     def __init__(self, region: Region, scale: float) -> None:
-        h = max(float(scale), 1e-6)
+        h = max(float(scale), STENCIL_MIN_SCALE)
         t = np.array([-h, 0.0, h])
         x, y = (a.ravel() for a in np.meshgrid(t, t))
         V = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
@@ -505,7 +503,7 @@ class QuadraticConstraints:
                               for v in region.constraints(xt, yt)])
         Vt = np.column_stack([np.ones_like(xt), xt, yt, xt * xt, xt * yt, yt * yt])
         err = np.max(np.abs(Vt @ self.coef - Gt)) / max(1.0, float(np.max(np.abs(Gt))))
-        if not err <= 1e-9:
+        if not err <= QUADRATIC_MISFIT_TOL:
             raise ValidationError(
                 f"the constraints of {region!r} are not quadratic polynomials (relative misfit {err:.2e}): "
                 "Region.constraints must be plain arithmetic of degree <= 2"
@@ -553,35 +551,7 @@ def interior_of(region: Region) -> tuple[float, float]:
     """``(x0, rho)``: the region's deepest real point and its clearance (a disk of radius ``rho``
     around ``x0`` is inside)."""
     x0 = float(region.interior_point())
-    return x0, max(-float(region.distance([x0])[0]), 1e-12)
-
-
-def _inside(
-    region: Region, poles: NDArray, pinned: NDArray, interior: tuple[float, float]
-) -> NDArray[np.complex128]:
-    """``poles`` moved strictly inside ``region`` (projected, then 5 % toward the interior point
-    ``x0``), real poles kept real; pinned poles are kept as they are."""
-    x0, rho = interior
-    P = np.asarray(poles, dtype=complex).copy()
-    free = np.ones(P.size, dtype=bool)
-    for mu in pinned:
-        j = int(np.argmin(np.where(free, np.abs(P - mu), np.inf)))
-        free[j] = False
-    z = region.project(P[free])
-    z = z + 0.05 * (x0 - z)
-    bad = region.distance(z) > -1e-3 * rho
-    z[bad] = x0 + 0.5 * (z[bad] - x0)
-    P[free] = np.where(np.abs(P[free].imag) == 0, z.real + 0j, z)
-    return P
-
-
-def _structure(poles: NDArray, pinned: NDArray) -> tuple[int, int]:
-    free = list(np.asarray(poles, dtype=complex))
-    for mu in pinned:
-        free.pop(int(np.argmin([abs(z - mu) for z in free])))
-    fr = np.asarray(free)
-    nr = int(np.sum(fr.imag == 0))
-    return nr, (fr.size - nr) // 2
+    return x0, max(-float(region.distance([x0])[0]), CLEARANCE_FLOOR)
 
 
 def place_region(
@@ -652,6 +622,8 @@ def place_region(
             f"objective must be 'kappa2' or 'kappa_fro' in region mode (eta's pole gap is not smooth); "
             f"found {objective!r}"
         )
+    if measure not in MEASURES:
+        raise ValidationError(f"measure must be one of {MEASURES}; found {measure!r}")
     n_samples = as_int("n_samples", n_samples, 0)
     seed = as_int("seed", seed, 0)
     dl = Deadline.of(deadline)

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from .._deadline import Deadline
 from .._validate import as_poles
 from ..errors import ValidationError
+from ..model.regions import Region
 from .eigenstructure import DefectivePolesError, FixedPoleModel, spectral_objective
 from .eigenstructure_fixed import StartRecord, peer_start, run_starts
 from .eigenstructure_region import (
@@ -34,29 +35,15 @@ from .eigenstructure_region import (
     REGION_WARM_STAGES,
     RegionModel,
     RegionStart,
-    _inside,
-    _structure,
     interior_of,
 )
 from .quasi_newton import bfgs_minimize_batch
+from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL
 
 __all__ = ["run_lockstep"]
 
 #: BFGS iterations per stage in region mode
 _REGION_MAX_ITER = 300
-#: relative decrease (over the BFGS window) below which a stage stops, per kappa2 order k: loose early
-#: stages as in the fixed-pole engine (their minimizers are discarded by the next stage), the exact
-#: function to the accuracy the fixed-pole polish works at
-_REGION_FTOL: dict[int | None, float] = {4: 1e-7, 64: 1e-7, 1024: 1e-7, 16384: 1e-7, None: 1e-9}
-#: a candidate's poles count as inside when ``region.margin`` is at most this times their modulus (the
-#: rounding of eigvals of a matrix whose eigenvalues sit on the boundary, with a margin for kappa2 ~ 1e8)
-_MARGIN_RTOL = 1e-7
-#: two members are at one point when their values agree to this (relative; a tenth of the stages'
-#: decrease tolerance, as in the fixed-pole engine's ``_distinct``) ...
-_DUP_FTOL = 1e-8
-#: ... and their sorted poles to this times the poles' scale (``sqrt`` of the decrease tolerance:
-#: near a smooth minimizer ``f - f* ~ |x - x*|^2``)
-_DUP_PTOL = 3e-4
 #: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members
@@ -71,6 +58,34 @@ _BARRIER_SCALES = (1.0, 10.0)
 _MAX_REANCHOR = 3
 
 
+def _inside(
+    region: Region, poles: NDArray, pinned: NDArray, interior: tuple[float, float]
+) -> NDArray[np.complex128]:
+    """``poles`` moved strictly inside ``region`` (projected, then 5 % toward the interior point
+    ``x0``), real poles kept real; pinned poles are kept as they are."""
+    x0, rho = interior
+    P = np.asarray(poles, dtype=complex).copy()
+    free = np.ones(P.size, dtype=bool)
+    for mu in pinned:
+        j = int(np.argmin(np.where(free, np.abs(P - mu), np.inf)))
+        free[j] = False
+    z = region.project(P[free])
+    z = z + 0.05 * (x0 - z)
+    bad = region.distance(z) > -INSIDE_FRACTION * rho
+    z[bad] = x0 + 0.5 * (z[bad] - x0)
+    P[free] = np.where(np.abs(P[free].imag) == 0, z.real + 0j, z)
+    return P
+
+
+def _structure(poles: NDArray, pinned: NDArray) -> tuple[int, int]:
+    free = list(np.asarray(poles, dtype=complex))
+    for mu in pinned:
+        free.pop(int(np.argmin([abs(z - mu) for z in free])))
+    fr = np.asarray(free)
+    nr = int(np.sum(fr.imag == 0))
+    return nr, (fr.size - nr) // 2
+
+
 def _consider(eng, region, objective, model, x, stage, best):
     """``best`` or the design of ``x`` in ``model`` when it is better and its computed gain's poles
     (not the model's) are inside the region: verify, do not trust."""
@@ -82,7 +97,7 @@ def _consider(eng, region, objective, model, x, stage, best):
     if not (math.isfinite(v) and (best is None or v < best[0])):
         return best
     ev = np.linalg.eigvals(eng.A - L @ eng.C)
-    if np.all(np.isfinite(ev)) and region.margin(ev) <= _MARGIN_RTOL * max(1.0, float(np.max(np.abs(ev)))):
+    if np.all(np.isfinite(ev)) and region.margin(ev) <= MARGIN_RTOL * max(1.0, float(np.max(np.abs(ev)))):
         return (v, L, V, model.poles.copy(), stage)
     return best
 
@@ -272,7 +287,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: s
         for i in todo[bad]:
             reasons[i], alive[i] = "infeasible start", False
         todo = todo[~bad]
-        ftol = _REGION_FTOL.get(k, _REGION_FTOL[None])
+        ftol = REGION_FTOL.get(k, REGION_FTOL[None])
         for _ in range(_MAX_REANCHOR + 1):
             if not todo.size:
                 break
@@ -343,7 +358,7 @@ def _prune(X, among, alive, reasons, evaluate, k, mu) -> None:
 
 def _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu) -> None:
     """Stop the members at the point of a better one (marked ``"duplicate"``): the same value to
-    :data:`_DUP_FTOL` and the same poles to :data:`_DUP_PTOL` times their scale -- they would
+    :data:`DUP_FTOL` and the same poles to :data:`DUP_PTOL` times their scale -- they would
     follow the same path through the next stages (as the fixed-pole engine's ``run_starts``
     does).  Poles, unlike coordinates, compare across pole patterns."""
     idx = np.flatnonzero(alive)
@@ -356,8 +371,8 @@ def _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu) -> None:
     for j in np.argsort(f):
         if not math.isfinite(f[j]):
             continue
-        if any(abs(f[j] - f[q]) <= _DUP_FTOL * max(1.0, abs(f[q]))
-               and float(np.max(np.abs(poles[j] - poles[q]))) <= _DUP_PTOL * scale for q in kept):
+        if any(abs(f[j] - f[q]) <= DUP_FTOL * max(1.0, abs(f[q]))
+               and float(np.max(np.abs(poles[j] - poles[q]))) <= DUP_PTOL * scale for q in kept):
             reasons[idx[j]], alive[idx[j]] = "duplicate", False
         else:
             kept.append(j)

@@ -55,6 +55,9 @@ __all__ = [
     "RANK_EIG_FLOOR", "START_REGULARIZATION", "ESCAPE_STEP", "ESCAPE_NORM_FLOOR", "WARM_EIG_FLOOR",
     "IK_KKT_TOL", "CLARABEL_MARGIN_FACTOR", "INVERSE_KALMAN_POLE_TOL", "FIRST_TRY_TOL", "RICCATI_RESIDUAL_TOL",
     "FORWARD_ERROR_TOL", "POLE_FLOOR_CAP", "NOMINAL_EIG_FLOOR",
+    # region mode
+    "REGION_STAGES", "REGION_FTOL", "MARGIN_RTOL", "DUP_FTOL", "DUP_PTOL", "STENCIL_MIN_SCALE",
+    "QUADRATIC_MISFIT_TOL", "CLEARANCE_FLOOR", "INSIDE_FRACTION",
 ]
 
 #: unit roundoff of float64 (2.2e-16)
@@ -291,3 +294,41 @@ POLE_FLOOR_CAP = 1e-6
 #: the scaled nominal start's eigenvalues are raised to this fraction of its largest (positive
 #: definite, condition number at most 1e3: a factor of full rank for the SQP)
 NOMINAL_EIG_FLOOR = 1e-3
+
+# ======================== region mode of the eigenstructure engine
+# (engines/eigenstructure_region.py, eigenstructure_region_lockstep.py)
+
+#: continuation of the region mode: (order k of the kappa2 bound or None for the exact function,
+#: barrier weight mu) per stage.  mu starts at 1e-3 (issue 28, measured: from 1e-2 the first stage
+#: pushes a pole off the boundary where the optimum has it -- COMPleib AC17 ends at kappa2 1.67521
+#: from every start, even from IPOPT's optimum 1.64565; from 1e-4 a random n = 5, p = 1 plant ends at
+#: 248.6 instead of 121.1)
+REGION_STAGES: tuple[tuple[int | None, float], ...] = (
+    (4, 1e-3), (64, 1e-4), (1024, 1e-5), (16384, 1e-7), (None, 1e-9)
+)
+#: relative decrease (over the BFGS window) below which a stage stops, per kappa2 order k: loose early
+#: stages as in the fixed-pole engine (their minimizers are discarded by the next stage), the exact
+#: function to the accuracy the fixed-pole polish works at
+REGION_FTOL: dict[int | None, float] = {4: 1e-7, 64: 1e-7, 1024: 1e-7, 16384: 1e-7, None: 1e-9}
+#: a candidate's poles count as inside when ``region.margin`` is at most this times their modulus (the
+#: rounding of eigvals of a matrix whose eigenvalues sit on the boundary, with a margin for kappa2 ~ 1e8)
+MARGIN_RTOL = 1e-7
+#: two members are at one point when their values agree to this (relative; a tenth of the stages'
+#: decrease tolerance, as in the fixed-pole engine's ``_distinct``) ...
+DUP_FTOL = 1e-8
+#: ... (DUP_FTOL) and their sorted poles to this times the poles' scale (``sqrt`` of the decrease tolerance:
+#: near a smooth minimizer ``f - f* ~ |x - x*|^2``)
+DUP_PTOL = 3e-4
+#: the quadratic stencil of a region's constraints is at least this wide (a region of clearance
+#: below it is fitted on this scale: its constraints are exact quadratics, so any width fits)
+STENCIL_MIN_SCALE = 1e-6
+#: a constraint must be reproduced by its quadratic fit to this relative misfit (~4500 eps: rounding
+#: of the least-squares fit of exact quadratics; a larger misfit is a region breaking the contract)
+QUADRATIC_MISFIT_TOL = 1e-9
+#: the smallest clearance reported for a region's interior point (a guard against a zero divisor;
+#: far below any region's scale)
+CLEARANCE_FLOOR = 1e-12
+#: a start's pole moved inside the region must clear the boundary by this fraction of the region's
+#: inner radius, else it is moved halfway to the interior point (a start on the boundary has an
+#: infinite barrier)
+INSIDE_FRACTION = 1e-3
