@@ -148,13 +148,17 @@ def test_a_verb_warns_once_for_all_its_solves(monkeypatch, capfd):
     monkeypatch.setattr(report, "DOUBT_PATTERNS", (
         ("ipopt", re.compile(r"EXIT: Optimal Solution Found"), "printed its exit line"),))
     plant = od.problems.load("compleib_nn2").plant
+    # the IPOPT route (since the lockstep engine became the region default, route="multistart")
+    from optdesign.design.well_conditioned import WellConditionedProblem
+
+    problem = WellConditionedProblem(plant, region=HalfPlane(0.5) & Disk(0.0, 20.0), starts=3, seed=0,
+                                     options={"ipopt.print_level": 3}, route="multistart")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        res = od.well_conditioned_observer(plant, region=HalfPlane(0.5) & Disk(0.0, 20.0), starts=3, seed=0,
-                                           options={"ipopt.print_level": 3})
+        res = problem.solve()
     assert res.success
     (w,) = ours(caught)
-    assert str(w.message).startswith("well_conditioned_observer: the answer is returned as a success, "
+    assert str(w.message).startswith("WellConditionedProblem.solve: the answer is returned as a success, "
                                      "but during this call ipopt printed its exit line (")
     assert w.filename == __file__
     (line,) = res.solver_stats.extra["solver_doubts"]
