@@ -204,13 +204,17 @@ def test_gallery_shows_every_script_and_committed_figure(site):
 
 @pytest.mark.slow
 def test_notebooks_are_executed(site):
-    """Both notebooks are on the site with their outputs: figures and printed text (myst-nb ran them)."""
+    """Both notebooks are on the site with their outputs: figures and printed text (myst-nb ran them),
+    and no cell wrote to stderr (no cell hides it: no ``remove-stderr`` tag)."""
     for name in ("getting_started", "regions_and_pareto"):
         page = site.html / "notebooks" / f"{name}.html"
         assert page.exists(), f"no page for docs/notebooks/{name}.ipynb"
         images = site.pages[page].images
         assert len(images) >= 3, f"{name}: {len(images)} figures"
-        assert "cell_output" in page.read_text(encoding="utf-8")
+        text = page.read_text(encoding="utf-8")
+        assert "cell_output" in text
+        # nothing on stderr: no warning of the library's own, no solver chatter, no progress lines
+        assert "output stderr" not in text, f"{name}: a cell wrote to stderr"
 
 
 @pytest.mark.slow
