@@ -59,6 +59,8 @@ os.environ["PYTHONPATH"] = os.pathsep.join(
 nb_execution_raise_on_error = True
 nb_execution_timeout = 600
 nb_merge_streams = True
+# a cell writing to stderr (a warning of ours, solver chatter, progress lines) fails the -W build
+nb_output_stderr = "warn"
 
 # -- cross-references -----------------------------------------------------------------------------------
 # Every reference into optdesign must resolve (a dangling one is a broken link): optdesign_docs resolves
