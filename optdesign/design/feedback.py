@@ -198,7 +198,7 @@ class FeedbackDesign(DesignResult):
         Controller mode: the verified unit-column right eigenvectors of ``A - B K`` whose condition
         number is ``kappa2`` (columns in the engine's pole order); None otherwise.
     extra : dict
-        ``"mode"``: :data:`CONTROLLER_MODE` or :data:`DUAL_MODE`.  Region mode in controller mode
+        ``"mode"``: ``CONTROLLER_MODE`` or ``DUAL_MODE`` (module constants).  Region mode in controller mode
         also: ``kappa2_dual_route`` (cond(X) of the dual route's design, a start),
         ``kappa2_left`` (the dual measure of K), ``chosen`` (``"dual"``, ``"region"`` or
         ``"polish"``: which candidate answered).

@@ -120,6 +120,7 @@ __all__ = [
     "resolve_pole_tolerance",
     "resolve_poles_check",
     "stability_check",
+    "henrici_bound",
     "psd_check",
     "psd_tolerance",
     "riccati_checks",

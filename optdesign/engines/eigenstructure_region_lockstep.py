@@ -148,9 +148,9 @@ def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior,
 
 def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, rng, dl, stop_at=None,
                  measure="right"):
-    """Every start in lockstep: each prepared (:func:`_prepare`), the free-pole stages of all
+    """Every start in lockstep: each prepared (``_prepare``), the free-pole stages of all
     starts with the same real/complex pole pattern on one model and of all patterns in one BFGS
-    batch (:func:`_region_stages`: one evaluation per pattern and round instead of one per start
+    batch (``_region_stages``: one evaluation per pattern and round instead of one per start
     and round -- measured on COMPleib DIS1, an evaluation of 16 members costs 3.5x one of 1), then
     each member polished at its final poles.  Per start ``(record, best candidate, timed_out)``; a
     start whose candidate attains ``stop_at`` ends the run (see :func:`place_region`).  ``measure``:

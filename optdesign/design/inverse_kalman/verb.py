@@ -123,7 +123,7 @@ def kalman_for_poles(
         result has status ``time_limit`` and the best verified design found so far, if any.  The
         set-up counts: a design whose uninterruptible dense set-up (the eigenvalues of A, the
         eigenvectors of ``A - L C``) alone is estimated to outlast the limit is not started
-        (status ``time_limit`` at once, the estimate in ``message``; :func:`setup_refusal`).
+        (status ``time_limit`` at once, the estimate in ``message``; ``setup_refusal``).
 
     Returns
     -------
