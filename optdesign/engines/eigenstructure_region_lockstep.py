@@ -169,15 +169,15 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
     groups: dict[tuple[int, int], list[dict]] = {}
     for s in live:
         groups.setdefault(s["key"], []).append(s)
-    batch = []
+    batch: list[tuple[RegionModel, NDArray, float]] = []
     t0 = time.process_time()
     warm = bool(live) and live[0]["st"].warm
     scales = (1.0,) if warm or objective != "kappa2" else _BARRIER_SCALES
     for scale in scales:
-        for (nrf, npf), mine in groups.items():
+        for (nrf, npf), group in groups.items():
             model = RegionModel(eng, nrf, npf, region, pinned, interior, measure)
             rows, ar, ap = [], [], []
-            for s in mine:
+            for s in group:
                 rows.append(model.coords_of(s["fixed"], s["members"]))
                 ar.append(model.anchor_r)
                 ap.append(model.anchor_p)

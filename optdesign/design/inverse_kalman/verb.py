@@ -254,7 +254,7 @@ class InverseKalmanProblem:
 
     @one_warning_per_call
     def solve(self, poles: ArrayLike, *, method: str = "auto", seed: int = 0,
-              time_limit: float | None = None, warm_start: Any = None) -> InverseKalmanResult:
+              time_limit: float | Deadline | None = None, warm_start: Any = None) -> InverseKalmanResult:
         """Process noise ``Q >= 0`` whose steady-state Kalman filter has these poles.
 
         Parameters
