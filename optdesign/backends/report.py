@@ -41,6 +41,7 @@ import sys
 import tempfile
 import threading
 import warnings
+from collections import Counter
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -285,9 +286,7 @@ def _record(result: Any, doubts: list[tuple[str, str, str]]) -> None:
     stats = _stats(result)
     if stats is None:
         return
-    lines: dict[str, int] = {}
-    for solver, _, line in doubts:
-        lines[f"{solver}: {line}"] = lines.get(f"{solver}: {line}", 0) + 1
+    lines = Counter(f"{solver}: {line}" for solver, _, line in doubts)   # insertion-ordered
     stats.extra["solver_doubts"] = [text + (f" (x{k})" if k > 1 else "")
                                     for text, k in list(lines.items())[:MAX_CAPTURED_LINES]]
 

@@ -415,7 +415,7 @@ def _controller_design(A: NDArray, B: NDArray, target: NDArray, discrete: bool, 
 def _feedback_from_fields(f: dict[str, Any], pl: Plant, target: NDArray, objective: str) -> FeedbackDesign:
     """A :class:`FeedbackDesign` of controller-mode fields."""
     out = f.get("outcome")
-    extra: dict[str, Any] = {"mode": "controller: cond(X) of the right eigenvectors of A - B K"}
+    extra: dict[str, Any] = {"mode": CONTROLLER_MODE}
     if out is not None:
         best = min(out.starts, key=lambda r: r.objective_value) if out.starts else None
         extra.update(starts=len(out.starts), last_iterations=getattr(best, "last_iterations", 0),
