@@ -35,6 +35,10 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
+#: the commit before this round's change (the barrier engine), made as the base: ``git archive a924a43``
+PREV_COMMIT = "a924a43"
+PREV_DIR = "/tmp/region-prev-a924a43"
+DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
 SUBSET_COMPLEIB = ("compleib_rea2", "compleib_dis1", "compleib_he5", "compleib_ac6")
@@ -73,7 +77,7 @@ def cases(which: str):
         yield name, plant, HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 5.0)
 
 
-def run(which: str, objective: str, out: str, only: str | None, route: str | None) -> None:
+def run(which: str, objective: str, out: str, only: str | None, route: str | None, code: str = "new") -> None:
     from optdesign import metrics, well_conditioned_observer
     from optdesign.design.well_conditioned import WellConditionedProblem
 
@@ -97,7 +101,9 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
                      d.solver_stats.extra.get("route", "")})
         print(f"{name} n={plant.n} p={plant.p} {objective} {d.status.value} {d.kappa2:.6g} eta {d.eta:.6g} "
               f"cpu {cpu:.2f} s", flush=True)
-        Path(out).write_text(json.dumps({"objective": objective, "rows": rows}, indent=1))
+        label = DIRS[code][0] if code in DIRS else "this checkout"
+        Path(out).write_text(json.dumps({"objective": objective, "code": code, "commit": label, "rows": rows},
+                                        indent=1))
 
 
 def report(files: list[str], out: str) -> None:
@@ -155,7 +161,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run")
-    r.add_argument("code", choices=("new", "base"))
+    r.add_argument("code", choices=("new", "base", "prev"))
     r.add_argument("--set", default="subset", choices=("subset", "full"))
     r.add_argument("--objective", default="kappa2", choices=("kappa2", "eta"))
     r.add_argument("--only", default=None)
@@ -170,20 +176,20 @@ def main() -> None:
     if a.cmd == "report":
         report(a.files, a.out)
         return
-    if a.code == "base" and not a.inner:
-        root = BASE_DIR
+    if a.code in DIRS and not a.inner:
+        root = DIRS[a.code][1]
         env = {**os.environ, "PYTHONPATH": root}
-        args = [sys.executable, __file__, "run", "base", "--set", a.set, "--objective", a.objective,
+        args = [sys.executable, __file__, "run", a.code, "--set", a.set, "--objective", a.objective,
                 "--json", a.json, "--inner"] + (["--only", a.only] if a.only else [])
         subprocess.run(args, env=env, check=True)
         return
     import optdesign
 
-    expected = BASE_DIR if a.code == "base" else str(Path(__file__).resolve().parents[1])
+    expected = DIRS[a.code][1] if a.code in DIRS else str(Path(__file__).resolve().parents[1])
     if not str(Path(optdesign.__file__).resolve()).startswith(expected):
         raise SystemExit(f"imported {optdesign.__file__}, expected a checkout under {expected}")
-    route = None if a.code == "base" else a.route
-    run(a.set, a.objective, a.json, a.only, None if route == "default" else route)
+    route = None if a.code in DIRS else a.route
+    run(a.set, a.objective, a.json, a.only, None if route == "default" else route, a.code)
 
 
 if __name__ == "__main__":

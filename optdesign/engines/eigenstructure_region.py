@@ -15,13 +15,16 @@ of :mod:`optdesign.engines.eigenstructure`:
   re-set to the current bases at every continuation stage; a step that would rotate a subspace
   by more than 60 degrees from its anchor is rejected (value inf), so a stage never leaves the
   chart where the transport is defined.
-* **The region** enters through a log barrier on its smooth constraints
-  (:meth:`Region.constraints`, exact membership tests, unit-gradient scaling): ``-mu sum_k
-  log(-g_k / rho)`` for every free pole (the upper member of a pair, plus ``Im > 0``), with
-  ``mu`` lowered stage by stage with the kappa2 continuation (``rho``: the region's inner
-  radius).  Iterates stay strictly inside, so every candidate is a feasible design; the final
-  poles sit within ``~mu / |df/dlambda|`` of the boundary where it is active.
-  Central differences of the (at most quadratic) constraints are exact up to rounding.
+* **The region** enters through the poles' parametrization (issue 28): each free pole is the image
+  of free variables under :class:`~optdesign.engines.region_map.PoleMap`, a smooth map of the
+  plane onto the closed region that folds at its boundary (from the region's quadratic
+  constraints, :meth:`Region.constraints`, fitted by :class:`QuadraticConstraints`).  Every
+  iterate is a feasible design, and an optimum on the boundary is a smooth minimum of the
+  composed function.  (Before, a log barrier lowered stage by stage to ``1e-9`` kept the poles
+  inside; its curvature near the boundary made the late stages crawl.)  The only barrier left,
+  ``-mu sum log(|lambda_i - lambda_j| / rho)`` with ``mu`` lowered with the kappa2 continuation
+  (``rho``: the region's inner radius), keeps two poles from meeting on the boundary -- a double
+  eigenvalue, whose eigenvectors the poles do not determine.
 * **Unobservable modes** of ``(C, A)`` are eigenvalues of every ``A - L C``: they are pinned
   (not variables), with their larger subspaces.
 
@@ -30,10 +33,9 @@ caller's naive poles), the fixed-pole optimum at its poles, and the region optim
 a fixed-pole polish at the final poles -- so the design is never worse than any start.
 
 All starts run in lockstep (issue 28): the free-pole stages of every start, for each real/complex
-pole pattern on one model, in one BFGS batch; each start twice, with the barrier schedule of
-:data:`REGION_STAGES` and ten times it; a member whose line search stops at its chart's edge is
-re-anchored and goes on; members at the point of a better one stop after each stage, and after the
-second stage only the best few of each schedule go on
+pole pattern on one model, in one BFGS batch; a member whose line search stops at its chart's edge
+is re-anchored and goes on; members at the point of a better one stop after each stage, and after
+the second stage only the best few go on
 (:mod:`optdesign.engines.eigenstructure_region_lockstep`).
 
 References
@@ -69,6 +71,7 @@ from .eigenstructure import (
     spectral_objective,
 )
 from .eigenstructure_fixed import PlacementOutcome, StartRecord
+from .region_map import PoleMap
 from .tolerances import (
     CLEARANCE_FLOOR,
     QUADRATIC_MISFIT_TOL,
@@ -118,12 +121,12 @@ class RegionStart:
 
 
 class RegionModel:
-    """Coordinates and free poles -> objective (with the region barrier) and gradient.
+    """Coordinates and free poles -> objective (with the separation barrier) and gradient.
 
-    The variable vector is ``[c, lambda_real, sigma, omega]``: the eigenvector coordinates in the
-    layout of :class:`~optdesign.engines.eigenstructure.FixedPoleModel` (free real poles, pinned
-    real poles, free pairs, pinned pairs), then the free real poles, the real and the imaginary
-    parts of the free pairs' upper members.
+    The variable vector is ``[c, t, a, b]``: the eigenvector coordinates in the layout of
+    :class:`~optdesign.engines.eigenstructure.FixedPoleModel` (free real poles, pinned real poles,
+    free pairs, pinned pairs), then the map variables of the free real poles (``t``) and of the
+    free pairs' upper members (``a + j b``, :class:`~optdesign.engines.region_map.PoleMap`).
 
     Parameters
     ----------
@@ -181,9 +184,10 @@ class RegionModel:
         self.complex = self.np > 0
         self.ncoord = self.r * (self.nr + 2 * self.np)
         self.size = self.ncoord + n_real + 2 * n_pairs
-        # inner radius: the barrier's length
+        # inner radius: the separation barrier's length
         self.rho = (interior or interior_of(region))[1]
         self._cons = QuadraticConstraints(region, self.rho)
+        self.map = PoleMap(self._cons.coef, (interior or interior_of(region))[0])
         # per-member anchor bases of the free real poles and pairs (set by set_anchor)
         self.anchor_r: NDArray = np.zeros((0, n_real, n, r))
         self.anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
@@ -191,7 +195,13 @@ class RegionModel:
 
     # ------------------------------------------------------------------ layout
     def split(self, X: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
-        """``(coords (s, ncoord), lambda_real (s, nrf), sigma (s, npf), omega (s, npf))``."""
+        """``(coords (s, ncoord), lambda_real (s, nrf), sigma (s, npf), omega (s, npf))``: the
+        poles' values (through the :class:`~optdesign.engines.region_map.PoleMap`)."""
+        c, t, a, b = self._raw_split(X)
+        return c, self.map.real(t)[0], *self.map.pair(a, b)[:2]
+
+    def _raw_split(self, X: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """``(coords, real-pole variables, pair variables a, b)``: the columns of ``X``."""
         c = X[:, : self.ncoord]
         k = self.ncoord
         lr = X[:, k : k + self.nrf]
@@ -213,7 +223,7 @@ class RegionModel:
         P = np.asarray(poles, dtype=complex)
         lr = P[: self.nrf].real
         up = P[self.nr :: 2][: self.npf]
-        return np.concatenate([coords, lr, up.real, up.imag])
+        return np.concatenate([coords, self.map.real_inverse(lr), *self.map.pair_inverse(up)])
 
     # ------------------------------------------------------------------ bases
     def _raw_bases(self, lam: NDArray) -> tuple[NDArray, NDArray, NDArray]:
@@ -253,12 +263,13 @@ class RegionModel:
         u, s, vh = np.linalg.svd(P)
         return N @ (u @ vh), s.min(axis=-1).min(axis=-1)
 
-    def _members(self, X: NDArray) -> dict[str, NDArray]:
-        """Aligned bases (padded to ``r``), ``W``, the QR factors of the free poles and feasibility."""
+    def _members(self, X: NDArray, parts: tuple | None = None) -> dict[str, NDArray]:
+        """Aligned bases (padded to ``r``), ``W``, the QR factors of the free poles and feasibility
+        (``parts``: ``split(X)`` when the caller has it)."""
         s = X.shape[0]
         eng = self.engine
         n, r, R = eng.n, eng.rank, self.r
-        c, lr, sg, om = self.split(X)
+        c, lr, sg, om = parts if parts is not None else self.split(X)
         ok = np.ones(s, dtype=bool)
         out: dict[str, NDArray] = {}
         Br = np.zeros((s, self.nr, n, R))
@@ -296,13 +307,16 @@ class RegionModel:
             finally:
                 self.anchor_r, self.anchor_p = keep
         R = self.r
-        _, lr, sg, om = self.split(X)
+        c, t, a, b = self._raw_split(X)
+        lr, dlr = self.map.real(t)
+        sg, om, *jac = self.map.pair(a, b)
         f = np.full(s, math.inf)
         G = np.zeros_like(X)
-        bar, gbar, ok = self._barrier(lr, sg, om, mu)
+        # every point of the map's image is in the region; the barrier keeps the poles apart
+        bar, gbar, ok = self._separation_barrier(lr, sg, om, mu)
         if not ok.any():
             return f, G
-        m = self._members(X)
+        m = self._members(X, (c, lr, sg, om))
         ok &= m["ok"]
         idx = np.flatnonzero(ok)
         if not idx.size:
@@ -340,6 +354,11 @@ class RegionModel:
             G[idx, k0 + self.nrf : k0 + self.nrf + self.npf] = 2.0 * ds
             G[idx, k0 + self.nrf + self.npf :] = 2.0 * dw
         G[idx, k0:] += gbar[idx]
+        # the chain rule through the map
+        G[idx, k0 : k0 + self.nrf] *= dlr[idx]
+        sa, sb, wa, wb = (j[idx] for j in jac)
+        gs, gw = G[idx, k0 + self.nrf : k0 + self.nrf + self.npf], G[idx, k0 + self.nrf + self.npf :]
+        G[idx, k0 + self.nrf :] = np.concatenate([gs * sa + gw * wa, gs * sb + gw * wb], axis=1)
         G[~np.isfinite(f)] = 0.0
         return f, G
 
@@ -393,31 +412,44 @@ class RegionModel:
             out.append(np.real(h + v))
         return out
 
-    def _barrier(self, lr: NDArray, sg: NDArray, om: NDArray, mu: float) -> tuple[NDArray, NDArray, NDArray]:
-        """``(barrier (s,), gradient w.r.t. the pole variables (s, nrf + 2 npf), strictly inside (s,))``."""
+    def _separation_barrier(self, lr: NDArray, sg: NDArray, om: NDArray, mu: float
+                            ) -> tuple[NDArray, NDArray, NDArray]:
+        """``-mu sum log(|lambda_i - lambda_j| / rho)`` over the pairs of poles of which at least one
+        is free (a pair's two members included): ``(value (s,), gradient w.r.t. the pole values (s,
+        nrf + 2 npf), finite (s,))``.
+
+        The map puts every pole in the closed region, so two poles may meet on its boundary (a pair
+        at the real axis, two real poles at one boundary point): a double eigenvalue, whose
+        eigenvectors no one can compute to the digits the objective is reported with.  This term
+        keeps them apart, by ``~mu / |df/dlambda|`` at the end of the continuation, as the region
+        barrier did.
+        """
         s = lr.shape[0]
-        rho = self.rho
-        val = np.zeros(s)
+        up = sg + 1j * om
+        n = self.engine.n
+        P = np.empty((s, n), dtype=complex)
+        P[:, : self.nr] = np.concatenate([lr, np.broadcast_to(self.pin_real, (s, self.pin_real.size))],
+                                         axis=1)
+        allup = np.concatenate([up, np.broadcast_to(self.pin_up, (s, self.pin_up.size))], axis=1)
+        P[:, self.nr :: 2] = allup
+        P[:, self.nr + 1 :: 2] = allup.conj()
+        free = np.zeros(n, dtype=bool)
+        free[: self.nrf] = True
+        free[self.nr : self.nr + 2 * self.npf] = True
+        mask = (free[:, None] | free[None, :]) & ~np.eye(n, dtype=bool)
+        D = P[:, :, None] - P[:, None, :]
+        d2 = (D.real**2 + D.imag**2)[:, mask]
+        inside = np.all(d2 > 0, axis=1)
+        d2 = np.where(d2 > 0, d2, self.rho**2)
+        val = -0.25 * mu * np.log(d2 / self.rho**2).sum(axis=1)  # ordered pairs: each counted twice
+        ad = D.real**2 + D.imag**2
+        ok = mask & (ad > 0)
+        g = -mu * (np.where(ok, D, 0.0) / np.where(ok, ad, 1.0)).sum(axis=2)  # (d/dRe + j d/dIm) per pole
         grad = np.zeros((s, self.nrf + 2 * self.npf))
-        inside = np.ones(s, dtype=bool)
-        for part, (re, im) in enumerate(((lr, np.zeros_like(lr)), (sg, om))):
-            if re.shape[1] == 0:
-                continue
-            g, gre, gim = self._cons.values(re, im)  # (s, m, k) each
-            if part == 1:  # Im > 0 for a pair
-                g = np.concatenate([g, -im[..., None]], axis=-1)
-                gre = np.concatenate([gre, np.zeros_like(im)[..., None]], axis=-1)
-                gim = np.concatenate([gim, -np.ones_like(im)[..., None]], axis=-1)
-            neg = g < 0
-            inside &= neg.all(axis=(1, 2))
-            gs = np.where(neg, g, -rho)
-            val -= mu * np.log(-gs / rho).sum(axis=(1, 2))
-            w = -mu / gs  # d(-mu log(-g)) / dg
-            if part == 0:
-                grad[:, : self.nrf] = (w * gre).sum(-1)
-            else:
-                grad[:, self.nrf : self.nrf + self.npf] = (w * gre).sum(-1)
-                grad[:, self.nrf + self.npf :] = (w * gim).sum(-1)
+        grad[:, : self.nrf] = g[:, : self.nrf].real
+        gu, gl = g[:, self.nr : self.nr + 2 * self.npf : 2], g[:, self.nr + 1 : self.nr + 2 * self.npf : 2]
+        grad[:, self.nrf : self.nrf + self.npf] = (gu + gl).real
+        grad[:, self.nrf + self.npf :] = (gu - gl).imag
         return np.where(inside, val, math.inf), grad, inside
 
     def fixed(self, x: NDArray, member: int = 0) -> tuple[FixedPoleModel, NDArray[np.float64]]:

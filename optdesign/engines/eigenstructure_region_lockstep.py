@@ -3,9 +3,9 @@
 :func:`run_lockstep` takes the starts of :func:`~optdesign.engines.eigenstructure_region.place_region`
 through the free-pole continuation together: each start prepared on its own (its gain and the
 fixed-pole optimum at its poles as candidates), then the free-pole stages of every start -- for each
-real/complex pole pattern on one :class:`~optdesign.engines.eigenstructure_region.RegionModel`, each
-start with two barrier schedules -- in one BFGS batch (one evaluation per model and round instead of
-one per start and round), members re-anchored at their chart's edge, de-duplicated and pruned
+real/complex pole pattern on one :class:`~optdesign.engines.eigenstructure_region.RegionModel` -- in
+one BFGS batch (one evaluation per model and round instead of one per start and round), members
+re-anchored at their chart's edge, de-duplicated and pruned
 between stages; then every surviving member polished at its final poles.
 
 References
@@ -49,11 +49,6 @@ _REGION_MAX_ITER = 300
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members
 _PRUNE_AFTER = 1
 _KEEP = 4
-#: every cold start runs the continuation twice, with the barrier weights of :data:`REGION_STAGES`
-#: times each of these (issue 28, measured: with 1 only COMPleib DIS5 ends at kappa2 49.87 instead of
-#: 49.45, with 10 only AC17 at 1.6752 instead of 1.6457 -- a boundary optimum the larger barrier
-#: pushes off; both in one batch, pruned per schedule)
-_BARRIER_SCALES = (1.0, 10.0)
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
 _MAX_REANCHOR = 3
 
@@ -169,21 +164,19 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
     groups: dict[tuple[int, int], list[dict]] = {}
     for s in live:
         groups.setdefault(s["key"], []).append(s)
-    batch: list[tuple[RegionModel, NDArray, float]] = []
+    batch: list[tuple[RegionModel, NDArray]] = []
     t0 = time.process_time()
     warm = bool(live) and live[0]["st"].warm
-    scales = (1.0,) if warm or objective != "kappa2" else _BARRIER_SCALES
-    for scale in scales:
-        for (nrf, npf), group in groups.items():
-            model = RegionModel(eng, nrf, npf, region, pinned, interior, measure)
-            rows, ar, ap = [], [], []
-            for s in group:
-                rows.append(model.coords_of(s["fixed"], s["members"]))
-                ar.append(model.anchor_r)
-                ap.append(model.anchor_p)
-                s.setdefault("parts", []).append((len(batch), sum(x.shape[0] for x in rows[:-1])))
-            model.anchor_r, model.anchor_p = np.concatenate(ar), np.concatenate(ap)
-            batch.append((model, np.concatenate(rows), scale))
+    for (nrf, npf), group in groups.items():
+        model = RegionModel(eng, nrf, npf, region, pinned, interior, measure)
+        rows, ar, ap = [], [], []
+        for s in group:
+            rows.append(model.coords_of(s["fixed"], s["members"]))
+            ar.append(model.anchor_r)
+            ap.append(model.anchor_p)
+            s.setdefault("parts", []).append((len(batch), sum(x.shape[0] for x in rows[:-1])))
+        model.anchor_r, model.anchor_p = np.concatenate(ar), np.concatenate(ap)
+        batch.append((model, np.concatenate(rows)))
     stages = REGION_WARM_STAGES if warm else REGION_STAGES
     if objective != "kappa2":
         stages = ((None, REGION_STAGES[-1][1]),)
@@ -234,24 +227,22 @@ def _polish(eng, region, objective, model: RegionModel, x: NDArray, member: int,
     s["timed_out"] |= rp == "time_limit"
 
 
-def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: str,
+def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
                    stages: Sequence[tuple[int | None, float]], dl: Deadline, stop_at: float | None = None):
     """The continuation of region mode, every member of every model in one BFGS batch.
 
-    ``batch``: ``(model, X, scale)`` per pole pattern and barrier schedule, ``X`` (s, size) its
-    members (anchored), ``scale`` the factor of the stages' barrier weights for them.  Each
+    ``batch``: ``(model, X)`` per pole pattern, ``X`` (s, size) its members (anchored).  Each
     member's inverse-Hessian approximation is carried from stage to stage (as in the fixed-pole
     engine's :func:`~optdesign.engines.eigenstructure_fixed.run_starts`).  A member whose line search
     fails at the edge of its chart (a trial step that would rotate a subspace past
     :data:`_MIN_OVERLAP` from its anchor) is re-anchored at its current point and continues the stage
     (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.  A member
-    that is not strictly inside at a stage's start (the barrier needs it) stops there
-    (``"infeasible start"``).  After a stage where a member's exact objective attains ``stop_at``
-    (its lower bound: a global optimum) only the members there go on.  Per model ``(X, reasons, iterations
-    (s,), evaluations (s,), timed_out)``.
+    without a finite value at a stage's start (two poles at one point: the separation barrier) stops
+    there (``"infeasible start"``).  After a stage where a member's exact objective attains
+    ``stop_at`` (its lower bound: a global optimum) the stages end there, with only those members.
+    Per model ``(X, reasons, iterations (s,), evaluations (s,), timed_out)``.
     """
     models = [b[0] for b in batch]
-    scale = np.array([b[2] for b in batch])
     sizes = [b[1].shape[0] for b in batch]
     owner = np.repeat(np.arange(len(batch)), sizes)
     local = np.concatenate([np.arange(k) for k in sizes])
@@ -267,7 +258,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: s
         for g, model in enumerate(models):
             sel = np.flatnonzero(owner[rows] == g)
             if sel.size:
-                f[sel], G[sel] = model.evaluate_batch(Z[sel], objective, k, mu * scale[g], local[rows[sel]])
+                f[sel], G[sel] = model.evaluate_batch(Z[sel], objective, k, mu, local[rows[sel]])
         return f, G
 
     def anchor():
@@ -311,12 +302,10 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: s
             todo = np.asarray(again)
             anchor()
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
-        if stop_at is not None:
-            _attained(models, owner, X, alive, reasons, objective, stop_at)
+        if stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at):
+            break  # a global optimum: the later stages cannot improve it
         if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
-            for sc in np.unique(scale):  # values compare within one barrier schedule
-                among = alive & np.isin(owner, np.flatnonzero(scale == sc))
-                _prune(X, among, alive, reasons, evaluate, k, mu)
+            _prune(X, alive.copy(), alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
     out = []
     for g in range(len(batch)):
@@ -325,10 +314,10 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray, float]], objective: s
     return out
 
 
-def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> None:
+def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> bool:
     """When a running member's exact objective (kappa2 or kappa_fro of its eigenvectors) is at most
-    ``stop_at`` (its lower bound: a global optimum), only the members there go on (the others
-    ``"pruned"``)."""
+    ``stop_at`` (its lower bound: a global optimum), the others are ``"pruned"`` and the stages end
+    (True)."""
     exact = np.full(X.shape[0], math.inf)
     for g, model in enumerate(models):
         mine = np.flatnonzero(owner == g)
@@ -340,9 +329,11 @@ def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> No
         except np.linalg.LinAlgError:
             continue
         exact[mine[sel]] = np.exp(f)
-    if np.any(exact <= stop_at):
-        for i in np.flatnonzero(alive & (exact > stop_at)):
-            reasons[i], alive[i] = "pruned", False
+    if not np.any(exact <= stop_at):
+        return False
+    for i in np.flatnonzero(alive & (exact > stop_at)):
+        reasons[i], alive[i] = "pruned", False
+    return True
 
 
 def _prune(X, among, alive, reasons, evaluate, k, mu) -> None:

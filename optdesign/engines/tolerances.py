@@ -57,7 +57,7 @@ __all__ = [
     "FORWARD_ERROR_TOL", "POLE_FLOOR_CAP", "NOMINAL_EIG_FLOOR",
     # region mode
     "REGION_STAGES", "REGION_FTOL", "MARGIN_RTOL", "DUP_FTOL", "DUP_PTOL", "STENCIL_MIN_SCALE",
-    "QUADRATIC_MISFIT_TOL", "CLEARANCE_FLOOR", "INSIDE_FRACTION",
+    "QUADRATIC_MISFIT_TOL", "CLEARANCE_FLOOR", "INSIDE_FRACTION", "MAP_SERIES", "MAP_INVERSE_CLIP",
 ]
 
 #: unit roundoff of float64 (2.2e-16)
@@ -299,10 +299,10 @@ NOMINAL_EIG_FLOOR = 1e-3
 # (engines/eigenstructure_region.py, eigenstructure_region_lockstep.py)
 
 #: continuation of the region mode: (order k of the kappa2 bound or None for the exact function,
-#: barrier weight mu) per stage.  mu starts at 1e-3 (issue 28, measured: from 1e-2 the first stage
-#: pushes a pole off the boundary where the optimum has it -- COMPleib AC17 ends at kappa2 1.67521
-#: from every start, even from IPOPT's optimum 1.64565; from 1e-4 a random n = 5, p = 1 plant ends at
-#: 248.6 instead of 121.1)
+#: weight mu of the barrier) per stage.  The schedule was chosen for the region barrier (issue 28,
+#: measured: from mu = 1e-2 the first stage pushed a pole off the boundary where the optimum has it,
+#: COMPleib AC17 ending at 1.67521 instead of 1.64565); the region is now the image of the pole map
+#: (engines/region_map.py) and mu weights only the separation barrier that keeps poles apart
 REGION_STAGES: tuple[tuple[int | None, float], ...] = (
     (4, 1e-3), (64, 1e-4), (1024, 1e-5), (16384, 1e-7), (None, 1e-9)
 )
@@ -325,6 +325,12 @@ STENCIL_MIN_SCALE = 1e-6
 #: a constraint must be reproduced by its quadratic fit to this relative misfit (~4500 eps: rounding
 #: of the least-squares fit of exact quadratics; a larger misfit is a region breaking the contract)
 QUADRATIC_MISFIT_TOL = 1e-9
+#: the region's pole map (engines/region_map.py) uses the series of ``sin(x)/x`` and its derivative
+#: below this ``|x|`` (their truncation errors, ``x^4/120`` and ``x^3/30``, are then below 1e-17)
+MAP_SERIES = 1e-4
+#: a pole handed to the map's inverse sits at most this fraction of the way to the boundary along its
+#: ray (a pole on the boundary is the fold: the inverse takes the increasing branch just inside)
+MAP_INVERSE_CLIP = 1.0 - 1e-12
 #: the smallest clearance reported for a region's interior point (a guard against a zero divisor;
 #: far below any region's scale)
 CLEARANCE_FLOOR = 1e-12

@@ -73,6 +73,8 @@ ROUTES = ("auto", "engine", "fast", "multistart", "nlp")
 
 #: the bounds a solve may change (``opti.parameter`` s of the NLPs)
 _BOUNDS = ("max_gain", "kappa2_max", "eta_max")
+#: scipy YT sweeps at the sampled start poles of the region engine (one: the engine optimizes from them)
+_ENGINE_SWEEPS = 1
 
 
 def check_region(region: Any) -> Region:
@@ -576,11 +578,13 @@ class WellConditionedProblem:
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
                            deadline=deadline, planned=planned, route=route, phases=phases)
 
-    def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator) -> Iterator:
+    def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator,
+                       sweeps: int | None = None) -> Iterator:
         """The starts of region mode, lazily (:func:`~.starts.iter_region_starts`: a start's placement is
         computed when it runs; without the Kalman start 1 when ``kalman_start`` is False: sampled poles
-        instead)."""
-        return iter_region_starts(self.plant, region, n_starts, rng, self.mask, kalman=self.kalman_start)
+        instead; ``sweeps``: scipy YT's sweeps at sampled poles)."""
+        return iter_region_starts(self.plant, region, n_starts, rng, self.mask, kalman=self.kalman_start,
+                                  sweeps=sweeps)
 
     def _unobservable_outside(self, region: Region) -> ObserverDesign | None:
         unobs = self.plant.unobservable_modes()
@@ -608,13 +612,15 @@ class WellConditionedProblem:
         evaluate = cached_evaluate(partial(evaluate_candidate, plant, target=None, region=region,
                                            mask=self.mask, **bounds))
         rng = np.random.default_rng(seed)
-        specs: Iterable[Any] = self._region_starts(region, n_starts, rng)
         warm_specs = []
         for i, warm in enumerate(warms):
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
             warm_specs.append((warm_start_origin(i), warm, PoleStructure.of(Pw, tol=1e-6), Pw, True))
         engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro")
         use_eng, n_eng, use_nlp, n_nlp, polish, eng_polish = self._region_plan(engine_ok, n_starts)
+        # the engine optimizes from the placements anyway: one YT sweep at sampled poles (issue 28,
+        # measured: scipy's default 30-100 sweeps were 20-30 % of a small plant's region design)
+        specs: Iterable[Any] = self._region_starts(region, n_starts, rng, _ENGINE_SWEEPS if use_eng else None)
         bound = objective_lower_bound(objective, plant.n)
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []

@@ -60,12 +60,14 @@ def better_yt(plant: Plant, poles: NDArray, L0: NDArray, region: Region) -> NDAr
     return L1 if key(L1) < key(L0) else L0
 
 
-def placement_start(plant: Plant, poles: NDArray, method: str) -> NDArray | None:
-    """scipy's robust placement (``method`` "YT" or "KNV0") as a start gain; None when it fails."""
+def placement_start(plant: Plant, poles: NDArray, method: str, maxiter: int | None = None) -> NDArray | None:
+    """scipy's robust placement (``method`` "YT" or "KNV0"; ``maxiter`` sweeps, default
+    :func:`~optdesign.classical.placement.place_observer`'s) as a start gain; None when it fails."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            L = place_observer(plant, poles, method=method)
+            L = (place_observer(plant, poles, method=method) if maxiter is None
+                 else place_observer(plant, poles, method=method, maxiter=maxiter))
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(L)):
@@ -305,13 +307,16 @@ def region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Gene
 
 
 def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Generator,
-                       mask: NDArray | None, *, kalman: bool = True) -> Iterator[RegionStartSpec]:
+                       mask: NDArray | None, *, kalman: bool = True,
+                       sweeps: int | None = None) -> Iterator[RegionStartSpec]:
     """The starts of :func:`region_starts`, one at a time: each start's placement is computed only
     when the caller asks for it (a design that stops early computes no placement it does not run).
 
     ``kalman=False``: no Kalman start 1 -- start 1 and after sample poles in the region (the
     Kalman gain is still the fallback of a start whose placement fails).  The samples drawn from
-    ``rng`` are those of :func:`region_starts` (its Kalman start draws nothing).
+    ``rng`` are those of :func:`region_starts` (its Kalman start draws nothing).  ``sweeps``: scipy
+    YT's sweeps at the sampled poles (default scipy's; start 0 always gets the default, as the
+    guarantee "never worse than YT at the naive poles" is stated against it).
     """
     n = plant.n
     observable = plant.is_observable()
@@ -334,7 +339,7 @@ def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random
                 n_sampled += 1
                 origin = "region sample + YT"
             st = PoleStructure.of(P0)
-            L0 = placement_start(plant, P0, "YT") if observable else None
+            L0 = placement_start(plant, P0, "YT", None if k == 0 else sweeps) if observable else None
             if k == 0 and L0 is not None:
                 L0 = better_yt(plant, P0, L0, region)
             if L0 is None and observable:
