@@ -152,7 +152,8 @@ def well_conditioned_observer(
     the left eigenvectors of ``A - L C`` are parametrized in the subspace of each pole, so every
     point places the poles exactly; kappa2 is minimized through smooth upper bounds tightened by
     continuation, then exactly, by BFGS with analytic gradients.  In a region the poles are
-    variables too (a log barrier keeps them inside); each start keeps the best of its own gain,
+    variables too (the image of free variables under a map onto the region, which folds at its
+    boundary: :mod:`optdesign.engines.region_map`); each start keeps the best of its own gain,
     the fixed-pole optimum at its poles and the free-pole optimum polished at its final poles --
     so the design is never worse than scipy YT at :func:`naive_poles` (start 0).
 
