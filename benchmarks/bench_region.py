@@ -1,9 +1,10 @@
 """Region-mode designs of the well-conditioned observer: today's default (the base commit) and the new
 default route side by side (issue 28).
 
-Run:  python benchmarks/bench_region.py run {new,base} --set {subset,full} --objective {kappa2,eta} --json F
-          [--route auto|engine|fast|multistart|nlp|default]
-      python benchmarks/bench_region.py report BASE.json NEW.json [...] --out benchmarks/results/region.md
+Run:  python benchmarks/bench_region.py run {new,base,prev} --set {subset,full} --objective {kappa2,eta}
+          --json F [--route auto|engine|fast|multistart|nlp|default]
+      python benchmarks/bench_region.py report --base B.json [...] --prev P.json --new N.json
+          [--notes NOTES.md] --out benchmarks/results/region.md
 
 ``run new`` imports the checkout this script lives in and designs with the verb's default (``--route R``:
 ``WellConditionedProblem(route=R)``); ``run base`` re-runs this script in a subprocess
@@ -106,54 +107,83 @@ def run(which: str, objective: str, out: str, only: str | None, route: str | Non
                                         indent=1))
 
 
-def report(files: list[str], out: str) -> None:
-    """Pairs (base, new) per objective, in the order given: one table each."""
-    lines = ["# Region-mode designs: the previous default (base) against the new default (new)", "",
-             f"Base: commit {BASE_COMMIT}, the verb's default then (IPOPT from 8 starts, then one engine "
-             "start; in this checkout `route='multistart'`).  New: this checkout, kappa2 with "
-             "`route='engine'` (= the new default `'auto'`: the placement engine from 8 starts in lockstep, "
-             "IPOPT only as the fallback), eta with the verb's default (IPOPT from 8 starts, as in the "
-             "base).  CPU seconds per design (`time.process_time`, single-threaded BLAS), "
-             f"time limit {TIME_LIMIT:g} s per design.  `rel` = (new - base) / base of the objective "
-             "(negative: new better).  Produced by `benchmarks/bench_region.py`.", ""]
-    data = [json.loads(Path(f).read_text()) for f in files]
-    for base, new in zip(data[::2], data[1::2], strict=True):
-        obj = base["objective"]
-        b = {r["name"]: r for r in base["rows"]}
-        nw = {r["name"]: r for r in new["rows"]}
-        names = [r["name"] for r in new["rows"]]  # a base run cut short leaves its later rows out
-        lines += [f"## objective {obj}", "",
-                  f"| plant | n, p | base {obj} | base status | base CPU | new {obj} | new status | "
-                  "new CPU | "
-                  "rel | speed-up |", "|---|---|---|---|---|---|---|---|---|---|"]
-        worse, speed, cb, cn = [], [], [], []
-        for k in names:
-            rn = nw[k]
-            if k not in b:
-                lines.append(f"| {k} | {rn['n']}, {rn['p']} | – | – | – | {rn[obj]:.6g} | {rn['status']} | "
-                             f"{rn['cpu']:.2f} | | |")
-                if rn["n"] <= 10:
-                    cn.append(rn["cpu"])
-                continue
-            rb = b[k]
-            vb, vn = rb[obj], rn[obj]
-            rel = (vn - vb) / vb if np.isfinite(vb) and np.isfinite(vn) else float("nan")
-            if (np.isfinite(rel) and rel > 1e-3) or (np.isfinite(vb) and not np.isfinite(vn)):
-                worse.append(k)
-            sp = rb["cpu"] / max(rn["cpu"], 1e-9)
-            speed.append(sp)
-            if rn["n"] <= 10:
-                cb.append(rb["cpu"])
-                cn.append(rn["cpu"])
-            lines.append(f"| {k} | {rn['n']}, {rn['p']} | {vb:.6g} | {rb['status']} | {rb['cpu']:.2f} | "
-                         f"{vn:.6g} | "
-                         f"{rn['status']} | {rn['cpu']:.2f} | {rel:+.1e} | {sp:.1f}x |")
-        lines += ["", f"- median CPU per design at n <= 10: base {np.median(cb):.2f} s ({len(cb)} plants), "
-                  "new "
-                  f"{np.median(cn):.2f} s ({len(cn)} plants); median speed-up on the plants both ran "
-                  f"{np.median(speed):.1f}x",
-                  f"- plants more than 1e-3 (relative) worse than base: {len(worse)}"
-                  + (f" ({', '.join(worse)})" if worse else ""), ""]
+def _rows(files: list[str]) -> tuple[str, dict[str, dict]]:
+    """``(objective, name -> row)`` of run files of one code (later files override earlier rows)."""
+    obj, rows = "", {}
+    for f in files:
+        d = json.loads(Path(f).read_text())
+        obj = d["objective"]
+        rows.update({r["name"]: r for r in d["rows"]})
+    return obj, rows
+
+
+def _rel(v: float, ref: float) -> float:
+    return (v - ref) / ref if np.isfinite(v) and np.isfinite(ref) else float("nan")
+
+
+def report(base: list[str], prev: list[str], new: list[str], out: str, notes: str = "") -> None:
+    """One table per objective: the base (issue 28's "today's default"), the previous commit and
+    this checkout side by side; ``rel`` columns (new - ref) / ref of the objective (negative: new
+    better), speed-ups base / new and prev / new CPU."""
+    lines = ["# Region-mode designs: today's default (base), the previous commit (prev) and this checkout "
+             "(new)", "",
+             f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
+             "one engine start; in this checkout `route='multistart'`).  Prev: commit "
+             f"{PREV_COMMIT} (the lockstep region engine with the log barrier).  New: this checkout's "
+             "default (the lockstep engine with the poles mapped onto the region, IPOPT only as the fallback).  CPU "
+             "seconds per design (`time.process_time`, single-threaded BLAS), time limit "
+             f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]
+    _, b = _rows(base)
+    _, pv = _rows(prev)
+    obj, nw = _rows(new)
+    lines += [f"## objective {obj}", "",
+              f"| plant | n, p | base {obj} | base status | base CPU | prev {obj} | prev CPU | new {obj} | "
+              "new status | new CPU | rel base | rel prev | speed-up base, prev |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    worse_b, worse_p, cpu = [], [], {"base": [], "prev": [], "new": []}
+    sp_b, sp_p = [], []
+    for k, rn in nw.items():
+        rb, rp = b.get(k), pv.get(k)
+        vb = rb[obj] if rb else float("nan")
+        vp = rp[obj] if rp else float("nan")
+        vn = rn[obj]
+        relb, relp = _rel(vn, vb), _rel(vn, vp)
+        if rb and ((np.isfinite(relb) and relb > 1e-3) or (np.isfinite(vb) and not np.isfinite(vn))):
+            worse_b.append(k)
+        if rp and np.isfinite(relp) and relp > 1e-3:
+            worse_p.append(k)
+        small = rn["n"] <= 10
+        if small:
+            cpu["new"].append(rn["cpu"])
+            if rb:
+                cpu["base"].append(rb["cpu"])
+            if rp:
+                cpu["prev"].append(rp["cpu"])
+        if rb:
+            sp_b.append(rb["cpu"] / max(rn["cpu"], 1e-9))
+        if rp:
+            sp_p.append(rp["cpu"] / max(rn["cpu"], 1e-9))
+
+        def cell(r, key, fmt):
+            return format(r[key], fmt) if r else "–"
+
+        spb = f"{rb['cpu'] / max(rn['cpu'], 1e-9):.1f}x" if rb else "–"
+        spp = f"{rp['cpu'] / max(rn['cpu'], 1e-9):.1f}x" if rp else "–"
+        lines.append(f"| {k} | {rn['n']}, {rn['p']} | {cell(rb, obj, '.6g')} | "
+                     f"{rb['status'] if rb else '–'} | {cell(rb, 'cpu', '.2f')} | {cell(rp, obj, '.6g')} | "
+                     f"{cell(rp, 'cpu', '.2f')} | {vn:.6g} | {rn['status']} | {rn['cpu']:.2f} | "
+                     f"{relb:+.1e} | {relp:+.1e} | {spb}, {spp} |")
+    med = {c: (f"{np.median(v):.2f} s ({len(v)} plants)" if v else "–") for c, v in cpu.items()}
+    lines += ["", f"- median CPU per design at n <= 10: base {med['base']}, prev {med['prev']}, "
+              f"new {med['new']}",
+              f"- median speed-up: over base {np.median(sp_b):.1f}x ({len(sp_b)} plants), over prev "
+              f"{np.median(sp_p):.1f}x ({len(sp_p)} plants)",
+              f"- plants more than 1e-3 (relative) worse than base: {len(worse_b)}"
+              + (f" ({', '.join(worse_b)})" if worse_b else ""),
+              f"- plants more than 1e-3 (relative) worse than prev: {len(worse_p)}"
+              + (f" ({', '.join(worse_p)})" if worse_p else ""), ""]
+    if notes:
+        lines += [Path(notes).read_text()]
     Path(out).write_text("\n".join(lines) + "\n")
 
 
@@ -170,11 +200,14 @@ def main() -> None:
                    "default: the verb's default)")
     r.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
     p = sub.add_parser("report")
-    p.add_argument("files", nargs="+")
+    p.add_argument("--base", nargs="+", required=True, help="run files of the base code (later ones win)")
+    p.add_argument("--prev", nargs="+", required=True)
+    p.add_argument("--new", nargs="+", required=True)
+    p.add_argument("--notes", default="", help="a Markdown file appended to the report")
     p.add_argument("--out", default="benchmarks/results/region.md")
     a = ap.parse_args()
     if a.cmd == "report":
-        report(a.files, a.out)
+        report(a.base, a.prev, a.new, a.out, a.notes)
         return
     if a.code in DIRS and not a.inner:
         root = DIRS[a.code][1]
