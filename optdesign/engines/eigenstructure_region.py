@@ -21,7 +21,7 @@ of :mod:`optdesign.engines.eigenstructure`:
   constraints, :meth:`Region.constraints`, fitted by :class:`QuadraticConstraints`).  Every
   iterate is a feasible design, and an optimum on the boundary is a smooth minimum of the
   composed function.  (Before, a log barrier lowered stage by stage to ``1e-9`` kept the poles
-  inside; its curvature near the boundary made the late stages crawl.)  The only barrier left,
+  inside, and each start ran with two barrier weights.)  The only barrier left,
   ``-mu sum log(|lambda_i - lambda_j| / rho)`` with ``mu`` lowered with the kappa2 continuation
   (``rho``: the region's inner radius), keeps two poles from meeting on the boundary -- a double
   eigenvalue, whose eigenvectors the poles do not determine.

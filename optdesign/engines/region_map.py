@@ -1,11 +1,11 @@
 r"""A smooth map of the plane onto a convex pole region: the region engine's pole variables (issue 28).
 
 The region mode of the eigenstructure engine (:mod:`optdesign.engines.eigenstructure_region`) had
-its poles as variables behind a log barrier, lowered stage by stage to ``1e-9``: near an optimum on
-the boundary the barrier's curvature ``mu / g^2`` makes the problem as ill-conditioned as ``mu`` is
-small, and BFGS needed hundreds of iterations per stage (measured on COMPleib DIS1: 300-iteration
-limits in every late stage).  Here the poles are instead the image of unconstrained variables under
-a map whose image is the closed region, and which *folds* at the boundary:
+its poles as variables behind a log barrier, lowered stage by stage to ``1e-9``: the final poles sat
+``~mu / |df/dlambda|`` inside the boundary, and the barrier's weight decided which optimum a start
+reached -- each start ran with two barrier schedules, as either alone lost a plant (COMPleib DIS5
+or AC17).  Here the poles are instead the image of unconstrained variables under a map whose image
+is the closed region, and which *folds* at the boundary:
 
 * a free pair's upper member is ``lambda(z) = x0 + u(theta) F(r, gamma(theta))`` for ``z = r
   e^{j theta}`` in ``R^2``, with ``x0`` the region's deepest real point, ``u = e^{j theta}``, the
@@ -18,7 +18,9 @@ a map whose image is the closed region, and which *folds* at the boundary:
 ``F`` is increasing up to ``gamma r = pi / 2`` (the boundary) and folds back after it, with
 ``dF/dr = cos(gamma r) = 0`` there: an optimum on the boundary, where the objective decreases
 outward at rate ``g > 0``, is a smooth minimum of ``f(lambda(z))`` with curvature ``~ g gamma`` along
-``r`` -- no barrier, no continuation in ``mu``, every iterate a feasible design.  The map is smooth
+``r`` -- no region barrier, one schedule, every iterate a feasible design (issue 28, measured on 50
+plants n <= 10: half the members per batch, 2.0x less CPU than the two barrier schedules at a
+similar number of BFGS rounds; ``benchmarks/results/region.md``).  The map is smooth
 away from ``z = 0`` and from the directions through the region's corners (where ``gamma`` has a
 kink: the maximum of the constraints' gauges).
 
