@@ -256,10 +256,9 @@ class WellConditionedProblem:
         (default ``AUTO_REGION_STARTS`` = 8: the naive poles with YT, the Kalman gain, region samples),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
         every start for eta, bounds and gain masks.  Measured against the previous default
-        (``"multistart"``; issue 28, ``benchmarks/results/region.md``): never more than 1e-3 worse on
-        the benchmark set there (COMPleib n <= 10 and random plants n = 5-10; DIS1 +4.3e-4), better on
-        several (HE5 73.97 vs 74.48, AC7 21.94 vs 22.81, UWV 925.9 vs 946.4); median CPU 3.0 s vs 6.7 s at
-        n <= 10, 14 s vs 73 s at n = 6-10.
+        (``"multistart"``; issue 28, ``benchmarks/results/region.md``, 50 plants: COMPleib n <= 10 and
+        random plants n = 3-10): more than 1e-3 better on 14 (HE5 73.96 vs 74.48, AC7 21.94 vs 22.81,
+        UWV 917.6 vs 946.4), worse on one (a random n = 6 plant, +0.9 %); median CPU 1.69 s vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
         start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
         every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish

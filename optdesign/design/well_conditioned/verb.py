@@ -158,10 +158,10 @@ def well_conditioned_observer(
     so the design is never worse than scipy YT at :func:`naive_poles` (start 0).
 
     In a region (kappa2 / kappa_fro without bounds or structural zeros) the engine runs from eight
-    starts in lockstep, IPOPT only as the fallback when no engine design verifies (issue 28: never
-    more than 1e-3 worse than the previous default -- IPOPT from every start, now
-    ``WellConditionedProblem(route="multistart")`` -- on the benchmark set of
-    ``benchmarks/results/region.md``; median CPU 3.0 s vs 6.7 s at n <= 10).  ``result.route``
+    starts in lockstep, IPOPT only as the fallback when no engine design verifies (issue 28: on the
+    50 plants n <= 10 of ``benchmarks/results/region.md`` median CPU 1.69 s against 13.2 s for the
+    previous default -- IPOPT from every start, now ``WellConditionedProblem(route="multistart")``
+    -- better than it by more than 1e-3 on 14 plants, worse on one, by 0.9 %).  ``result.route``
     lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`)
     takes the constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``,
     eta in a region, structural zeros in a region -- and is the fallback when no engine design
