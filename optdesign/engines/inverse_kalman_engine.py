@@ -70,7 +70,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline, dense_kkt_refusal, dense_time_refusal
-from .._validate import as_int, as_poles, as_positive_float, as_square, check_symmetric
+from .._validate import as_int, as_poles, as_positive_float
 from ..backends.clarabel_fixed_gain import (
     CLARABEL_OPTIONS,
     GAIN_RELATION_RTOL,
@@ -82,15 +82,23 @@ from ..backends.clarabel_fixed_gain import (
 )
 from ..classical.placement import pole_error
 from ..classical.riccati import filter_gain
-from ..errors import ValidationError
 from ..formulate.inverse_kalman import spectral_terms
 from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Status
 from .fixed_gain_ipm import solve_fixed_gain_ipm
+from .inverse_kalman_parts import (
+    _factor_of,
+    _nominal,
+    _physical_objective,
+    _rank_of,
+    _sdp_value,
+    _warm,
+)
 from .inverse_kalman_result import POLE_FLOOR_CAP, EngineResult, engine_result, sdp_record
 from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup, engine_applies, prepare_inverse_kalman
-from .inverse_kalman_starts import decision_starts, rescue_starts, stable_mask
+from .inverse_kalman_starts import decision_starts, homotopy_starts, rescue_starts, stable_mask
 from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
+from .pole_homotopy import pole_miss, track
 from .polish import refine_gain
 from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
@@ -101,18 +109,13 @@ from .tolerances import (
     FIRST_TRY_TOL,
     IK_KKT_TOL,
     INVERSE_KALMAN_POLE_TOL,
-    RANK_EIG_FLOOR,
     START_REGULARIZATION,
-    WARM_EIG_FLOOR,
 )
 
 __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inverse_kalman",
            "engine_applies", "ONE_OUTPUT_FIRST_TRY", "ONE_OUTPUT_FIRST_TRY_MIN_DIM",
            "ONE_OUTPUT_IPM_MIN_DIM"]
 
-#: candidate ranks of an interior-point PSD matrix: eigenvalue gaps of at least this ratio (its
-#: vanishing eigenvalues sit orders below the others, by the barrier's complementarity) ...
-RANK_GAP_RATIO = 100.0
 #: a one-output SDP margin ``t < -MARGIN_CERTIFICATE_TOL max(1, |Wdec|)`` certifies infeasibility:
 #: 1000x Clarabel's feasibility tolerance (``CLARABEL_OPTIONS["tol_feas"]`` = 1e-10)
 MARGIN_CERTIFICATE_TOL = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_feas"]
@@ -138,49 +141,6 @@ class _Candidate:
 
     def parts(self):
         return self.problem.unpack(self.x)
-
-
-def _physical_objective(objective: str, Wdec: NDArray, Qn: NDArray | None, Q: NDArray) -> float:
-    """The reported objective: ``trace(Q)``, ``||Qdec - Q_nominal||_F`` or ``lambda_min(Qdec)``."""
-    if objective == "min_trace":
-        return float(np.trace(Q))
-    W = np.diag(Wdec) if np.ndim(Wdec) == 1 else Wdec
-    if objective == "nearest":
-        return float(np.linalg.norm(W - Qn))
-    return float(np.linalg.eigvalsh(0.5 * (W + W.T))[0])
-
-
-def _sdp_value(objective: str, sol: FixedGainSolution, Qn: NDArray | None, structure: str) -> float:
-    """:attr:`_Candidate.value` of a solved SDP (inf for an unsolved one)."""
-    if sol.Q is None or sol.Wdec is None:
-        return float("inf")
-    if objective == "min_trace":
-        return float(np.trace(sol.Q))
-    if objective == "feasibility":
-        return -float(sol.t if sol.t is not None else -np.inf)
-    W = np.diag(sol.Wdec) if structure == "diagonal" else sol.Wdec
-    return float(np.sum((W - (0.0 if Qn is None else Qn)) ** 2))
-
-
-def _rank_of(W: NDArray) -> list[int]:
-    """Candidate ranks of an interior-point PSD matrix, likeliest first: the largest eigenvalue
-    gaps (ratio >= 100) above 1e-13 of the largest eigenvalue, then full rank."""
-    w = np.sort(np.linalg.eigvalsh(0.5 * (W + W.T)))[::-1]
-    if w[0] <= 0:
-        return []
-    w = np.maximum(w, SCALE_FLOOR)
-    ratios = w[:-1] / w[1:]
-    cand = [int(i + 1) for i in np.argsort(-ratios)
-            if ratios[i] >= RANK_GAP_RATIO and w[i] > RANK_EIG_FLOOR * w[0]]
-    return list(dict.fromkeys(cand[:3] + [int(np.sum(w > RANK_EIG_FLOOR * w[0]))]))
-
-
-def _factor_of(W: NDArray, r: int, diagonal: bool) -> NDArray:
-    """A (k, r) factor of the PSD part of W (diagonal: the square roots of its diagonal)."""
-    if diagonal:
-        return np.diag(np.sqrt(np.maximum(np.diag(W) if np.ndim(W) == 2 else W, 0.0)))
-    w, U = np.linalg.eigh(0.5 * (W + W.T))
-    return U[:, ::-1][:, :r] * np.sqrt(np.maximum(w[::-1][:r], 0.0))
 
 
 def _start_rank(setup: EngineSetup) -> int:
@@ -248,6 +208,47 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
                                      expired=lambda: deadline.expired)
     rec["projection_iterations"] = it2
     return found(prob, x, rep.iterations + it + it2) if ok else None
+
+
+def _continuation(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | None, seed: int,
+                  tol: float, deadline: Deadline, records: list) -> _Candidate | None:
+    """A feasible point by continuation in the target poles from the Kalman poles of a start
+    (:func:`~optdesign.engines.inverse_kalman_starts.homotopy_starts`,
+    :func:`~optdesign.engines.pole_homotopy.track`; issue 26: large noises whose solutions no start
+    projects onto), the first start whose path reaches the targets, projects there and whose Q's
+    Kalman filter has the targets (:func:`~optdesign.engines.pole_homotopy.pole_miss`); None when
+    none does (each path is recorded in ``records``)."""
+    diagonal = setup.structure == "diagonal"
+    for kind, V0, start in homotopy_starts(setup, target, seed, deadline):
+        if deadline.expired:
+            break
+        tic = time.process_time()
+        rep = track(setup.plant, setup.Gd, V0, start, target, diagonal=diagonal,
+                    expired=lambda: deadline.expired)
+        rec: dict[str, Any] = {"kind": kind, "steps": rep.steps, "continuation": rep.reason,
+                               "feasible": False}
+        records.append(rec)
+        if rep.reached and rep.V is not None:
+            scale = max(float(np.linalg.norm(rep.V @ rep.V.T, 2)), SCALE_FLOOR)
+            blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd, scale)
+            prob = FactorProblem(blocks, rep.V.shape[1], setup.objective,
+                                 None if Qn is None else Qn / scale, diagonal)
+            Vs = rep.V / np.sqrt(scale)
+            x, ok, _ = project(prob, prob.pack(Vs, 0.0, initial_null_vectors(blocks, Vs @ Vs.T)))
+            rec["feasible"] = ok
+            if ok:
+                cand = _Candidate(prob, x, scale, kind=kind, iterations=rep.steps)
+                # feasible to rounding in the residuals, whose Jacobian may have condition 1e11: the
+                # Kalman filter of its Q may still miss the targets (measured: 6e-8 at trace 6790,
+                # 9e-10 at 12828 on the same target); then the next start
+                rec["pole_miss"] = _design_miss(setup, cand, target, tol)
+                rec["feasible"] = rec["pole_miss"] <= 1.0
+                rec["cpu_time"] = time.process_time() - tic
+                if rec["feasible"]:
+                    return cand
+                continue
+        rec["cpu_time"] = time.process_time() - tic
+    return None
 
 
 def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,
@@ -442,38 +443,16 @@ def _design(setup: EngineSetup, cand: _Candidate):
     return L, P, Q, Qw, (np.diag(Qdec).copy() if setup.structure == "diagonal" else Qdec)
 
 
-def _nominal(setup: EngineSetup, Q_nominal) -> NDArray | None:
-    if setup.objective != "nearest":
-        return None
-    if Q_nominal is None:
-        raise ValidationError("objective='nearest' needs Q_nominal")
-    k = setup.k
-    what = "(n, n) (state-space Q)" if setup.structure == "full" else "(m, m) (noise-input Qw)"
-    Qn = as_square("Q_nominal", Q_nominal)
-    if Qn.shape[0] != k:
-        raise ValidationError(f"Q_nominal for structure={setup.structure!r} must be {what}, i.e. ({k}, {k}); "
-                              f"found {Qn.shape}")
-    return check_symmetric("Q_nominal", Qn)
-
-
-def _warm(setup: EngineSetup, warm_start) -> NDArray | None:
-    if warm_start is None:
-        return None
-    k = setup.k
-    W = as_square("warm_start", warm_start)
-    if W.shape[0] != k:
-        raise ValidationError(f"warm_start must be the ({k}, {k}) decision covariance; found {W.shape}")
-    W = check_symmetric("warm_start", W)
-    w, U = np.linalg.eigh(W)
-    if w[-1] <= 0:
-        raise ValidationError("warm_start must have a positive eigenvalue; found none")
-    # positive definite (Gauss-Newton starts at full rank)
-    return (U * np.maximum(w, WARM_EIG_FLOOR * w[-1])) @ U.T
+def _design_miss(setup: EngineSetup, cand: _Candidate, target: NDArray, tol: float) -> float:
+    """:func:`~optdesign.engines.pole_homotopy.pole_miss` of the candidate's design (above 1: it fails)."""
+    L, _, Q, _, _ = _design(setup, cand)
+    return pole_miss(setup.plant, L, Q, target, tol)
 
 
 def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: ArrayLike | None = None,
                          starts: int = 3, seed: int = 0, time_limit: float | Deadline | None = None,
-                         tol: float = INVERSE_KALMAN_POLE_TOL, warm_start: ArrayLike | None = None) -> EngineResult:
+                         tol: float = INVERSE_KALMAN_POLE_TOL,
+                         warm_start: ArrayLike | None = None) -> EngineResult:
     """The Kalman filter with the target poles whose Q is best for the setup's objective.
 
     Parameters
@@ -730,10 +709,9 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
                    rank=cand.problem.rank, **common)
 
 
-def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol) -> EngineResult:
-    """Stages 1-3 of the module docstring from each start; the best local optimum is certified."""
-    plant = setup.plant
-    records: list[dict[str, Any]] = []
+def _from_starts(setup, target, terms, Qn, starts, seed, warm, deadline,
+                 records: list) -> tuple[_Candidate | None, int]:
+    """Stages 1-2 from each start (the rescue starts when none is feasible): ``(best, iterations)``."""
     best: _Candidate | None = None
     iterations = 0
     queue = decision_starts(setup, target, Qn, starts, seed, warm, deadline)
@@ -758,6 +736,41 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
         rec["cpu_time"] = time.process_time() - tic
         if not queue and best is None and rescue:   # nothing feasible yet: as many rescue starts again
             queue, rescue = rescue_starts(setup, target, starts, seed, deadline), False
+    return best, iterations
+
+
+def _continued(setup, target, terms, Qn, seed, tol, deadline, records: list):
+    """Stages 1-3 from the continuation's point (:func:`_continuation`): ``(candidate, SDP solution,
+    agreed, miss)``, or None when no path reaches the targets.  When the optimum from that point
+    misses the targets (``miss > 1`` times the pole tolerance: not computable in double precision,
+    measured on large noises), the point itself is returned (no SDP)."""
+    cand = _continuation(setup, terms, target, Qn, seed, tol, deadline, records)
+    if cand is None:
+        return None
+    point = replace(cand, x=cand.x.copy(), history=[])
+    cand = _optimize(cand, deadline)
+    records[-1].update(value=cand.value, rank=cand.problem.rank, newton=cand.history)
+    cand, sol, agreed = _certify(setup, cand, Qn, deadline)
+    miss = _design_miss(setup, cand, target, tol)
+    return (point, None, False, miss) if miss > 1.0 else (cand, sol, agreed, 0.0)
+
+
+def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol) -> EngineResult:
+    """Stages 1-3 of the module docstring from each start; the best local optimum is certified.  When
+    no start is feasible, or the design of the best misses the targets (the residuals at rounding
+    level do not imply the poles where their Jacobian is ill-conditioned), the continuation in the
+    target poles (:func:`_continued`) is tried as well."""
+    plant = setup.plant
+    records: list[dict[str, Any]] = []
+    best, iterations = _from_starts(setup, target, terms, Qn, starts, seed, warm, deadline, records)
+    sol, agreed, miss = None, False, 0.0
+    if best is not None:
+        best, sol, agreed = _certify(setup, best, Qn, deadline)
+    if not deadline.expired and (best is None or _design_miss(setup, best, target, tol) > 1.0):
+        found = _continued(setup, target, terms, Qn, seed, tol, deadline, records)
+        iterations += sum(rec.get("steps", 0) for rec in records)
+        if found is not None:
+            best, sol, agreed, miss = found
     details: dict[str, Any] = {"starts": records}
     if best is None:
         status = Status.TIME_LIMIT if deadline.expired else Status.NOT_FOUND
@@ -765,12 +778,16 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
                f"feasibility unknown)")
         return engine_result(setup, target, status, msg, t0, cpu0, iterations=iterations, tol=tol,
                        details=details)
-    best, sol, agreed = _certify(setup, best, Qn, deadline)
     details.update(sdp=sdp_record(sol), best_start=best.kind, kkt=_kkt(best))
     L, P, Q, Qw, Wdec = _design(setup, best)
     kkt_ok = bool(details["kkt"].get("passed"))
+    what = "a local optimum over L"
     if deadline.expired:
         status, how = Status.TIME_LIMIT, "the time limit ran out; the best design so far"
+    elif miss > 1.0:
+        status, what = Status.OPTIMAL_INACCURATE, "a feasible point"
+        how = (f"not optimized: the Newton optimum from it misses the targets by {miss:.3g} times the "
+               f"pole tolerance (not computable)")
     elif sol is not None and sol.status == Status.OPTIMAL and agreed:
         status, how = Status.OPTIMAL, "the fixed-gain SDP at that L (Clarabel Solved) agrees"
     elif sol is not None and sol.status == Status.OPTIMAL_INACCURATE and agreed and kkt_ok:
@@ -781,10 +798,10 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
                                        "the dual slack certifies it (KKT)")
     else:
         status = Status.OPTIMAL_INACCURATE
-        what = "failed" if sol is None or not sol.status.is_solved else f"returned {sol.native_status}"
-        how = (f"no certificate: the fixed-gain SDP at that L {what}"
+        what_sdp = "failed" if sol is None or not sol.status.is_solved else f"returned {sol.native_status}"
+        how = (f"no certificate: the fixed-gain SDP at that L {what_sdp}"
                + ("" if agreed else " and does not agree"))
-    msg = (f"{plant.p} outputs: a local optimum over L from {len(records)} start(s) (best: {best.kind}; rank "
+    msg = (f"{plant.p} outputs: {what} from {len(records)} start(s) (best: {best.kind}; rank "
            f"{best.problem.rank}); {how}")
     return engine_result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
                    objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=iterations,
