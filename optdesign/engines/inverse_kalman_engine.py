@@ -63,7 +63,7 @@ Biegler, Math. Program. 106 (2006) (the filter line search).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -87,10 +87,12 @@ from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Status
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_parts import (
-    _factor_of,
+    _Candidate,
+    _from_sdp,
+    _from_start,
     _nominal,
     _physical_objective,
-    _rank_of,
+    _repair,
     _sdp_value,
     _warm,
 )
@@ -100,8 +102,8 @@ from .inverse_kalman_starts import decision_starts, homotopy_starts, rescue_star
 from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
 from .pole_homotopy import pole_miss, track
 from .polish import refine_gain
-from .spectral_factor import FactorProblem, SpectralBlocks, initial_null_vectors, spectral_blocks
-from .spectral_newton import escape_direction, find_feasible, newton, project, sqp
+from .spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
+from .spectral_newton import escape_direction, newton, project
 from .tolerances import (
     CLARABEL_MARGIN_FACTOR,
     ESCAPE_NORM_FLOOR,
@@ -109,7 +111,6 @@ from .tolerances import (
     FIRST_TRY_TOL,
     IK_KKT_TOL,
     INVERSE_KALMAN_POLE_TOL,
-    START_REGULARIZATION,
 )
 
 __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inverse_kalman",
@@ -119,95 +120,6 @@ __all__ = ["EngineSetup", "EngineResult", "prepare_inverse_kalman", "solve_inver
 #: a one-output SDP margin ``t < -MARGIN_CERTIFICATE_TOL max(1, |Wdec|)`` certifies infeasibility:
 #: 1000x Clarabel's feasibility tolerance (``CLARABEL_OPTIONS["tol_feas"]`` = 1e-10)
 MARGIN_CERTIFICATE_TOL = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_feas"]
-
-
-@dataclass
-class _Candidate:
-    """A feasible point of one start: its factor problem (scaled by ``scale``) and x."""
-
-    problem: FactorProblem
-    x: NDArray
-    scale: float
-    kind: str = ""
-    iterations: int = 0
-    history: list = field(default_factory=list)
-    multipliers: NDArray | None = None
-
-    @property
-    def value(self) -> float:
-        """The objective in physical units, comparable between starts (lower is better):
-        ``trace(Q)``, ``||Qdec - Q_nominal||_F^2`` or ``-lambda_min``."""
-        return self.problem.f(self.x) * self.scale ** (2 if self.problem.objective == "nearest" else 1)
-
-    def parts(self):
-        return self.problem.unpack(self.x)
-
-
-def _start_rank(setup: EngineSetup) -> int:
-    """Columns of V at an SQP start: ``min(k, 2 p + 2)`` (the optima measured have rank p .. p + 2;
-    a negative eigenvalue of the dual slack adds columns where more are needed)."""
-    return setup.k if setup.structure == "diagonal" else min(setup.k, 2 * setup.plant.p + 2)
-
-
-# ============================================================================ stages
-def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None, deadline: Deadline,
-                rec: dict) -> _Candidate | None:
-    """Stage 1 from the decision covariance W (the problem scaled by ``||W||``):
-
-    * SQP from W (a factor of :func:`_start_rank` columns) until nearly feasible, the objective
-      reduced on the way, then projected onto the feasible set; where it stops short, Gauss-Newton
-      from its last point (a restoration phase);
-    * failing that, Gauss-Newton with a line search from W itself (a full-rank Cholesky factor)
-      to the nearest feasible point.
-
-    For the objective ``"feasibility"`` this stage minimizes the trace instead (``Qdec = V V'``,
-    the margin t held at 0), so that the point is PSD; Newton then raises t from 0 (a free margin
-    in the SQP can end negative: an indefinite Q, measured on input-structured targets).
-
-    None when no feasible point is reached (``rec`` records what was tried)."""
-    diagonal = setup.structure == "diagonal"
-    scale = max(float(np.linalg.norm(W, 2)), SCALE_FLOOR)
-    blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd, scale)
-    nominal = None if Qn is None else Qn / scale
-    Ws = 0.5 * (W + W.T) / scale
-    stage = "min_trace" if setup.objective == "feasibility" else setup.objective
-
-    def problem(rank: int, lower: bool = False) -> FactorProblem:
-        return FactorProblem(blocks, rank, stage, nominal, diagonal, lower=lower)
-
-    def found(prob: FactorProblem, x: NDArray, iterations: int) -> _Candidate:
-        if stage != setup.objective:   # the same point in the problem of the margin (t = 0)
-            V, _, g = prob.unpack(x)
-            prob = FactorProblem(blocks, prob.rank, setup.objective, nominal, diagonal, lower=prob.lower)
-            x = prob.pack(V, 0.0, g)
-        return _Candidate(prob, x, scale, iterations=iterations)
-
-    prob = problem(_start_rank(setup))
-    V0 = _factor_of(Ws, prob.rank, diagonal)
-    rep = sqp(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)), max_iter=_SQP_MAX_ITER,
-              expired=lambda: deadline.expired)
-    rec.update(sqp_iterations=rep.iterations, sqp=rep.reason)
-    prob, x = rep.problem, rep.x
-    if rep.converged:
-        x, ok, _ = project(prob, x)
-        if ok:
-            return found(prob, x, rep.iterations)
-    if deadline.expired:
-        return None
-    prob, x, ok, it = find_feasible(prob, x, expired=lambda: deadline.expired)
-    rec["restoration_iterations"] = it
-    if ok:
-        return found(prob, x, rep.iterations + it)
-    if deadline.expired:
-        return None
-    full = not diagonal
-    prob = problem(setup.k, lower=full)
-    Wr = Ws + START_REGULARIZATION * np.trace(Ws) * np.eye(Ws.shape[0])
-    V0 = np.linalg.cholesky(Wr) if full else _factor_of(Wr, setup.k, diagonal)
-    prob, x, ok, it2 = find_feasible(prob, prob.pack(V0, 0.0, initial_null_vectors(blocks, V0 @ V0.T)),
-                                     expired=lambda: deadline.expired)
-    rec["projection_iterations"] = it2
-    return found(prob, x, rep.iterations + it + it2) if ok else None
 
 
 def _continuation(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | None, seed: int,
@@ -290,45 +202,6 @@ def _complement_form_at(setup: EngineSetup, fam: FixedGainFamily,
     return (sol, sol.Q, P) if np.all(np.isfinite(P)) and np.all(np.isfinite(fam.L)) else None
 
 
-def _from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
-              Qn: NDArray | None, fixed: bool) -> _Candidate | None:
-    """A feasible factor point from an SDP solution at the gain of g: its face read off the
-    eigenvalue gaps, projected onto the residuals' zero set (``fixed``: g kept), or None."""
-    diagonal = setup.structure == "diagonal"
-    if sol.Wdec is None:
-        return None
-    t_phys = 0.0 if sol.t is None else sol.t
-    W = sol.Wdec - (t_phys if diagonal else t_phys * np.eye(setup.k))
-    Wm = np.diag(W) if (diagonal and np.ndim(W) == 1) else W
-    t = t_phys / scale
-    for r in _rank_of(Wm):
-        prob = FactorProblem(blocks, r, setup.objective, None if Qn is None else Qn / scale, diagonal,
-                             fixed_g=fixed, g_fixed=g if fixed else None)
-        x, ok, _ = project(prob, prob.pack(_factor_of(Wm / scale, r, diagonal), t, g))
-        if ok:
-            return _Candidate(prob, x, scale, kind="sdp")
-    return None
-
-
-def _repair(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
-            Qn: NDArray | None, deadline: Deadline) -> _Candidate | None:
-    """A feasible point at the fixed gain of g from an inaccurate SDP point (eigenvalues of the
-    wrong sign, residuals far from rounding): Gauss-Newton with a line search from a factor of its
-    PSD part, over the candidate ranks, the largest first; None when none converges."""
-    diagonal = setup.structure == "diagonal"
-    if sol.Wdec is None:
-        return None
-    W = np.diag(sol.Wdec) if (diagonal and np.ndim(sol.Wdec) == 1) else sol.Wdec
-    for r in sorted(set(_rank_of(W)), reverse=True):
-        prob = FactorProblem(blocks, r, setup.objective, None if Qn is None else Qn / scale, diagonal,
-                             fixed_g=True, g_fixed=g)
-        prob, x, ok, _ = find_feasible(prob, prob.pack(_factor_of(W / scale, r, diagonal), 0.0, g),
-                                       expired=lambda: deadline.expired)
-        if ok:
-            return _Candidate(prob, x, scale, kind="repaired sdp")
-    return None
-
-
 def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Candidate:
     """Stage 2: Newton over (V, g) on the feasible manifold, with a rank increase along the
     eigenvector of a negative eigenvalue of the dual slack (:func:`escape_direction`) and Newton
@@ -361,10 +234,6 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
     cand.problem, cand.x = prob, x
     return cand
 
-
-#: SQP iterations per start before the restoration (measured: 20 loses a cross-validation target, 40
-#: none; beyond, the SQP mostly oscillates at n >= 20 -- the restoration is cheaper)
-_SQP_MAX_ITER = 40
 
 #: relative agreement of the certificate SDP's optimum with the Newton point (1000x Clarabel's gap)
 _AGREE = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_gap_rel"]
@@ -752,7 +621,40 @@ def _continued(setup, target, terms, Qn, seed, tol, deadline, records: list):
     records[-1].update(value=cand.value, rank=cand.problem.rank, newton=cand.history)
     cand, sol, agreed = _certify(setup, cand, Qn, deadline)
     miss = _design_miss(setup, cand, target, tol)
-    return (point, None, False, miss) if miss > 1.0 else (cand, sol, agreed, 0.0)
+    return (_descend_placing(setup, point, target, tol, deadline), None, False, miss) if miss > 1.0 \
+        else (cand, sol, agreed, 0.0)
+
+
+#: Newton iterations per check of :func:`_descend_placing`, at most in all, and the halvings of the
+#: last chunk's way when its end misses the targets
+_PLACING_CHUNK, _PLACING_MAX_ITER, _PLACING_HALVINGS = 2, 60, 4
+
+
+def _descend_placing(setup: EngineSetup, point: _Candidate, target: NDArray, tol: float,
+                     deadline: Deadline) -> _Candidate:
+    """Newton from a feasible point whose design places the targets, in chunks of
+    :data:`_PLACING_CHUNK` iterations at its rank, keeping the last iterate whose design still
+    does (:func:`~optdesign.engines.pole_homotopy.pole_miss` at most 1): the objective lowered
+    as far as the targets stay computable (where the optimum itself is not)."""
+    keep, prob, x = point, point.problem, point.x
+    for _ in range(0, _PLACING_MAX_ITER, _PLACING_CHUNK):
+        if deadline.expired:
+            break
+        rep = newton(prob, x, max_iter=_PLACING_CHUNK, expired=lambda: deadline.expired)
+        trial = replace(point, problem=rep.problem, x=rep.x, multipliers=rep.multipliers,
+                        iterations=keep.iterations + rep.iterations, history=[])
+        shorter = 0
+        while rep.problem is prob and shorter < _PLACING_HALVINGS and trial.value < keep.value and \
+                _design_miss(setup, trial, target, tol) > 1.0:   # half the way, projected
+            xh, ok, _ = project(prob, 0.5 * (x + trial.x))
+            trial = replace(trial, x=xh) if ok else keep
+            shorter += 1
+        if not trial.value < keep.value or _design_miss(setup, trial, target, tol) > 1.0:
+            break
+        keep, prob, x = trial, rep.problem, trial.x
+        if shorter or rep.converged or rep.reason.startswith("no decrease"):
+            break
+    return keep
 
 
 def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0, cpu0, tol) -> EngineResult:
@@ -785,9 +687,9 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
     if deadline.expired:
         status, how = Status.TIME_LIMIT, "the time limit ran out; the best design so far"
     elif miss > 1.0:
-        status, what = Status.OPTIMAL_INACCURATE, "a feasible point"
-        how = (f"not optimized: the Newton optimum from it misses the targets by {miss:.3g} times the "
-               f"pole tolerance (not computable)")
+        status, what = Status.OPTIMAL_INACCURATE, "a feasible point, not a local optimum,"
+        how = (f"the Newton optimum from it misses the targets by {miss:.3g} times the pole tolerance "
+               f"(not computable): Newton stopped where the design still places them")
     elif sol is not None and sol.status == Status.OPTIMAL and agreed:
         status, how = Status.OPTIMAL, "the fixed-gain SDP at that L (Clarabel Solved) agrees"
     elif sol is not None and sol.status == Status.OPTIMAL_INACCURATE and agreed and kkt_ok:
