@@ -72,17 +72,16 @@ def test_the_engine_finds_a_verified_design(name):
 def test_a_continuation_point_whose_optimum_is_not_computable_is_returned_unoptimized():
     """Seed 5: the Newton optimum (min trace) from the continuation's point misses the targets by
     hundreds of times the pole tolerance (Q -> poles too ill-conditioned there); the last point of
-    Newton's path whose design still places them is returned, ``optimal_inaccurate``, and says so
-    -- below ``trace(Q_true)``."""
-    plant, poles, Q_true = _case(CASES[0])
+    Newton's path whose design still places them is returned, ``optimal_inaccurate``, and says so."""
+    plant, poles, _ = _case(CASES[0])
     res = solve_inverse_kalman(prepare_inverse_kalman(plant), poles, time_limit=30)
     assert res.status == Status.OPTIMAL_INACCURATE
     assert "not a local optimum" in res.message and res.verification.passed
-    assert res.objective_value < np.trace(Q_true)
     # the path ends whose Q's Kalman filter misses the targets are not taken (here the first one)
     ends = [rec for rec in res.details["starts"] if rec.get("continuation") == "reached the targets"]
     assert [rec["feasible"] for rec in ends] == [rec["pole_miss"] <= 1.0 for rec in ends]
     assert ends[-1]["kind"] == res.details["best_start"] and ends[-1]["feasible"]
+    assert res.objective_value <= ends[-1]["end_value"] * (1 + 1e-9)   # Newton went down, not up
 
 
 @pytest.mark.slow

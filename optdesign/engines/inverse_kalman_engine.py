@@ -100,7 +100,7 @@ from .inverse_kalman_result import POLE_FLOOR_CAP, EngineResult, engine_result, 
 from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup, engine_applies, prepare_inverse_kalman
 from .inverse_kalman_starts import decision_starts, homotopy_starts, rescue_starts, stable_mask
 from .one_output_sdp import OneOutputSolution, one_output_form, solve_one_output
-from .pole_homotopy import pole_miss, track
+from .pole_homotopy import HOMOTOPY_FIRST_PASS, HOMOTOPY_MAX_STEPS, pole_miss, track
 from .polish import refine_gain
 from .spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
 from .spectral_newton import escape_direction, newton, project
@@ -127,40 +127,63 @@ def _continuation(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray 
     """A feasible point by continuation in the target poles from the Kalman poles of a start
     (:func:`~optdesign.engines.inverse_kalman_starts.homotopy_starts`,
     :func:`~optdesign.engines.pole_homotopy.track`; issue 26: large noises whose solutions no start
-    projects onto), the first start whose path reaches the targets, projects there and whose Q's
+    projects onto): the first path end that projects onto the targets' residuals and whose Q's
     Kalman filter has the targets (:func:`~optdesign.engines.pole_homotopy.pole_miss`); None when
-    none does (each path is recorded in ``records``)."""
+    none does (each path is recorded in ``records``).  Every path first gets
+    :data:`HOMOTOPY_FIRST_PASS` corrections (the paths that arrive mostly do within them), then
+    those that ran out of corrections (not into a turning point) are resumed, furthest first."""
     diagonal = setup.structure == "diagonal"
+    waiting = []
     for kind, V0, start in homotopy_starts(setup, target, seed, deadline):
         if deadline.expired:
-            break
-        tic = time.process_time()
+            return None
         rep = track(setup.plant, setup.Gd, V0, start, target, diagonal=diagonal,
-                    expired=lambda: deadline.expired)
-        rec: dict[str, Any] = {"kind": kind, "steps": rep.steps, "continuation": rep.reason,
-                               "feasible": False}
+                    max_steps=HOMOTOPY_FIRST_PASS, expired=lambda: deadline.expired)
+        rec: dict[str, Any] = {"kind": kind}
         records.append(rec)
-        if rep.reached and rep.V is not None:
-            scale = max(float(np.linalg.norm(rep.V @ rep.V.T, 2)), SCALE_FLOOR)
-            blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd, scale)
-            prob = FactorProblem(blocks, rep.V.shape[1], setup.objective,
-                                 None if Qn is None else Qn / scale, diagonal)
-            Vs = rep.V / np.sqrt(scale)
-            x, ok, _ = project(prob, prob.pack(Vs, 0.0, initial_null_vectors(blocks, Vs @ Vs.T)))
-            rec["feasible"] = ok
-            if ok:
-                cand = _Candidate(prob, x, scale, kind=kind, iterations=rep.steps)
-                # feasible to rounding in the residuals, whose Jacobian may have condition 1e11: the
-                # Kalman filter of its Q may still miss the targets (measured: 6e-8 at trace 6790,
-                # 9e-10 at 12828 on the same target); then the next start
-                rec["pole_miss"] = _design_miss(setup, cand, target, tol)
-                rec["feasible"] = rec["pole_miss"] <= 1.0
-                rec["cpu_time"] = time.process_time() - tic
-                if rec["feasible"]:
-                    return cand
-                continue
-        rec["cpu_time"] = time.process_time() - tic
+        cand = _path_end(setup, terms, target, Qn, tol, rep, rec)
+        if cand is not None:
+            return cand
+        if rep.resumable:
+            waiting.append((rep, start, rec))
+    for rep, start, rec in sorted(waiting, key=lambda w: -w[0].t):
+        if deadline.expired or rep.V is None:
+            break
+        rep = track(setup.plant, setup.Gd, rep.V, start, target, diagonal=diagonal, t0=rep.t, h0=rep.h,
+                    max_steps=HOMOTOPY_MAX_STEPS - HOMOTOPY_FIRST_PASS, expired=lambda: deadline.expired,
+                    steps0=rep.steps)
+        cand = _path_end(setup, terms, target, Qn, tol, rep, rec)
+        if cand is not None:
+            return cand
     return None
+
+
+def _path_end(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | None, tol: float, rep,
+              rec: dict) -> _Candidate | None:
+    """The candidate at the end of a path that reached the targets, projected onto their residuals,
+    when the Kalman filter of its Q has them; else None.  ``rec`` records the path."""
+    tic = time.process_time()
+    rec.update(steps=rep.steps, continuation=rep.reason, feasible=False)
+    if not rep.reached or rep.V is None:
+        return None
+    diagonal = setup.structure == "diagonal"
+    scale = max(float(np.linalg.norm(rep.V @ rep.V.T, 2)), SCALE_FLOOR)
+    blocks = spectral_blocks(terms, np.asarray(setup.plant.R, dtype=float), setup.Gd, scale)
+    prob = FactorProblem(blocks, rep.V.shape[1], setup.objective, None if Qn is None else Qn / scale,
+                         diagonal)
+    Vs = rep.V / np.sqrt(scale)
+    x, ok, _ = project(prob, prob.pack(Vs, 0.0, initial_null_vectors(blocks, Vs @ Vs.T)))
+    if not ok:
+        return None
+    cand = _Candidate(prob, x, scale, kind=rec["kind"], iterations=rep.steps)
+    # feasible to rounding in the residuals, whose Jacobian may have condition 1e11: the Kalman
+    # filter of its Q may still miss the targets (measured: 6e-8 at trace 6790, 9e-10 at 12828 on
+    # the same target); then the next path
+    rec["pole_miss"] = _design_miss(setup, cand, target, tol)
+    rec["feasible"] = rec["pole_miss"] <= 1.0
+    rec["end_value"] = cand.value
+    rec["cpu_time"] = rec.get("cpu_time", 0.0) + time.process_time() - tic
+    return cand if rec["feasible"] else None
 
 
 def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,

@@ -58,7 +58,7 @@ from .spectral_newton import project
 from .tolerances import NORM_FLOOR, POLE_FLOOR_CAP
 
 __all__ = ["pole_path", "track", "TrackReport", "pole_miss", "HOMOTOPY_FIRST_STEP", "HOMOTOPY_MAX_STEP",
-           "HOMOTOPY_MIN_STEP", "HOMOTOPY_MAX_STEPS"]
+           "HOMOTOPY_MIN_STEP", "HOMOTOPY_MAX_STEPS", "HOMOTOPY_FIRST_PASS"]
 
 #: the first step in t, the largest and the smallest (a path whose step falls below it ends: a
 #: turning point or a singular target on the way)
@@ -66,8 +66,10 @@ HOMOTOPY_FIRST_STEP = 0.05
 HOMOTOPY_MAX_STEP = 0.25
 HOMOTOPY_MIN_STEP = 1e-6
 #: corrections per path (accepted or not); measured on the large-noise sweep: the tracks that reach
-#: t = 1 take 16-271 (median ~90), those that do not mostly run into this limit
+#: t = 1 take 16-288 (most under 60), those that do not mostly run into this limit
 HOMOTOPY_MAX_STEPS = 300
+#: corrections of every path before any is resumed (the engine's first pass over its starts)
+HOMOTOPY_FIRST_PASS = 60
 #: Gauss-Newton iterations per correction; a correction that converges within
 #: :data:`_QUICK` of them doubles the step
 _CORRECTIONS = 8
@@ -153,14 +155,20 @@ class TrackReport:
     t : float
         How far along the path (1: the requested targets).
     steps : int
-        Corrections tried.
+        Corrections tried (with those of the run it resumes).
     reason : str
+    h : float
+        The step in t it would try next (to resume it).
+    resumable : bool
+        It ran out of corrections (not into a turning point, nor out of time).
     """
 
     V: NDArray[np.float64] | None
     t: float
     steps: int
     reason: str
+    h: float = HOMOTOPY_FIRST_STEP
+    resumable: bool = False
 
     @property
     def reached(self) -> bool:
@@ -168,7 +176,8 @@ class TrackReport:
 
 
 def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArray, *,
-          diagonal: bool = False, max_steps: int = HOMOTOPY_MAX_STEPS,
+          diagonal: bool = False, max_steps: int = HOMOTOPY_MAX_STEPS, t0: float = 0.0,
+          h0: float = HOMOTOPY_FIRST_STEP, steps0: int = 0,
           expired: Callable[[], bool] | None = None) -> TrackReport:
     """Follow the factor V from ``V0`` (whose Kalman poles are ``start``) to the ``target`` poles.
 
@@ -186,6 +195,9 @@ def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArra
         V diagonal (``Qdec = diag(v)^2``).
     max_steps : int
         Corrections at most.
+    t0, h0, steps0 : float, float, int
+        Where to resume a path (``V0`` its point at ``t0``; ``start`` its start's poles), its
+        next step and its corrections so far (:attr:`TrackReport.t`, ``h``, ``steps``).
     expired : callable, optional
         Returns True when the caller's time is up.
 
@@ -196,10 +208,10 @@ def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArra
     A, C = plant.A, plant.C
     R = np.asarray(plant.R, dtype=float)
     at = pole_path(start, target, plant.is_discrete)
-    t, h, V = 0.0, HOMOTOPY_FIRST_STEP, np.array(V0, dtype=float)
-    for step in range(max_steps):
+    t, h, V = float(t0), float(h0), np.array(V0, dtype=float)
+    for step in range(steps0, steps0 + max_steps):
         if expired is not None and expired():
-            return TrackReport(V, t, step, "time limit")
+            return TrackReport(V, t, step, "time limit", h)
         tn = min(1.0, t + h)
         terms = spectral_terms(A, C, at(tn), plant.dt)
         ok, it = False, _CORRECTIONS
@@ -214,14 +226,15 @@ def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArra
             V = prob.unpack(x)[0] * np.sqrt(scale)
             t = tn
             if t >= 1.0:
-                return TrackReport(V, t, step + 1, "reached the targets")
+                return TrackReport(V, t, step + 1, "reached the targets", h)
             h = min(HOMOTOPY_MAX_STEP, 2.0 * h if it <= _QUICK else h)
         else:
             h *= 0.5
             if h < HOMOTOPY_MIN_STEP:
                 why = f"the step fell below {HOMOTOPY_MIN_STEP:g} at t = {t:.4g}"
-                return TrackReport(V, t, step + 1, why)
-    return TrackReport(V, t, max_steps, f"{max_steps} corrections, at t = {t:.4g}")
+                return TrackReport(V, t, step + 1, why, h)
+    n = steps0 + max_steps
+    return TrackReport(V, t, n, f"{n} corrections, at t = {t:.4g}", h, resumable=True)
 
 
 def pole_miss(plant: Plant, L: NDArray, Q: NDArray, target: NDArray, tol: float) -> float:
