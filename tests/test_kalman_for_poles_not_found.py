@@ -136,3 +136,19 @@ def test_the_pole_path_is_stable_and_conjugate_closed_from_start_to_target(discr
         assert z.size == 5
         np.testing.assert_allclose(np.sort_complex(z), np.sort_complex(z.conj()), atol=0)
         assert np.all(np.abs(z) < 1) if discrete else np.all(z.real < 0)
+
+
+def test_pole_miss_is_within_one_for_the_true_design_and_above_for_a_perturbed_gain():
+    """The test the continuation's ends are held to: in units of the verification's pole tolerance;
+    the gain alone (``resolve=False``, run on every target) or with scipy's Kalman filter of Q."""
+    from optdesign.engines.pole_homotopy import pole_miss
+
+    plant, poles, Q = _case(CASES[1])
+    P = sla.solve_continuous_are(plant.A.T, plant.C.T, Q, plant.R)
+    L = P @ plant.C.T @ np.linalg.inv(plant.R)
+    assert pole_miss(plant, L, Q, poles, 1e-8) <= 1.0
+    assert pole_miss(plant, L, Q, poles, 1e-8, resolve=False) <= 1.0
+    bad = L * (1 + 1e-5)
+    assert pole_miss(plant, bad, Q, poles, 1e-8, resolve=False) > 1.0
+    assert pole_miss(plant, L, 1.001 * Q, poles, 1e-8) > 1.0   # scipy's filter of another Q
+    assert pole_miss(plant, L * np.nan, Q, poles, 1e-8) == float("inf")

@@ -237,11 +237,15 @@ def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArra
     return TrackReport(V, t, n, f"{n} corrections, at t = {t:.4g}", h, resumable=True)
 
 
-def pole_miss(plant: Plant, L: NDArray, Q: NDArray, target: NDArray, tol: float) -> float:
+def pole_miss(plant: Plant, L: NDArray, Q: NDArray, target: NDArray, tol: float,
+              resolve: bool = True) -> float:
     """How far a design misses the targets, in units of the verification's pole tolerance
     (``max(tol, rounding floor)``, as :func:`~optdesign.engines.inverse_kalman_result.verify_engine_design`
-    sets it): the larger of the miss of ``eig(A - L C)`` and of scipy's Kalman filter of Q -- above
-    1 the design fails that check; inf without a stabilizing Kalman filter or with non-finite values.
+    sets it): the larger of the miss of ``eig(A - L C)`` and (``resolve``) of scipy's Kalman filter
+    of Q -- above 1 the design fails that check; inf without a stabilizing Kalman filter or with
+    non-finite values.  The rounding floor is computed only for a miss above ``tol`` (it only
+    raises the tolerance): 0.04 ms for ``eig(A - L C)`` within ``tol`` at n = 12, 2 ms for the
+    whole test with the re-solve.
 
     Parameters
     ----------
@@ -251,14 +255,21 @@ def pole_miss(plant: Plant, L: NDArray, Q: NDArray, target: NDArray, tol: float)
     target : (n,) complex ndarray
     tol : float
         The pole accuracy asked for.
+    resolve : bool
+        Test scipy's Kalman filter of Q as well.
     """
     if not (np.all(np.isfinite(L)) and np.all(np.isfinite(Q))):
         return float("inf")
-    kal = scipy_kalman(plant, Q)
-    if kal is None:
-        return float("inf")
+    gains = [L]
+    if resolve:
+        kal = scipy_kalman(plant, Q)
+        if kal is None:
+            return float("inf")
+        gains.append(kal[0])
     out = 0.0
-    for F in (plant.A - L @ plant.C, plant.A - kal[0] @ plant.C):
-        ptol = max(tol, min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP))
-        out = max(out, pole_error(np.linalg.eigvals(F), target) / ptol)
+    for K in gains:
+        F = plant.A - K @ plant.C
+        err = pole_error(np.linalg.eigvals(F), target)
+        if err > tol:
+            out = max(out, err / max(tol, min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP)))
     return out
