@@ -37,6 +37,18 @@ and keeps the best local optimum, then
    that SDP was solved and agrees; the KKT data (dual slack eigenvalue, complementarity) are in
    ``details["kkt"]``.
 
+When no start (nor the rescue starts) reaches a feasible point, or the design of the best misses
+the targets (residuals at rounding level do not imply the poles where their Jacobian has condition
+~1e11: large noises, issue 26), *continuation in the target poles*
+(:mod:`optdesign.engines.pole_homotopy`) runs: the targets move from the Kalman poles of a low-rank
+start to the requested ones and Gauss-Newton tracks the factor; the first path end whose Q's Kalman
+filter has the targets goes through steps 2-3.  Where the optimum from it misses the targets (not
+computable in double precision), Newton stops at the last point whose design places them
+(``optimal_inaccurate``, not a local optimum; the message says so).  Its paths are recorded in
+``details["starts"]`` (``kind`` ``"pole continuation ..."``, ``steps``, ``continuation``: why the
+path ended, ``pole_miss``, ``end_value``).  Not run where the decision covariance has fewer
+parameters than pole conditions.
+
 What optimum: a local optimum over L of the objective (several starts, the best kept), at which
 the returned Q is the global optimum of the convex family of Q of the returned L.
 
@@ -57,7 +69,8 @@ References
 ----------
 Chang & Lee 1984 (seed 000); Anderson & Moore, *Optimal Filtering* (1979); Moore, IEEE TAC 21
 (1976) (parametric pole placement); Burer & Monteiro, Math. Program. 95 (2003); Waechter &
-Biegler, Math. Program. 106 (2006) (the filter line search).
+Biegler, Math. Program. 106 (2006) (the filter line search); Allgower & Georg, *Numerical
+Continuation Methods* (1990) (the continuation).
 """
 
 from __future__ import annotations
@@ -379,8 +392,8 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
         well -- at an optimal gain the family of Q often has no interior point); ``optimal`` means a
         local optimum over L at which Q is the global optimum of the gain's family;
         ``infeasible`` only for one output (an infeasible fixed-gain SDP at the unique gain, a
-        global certificate) or an unstable target; ``not_found`` when no start gave a Kalman
-        filter with the targets; ``solver_error`` with ``details["applicable"] = False`` where
+        global certificate) or an unstable target; ``not_found`` when no start (nor the
+        continuation in the targets) gave a Kalman filter with the targets; ``solver_error`` with ``details["applicable"] = False`` where
         a target is an eigenvalue of A or of its mirror image (:func:`engine_applies`).
 
     Raises
