@@ -393,8 +393,10 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
         local optimum over L at which Q is the global optimum of the gain's family;
         ``infeasible`` only for one output (an infeasible fixed-gain SDP at the unique gain, a
         global certificate) or an unstable target; ``not_found`` when no start (nor the
-        continuation in the targets) gave a Kalman filter with the targets; ``solver_error`` with ``details["applicable"] = False`` where
-        a target is an eigenvalue of A or of its mirror image (:func:`engine_applies`).
+        continuation in the targets) gave a Kalman filter with the targets; ``solver_error``
+        with ``details["applicable"] = False`` where a target is an eigenvalue of A or of its
+        mirror image (:func:`engine_applies`).  ``optimal_inaccurate`` also for a feasible point
+        that is not a local optimum, where the optimum is not computable (the message says so).
 
     Raises
     ------
