@@ -152,3 +152,29 @@ def test_pole_miss_is_within_one_for_the_true_design_and_above_for_a_perturbed_g
     assert pole_miss(plant, bad, Q, poles, 1e-8, resolve=False) > 1.0
     assert pole_miss(plant, L, 1.001 * Q, poles, 1e-8) > 1.0   # scipy's filter of another Q
     assert pole_miss(plant, L * np.nan, Q, poles, 1e-8) == float("inf")
+
+
+@pytest.mark.parametrize("dt", [None, 0.1])
+def test_the_continuation_alone_designs_feasible_targets(monkeypatch, dt):
+    """With the starts switched off, the continuation reaches the Kalman poles of a rank-2 Q in
+    continuous and in discrete time (its path in the bilinear image of the unit disc), and steps 2-3
+    certify the design."""
+    import optdesign.engines.inverse_kalman_engine as engine
+
+    monkeypatch.setattr(engine, "_from_starts", lambda *a, **k: (None, 0))
+    rng = np.random.default_rng(3)
+    n, p = 6, 2
+    A = rng.standard_normal((n, n)) / np.sqrt(n)
+    if dt is not None:
+        A = sla.expm(dt * A)
+    C, F = rng.standard_normal((p, n)), rng.standard_normal((n, 2))
+    if dt is None:
+        P = sla.solve_continuous_are(A.T, C.T, F @ F.T, np.eye(p))
+        L = P @ C.T
+    else:
+        P = sla.solve_discrete_are(A.T, C.T, F @ F.T, np.eye(p))
+        L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + np.eye(p))
+    plant = Plant(A, C, R=np.eye(p), dt=dt)
+    res = solve_inverse_kalman(prepare_inverse_kalman(plant), np.linalg.eigvals(A - L @ C), time_limit=30)
+    assert res.status == Status.OPTIMAL and res.verification.passed, res.message
+    assert res.details["best_start"].startswith("pole continuation")
