@@ -100,14 +100,14 @@ from ..formulate.inverse_kalman.common import single_output_gain
 from ..results import Status
 from .fixed_gain_ipm import solve_fixed_gain_ipm
 from .inverse_kalman_parts import (
-    _Candidate,
-    _from_sdp,
-    _from_start,
-    _nominal,
-    _physical_objective,
-    _repair,
-    _sdp_value,
-    _warm,
+    EngineCandidate,
+    candidate_from_sdp,
+    candidate_from_start,
+    nominal_factor,
+    physical_objective,
+    repaired_candidate,
+    sdp_value,
+    warm_factor,
 )
 from .inverse_kalman_result import POLE_FLOOR_CAP, EngineResult, engine_result, sdp_record
 from .inverse_kalman_setup import SCALE_FLOOR, EngineSetup, engine_applies, prepare_inverse_kalman
@@ -136,7 +136,7 @@ MARGIN_CERTIFICATE_TOL = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_feas"]
 
 
 def _continuation(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | None, seed: int,
-                  tol: float, deadline: Deadline, records: list) -> _Candidate | None:
+                  tol: float, deadline: Deadline, records: list) -> EngineCandidate | None:
     """A feasible point by continuation in the target poles from the Kalman poles of a start
     (:func:`~optdesign.engines.inverse_kalman_starts.homotopy_starts`,
     :func:`~optdesign.engines.pole_homotopy.track`; issue 26: large noises whose solutions no start
@@ -172,7 +172,7 @@ def _continuation(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray 
 
 
 def _path_end(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | None, tol: float, rep,
-              rec: dict) -> _Candidate | None:
+              rec: dict) -> EngineCandidate | None:
     """The candidate at the end of a path that reached the targets, projected onto their residuals,
     when the Kalman filter of its Q has them; else None.  ``rec`` records the path."""
     tic = time.process_time()
@@ -188,7 +188,7 @@ def _path_end(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | No
     x, ok, _ = project(prob, prob.pack(Vs, 0.0, initial_null_vectors(blocks, Vs @ Vs.T)))
     if not ok:
         return None
-    cand = _Candidate(prob, x, scale, kind=rec["kind"], iterations=rep.steps)
+    cand = EngineCandidate(prob, x, scale, kind=rec["kind"], iterations=rep.steps)
     # feasible to rounding in the residuals, whose Jacobian may have condition 1e11: the Kalman
     # filter of its Q may still miss the targets (measured: 6e-8 at trace 6790, 9e-10 at 12828 on
     # the same target); then the next path
@@ -199,7 +199,7 @@ def _path_end(setup: EngineSetup, terms: list, target: NDArray, Qn: NDArray | No
     return cand if rec["feasible"] else None
 
 
-def _sdp_at(setup: EngineSetup, cand: _Candidate, Qn: NDArray | None,
+def _sdp_at(setup: EngineSetup, cand: EngineCandidate, Qn: NDArray | None,
             deadline: Deadline) -> FixedGainSolution:
     """The fixed-gain SDP at the gain of the candidate's null vectors: for ``"full"`` / ``"min_trace"``
     first in its complement form (:func:`_complement_form_at`; at n = 40, p = 8 0.6 s where Clarabel
@@ -238,7 +238,7 @@ def _complement_form_at(setup: EngineSetup, fam: FixedGainFamily,
     return (sol, sol.Q, P) if np.all(np.isfinite(P)) and np.all(np.isfinite(fam.L)) else None
 
 
-def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Candidate:
+def _optimize(cand: EngineCandidate, deadline: Deadline, max_rounds: int = 6) -> EngineCandidate:
     """Stage 2: Newton over (V, g) on the feasible manifold, with a rank increase along the
     eigenvector of a negative eigenvalue of the dual slack (:func:`escape_direction`) and Newton
     again, until the dual slack is positive semidefinite (a KKT point of the problem over every
@@ -275,7 +275,7 @@ def _optimize(cand: _Candidate, deadline: Deadline, max_rounds: int = 6) -> _Can
 _AGREE = CLARABEL_MARGIN_FACTOR * CLARABEL_OPTIONS["tol_gap_rel"]
 
 
-def _kkt(cand: _Candidate) -> dict[str, float]:
+def _kkt(cand: EngineCandidate) -> dict[str, float]:
     """The KKT test of the final point over every decision covariance: the smallest eigenvalue of
     the dual slack S relative to ``||S||`` (``>= -1e-9``: S is PSD) and ``||S V|| / (||S|| ||V||)``
     (complementarity).  With S PSD the point is also the global optimum over the Q of its gain (a
@@ -296,8 +296,8 @@ def _kkt(cand: _Candidate) -> dict[str, float]:
     return {"min_eig": me, "complementarity": comp, "passed": bool(me >= -IK_KKT_TOL)}
 
 
-def _certify(setup: EngineSetup, best: _Candidate, Qn: NDArray | None, deadline: Deadline,
-             rounds: int = 3) -> tuple[_Candidate, FixedGainSolution | None, bool]:
+def _certify(setup: EngineSetup, best: EngineCandidate, Qn: NDArray | None, deadline: Deadline,
+             rounds: int = 3) -> tuple[EngineCandidate, FixedGainSolution | None, bool]:
     """Stage 3: the fixed-gain SDP at the candidate's gain; a better SDP point restarts Newton from
     it.  Returns ``(candidate, last SDP solution, agreed)``."""
     sol = None
@@ -305,13 +305,13 @@ def _certify(setup: EngineSetup, best: _Candidate, Qn: NDArray | None, deadline:
         sol = _sdp_at(setup, best, Qn, deadline)
         if not sol.status.is_solved:
             return best, sol, False
-        v, ref = _sdp_value(setup.objective, sol, Qn, setup.structure), best.value
+        v, ref = sdp_value(setup.objective, sol, Qn, setup.structure), best.value
         unit = best.scale ** (2 if setup.objective == "nearest" else 1)
         tol = _AGREE * max(abs(ref), unit)
         if v >= ref - tol:
             return best, sol, bool(v <= ref + tol)
         _, _, g = best.parts()
-        cand = _from_sdp(setup, best.problem.blocks, g, sol, best.scale, Qn, fixed=False)
+        cand = candidate_from_sdp(setup, best.problem.blocks, g, sol, best.scale, Qn, fixed=False)
         if cand is None or deadline.expired:
             return best, sol, False
         cand.kind, cand.iterations = best.kind + " (from the certificate SDP)", best.iterations
@@ -322,7 +322,7 @@ def _certify(setup: EngineSetup, best: _Candidate, Qn: NDArray | None, deadline:
     return best, sol, False
 
 
-def _design(setup: EngineSetup, cand: _Candidate):
+def _design(setup: EngineSetup, cand: EngineCandidate):
     """(L, P, Q, Qw, Wdec) in physical units from a feasible point.
 
     The gain of the null vectors, ``L' = G W^-1``, places the poles to rounding but is accurate only
@@ -348,7 +348,7 @@ def _design(setup: EngineSetup, cand: _Candidate):
     return L, P, Q, Qw, (np.diag(Qdec).copy() if setup.structure == "diagonal" else Qdec)
 
 
-def _design_miss(setup: EngineSetup, cand: _Candidate, target: NDArray, tol: float,
+def _design_miss(setup: EngineSetup, cand: EngineCandidate, target: NDArray, tol: float,
                  resolve: bool = True) -> float:
     """:func:`~optdesign.engines.pole_homotopy.pole_miss` of the candidate's design (above 1: it fails)."""
     L, _, Q, _, _ = _design(setup, cand)
@@ -411,8 +411,8 @@ def solve_inverse_kalman(setup: EngineSetup, poles: ArrayLike, *, Q_nominal: Arr
     tol = as_positive_float("tol", tol)
     starts = as_int("starts", starts, 1)
     seed = as_int("seed", seed, 0)
-    Qn = _nominal(setup, Q_nominal)
-    warm = _warm(setup, warm_start)
+    Qn = nominal_factor(setup, Q_nominal)
+    warm = warm_factor(setup, warm_start)
     common = dict(tol=tol)
     if not np.all(stable_mask(target, plant.is_discrete)):
         where = "inside the unit circle" if plant.is_discrete else "in the open left half-plane"
@@ -592,10 +592,10 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
         return engine_result(setup, target, Status.INFEASIBLE, msg, t0, cpu0, objective=sol.t, **common)
     scale = max(SCALE_FLOOR, float(np.linalg.norm(sol.Wdec)))
     blocks = spectral_blocks(terms, R, setup.Gd, scale)
-    cand = _from_sdp(setup, blocks, g, sol, scale, Qn, fixed=True)
+    cand = candidate_from_sdp(setup, blocks, g, sol, scale, Qn, fixed=True)
     how = "polished on its face"
     if cand is None:   # an inaccurate SDP point: Gauss-Newton and Newton from its PSD part instead
-        cand = _repair(setup, blocks, g, sol, scale, Qn, deadline)
+        cand = repaired_candidate(setup, blocks, g, sol, scale, Qn, deadline)
         how = "not exact on any face; Newton from its PSD part"
     if cand is None:
         msg = "the fixed-gain SDP point fits no face of the PSD cone, and no Newton repair reached one"
@@ -613,14 +613,14 @@ def _one_output_at(setup, target, terms, Qn, deadline, t0, cpu0, tol, fam, g,
            f"{cand.problem.rank}, Newton {cand.history[-1]['reason'] if cand.history else 'not run'}"
            f"{'; KKT certificate' if kkt.get('passed') else ''})")
     return engine_result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
-                   objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=cand.iterations,
+                   objective=physical_objective(setup.objective, Wdec, Qn, Q), iterations=cand.iterations,
                    rank=cand.problem.rank, **common)
 
 
 def _from_starts(setup, target, terms, Qn, starts, seed, warm, deadline,
-                 records: list) -> tuple[_Candidate | None, int]:
+                 records: list) -> tuple[EngineCandidate | None, int]:
     """Stages 1-2 from each start (the rescue starts when none is feasible): ``(best, iterations)``."""
-    best: _Candidate | None = None
+    best: EngineCandidate | None = None
     iterations = 0
     queue = decision_starts(setup, target, Qn, starts, seed, warm, deadline)
     rescue = True
@@ -631,7 +631,7 @@ def _from_starts(setup, target, terms, Qn, starts, seed, warm, deadline,
         tic = time.process_time()
         rec: dict[str, Any] = {"kind": kind}
         records.append(rec)
-        cand = _from_start(setup, terms, W, Qn, deadline, rec)
+        cand = candidate_from_start(setup, terms, W, Qn, deadline, rec)
         rec["feasible"] = cand is not None
         if cand is not None:
             cand.kind = kind
@@ -669,8 +669,8 @@ def _continued(setup, target, terms, Qn, seed, tol, deadline, records: list):
 _PLACING_CHUNK, _PLACING_MAX_ITER, _PLACING_HALVINGS = 2, 60, 4
 
 
-def _descend_placing(setup: EngineSetup, point: _Candidate, target: NDArray, tol: float,
-                     deadline: Deadline) -> _Candidate:
+def _descend_placing(setup: EngineSetup, point: EngineCandidate, target: NDArray, tol: float,
+                     deadline: Deadline) -> EngineCandidate:
     """Newton from a feasible point whose design places the targets, in chunks of
     :data:`_PLACING_CHUNK` iterations at its rank, keeping the last iterate whose design still
     does (:func:`~optdesign.engines.pole_homotopy.pole_miss` at most 1): the objective lowered
@@ -755,6 +755,6 @@ def _several_outputs(setup, target, terms, Qn, starts, seed, warm, deadline, t0,
     msg = (f"{plant.p} outputs: {what} from {len(records)} start(s) (best: {best.kind}; rank "
            f"{best.problem.rank}); {how}")
     return engine_result(setup, target, status, msg, t0, cpu0, design=(L, P, Q, Qw),
-                   objective=_physical_objective(setup.objective, Wdec, Qn, Q), iterations=iterations,
+                   objective=physical_objective(setup.objective, Wdec, Qn, Q), iterations=iterations,
                    rank=best.problem.rank, tol=tol, details=details,
                    native="" if sol is None else sol.native_status)

@@ -21,12 +21,15 @@ from .spectral_newton import find_feasible, project, sqp
 from .tolerances import RANK_EIG_FLOOR, START_REGULARIZATION, WARM_EIG_FLOOR
 
 #: the engine's helpers (module-private names, imported by the engine only)
-__all__ = ["RANK_GAP_RATIO"]
+__all__ = [
+    "RANK_GAP_RATIO", "EngineCandidate", "candidate_from_sdp", "candidate_from_start", "nominal_factor",
+    "physical_objective", "repaired_candidate", "sdp_value", "warm_factor",
+]
 
 #: candidate ranks of an interior-point PSD matrix: eigenvalue gaps of at least this ratio (its
 #: vanishing eigenvalues sit orders below the others, by the barrier's complementarity) ...
 RANK_GAP_RATIO = 100.0
-def _physical_objective(objective: str, Wdec: NDArray, Qn: NDArray | None, Q: NDArray) -> float:
+def physical_objective(objective: str, Wdec: NDArray, Qn: NDArray | None, Q: NDArray) -> float:
     """The reported objective: ``trace(Q)``, ``||Qdec - Q_nominal||_F`` or ``lambda_min(Qdec)``."""
     if objective == "min_trace":
         return float(np.trace(Q))
@@ -36,8 +39,8 @@ def _physical_objective(objective: str, Wdec: NDArray, Qn: NDArray | None, Q: ND
     return float(np.linalg.eigvalsh(0.5 * (W + W.T))[0])
 
 
-def _sdp_value(objective: str, sol: FixedGainSolution, Qn: NDArray | None, structure: str) -> float:
-    """:attr:`_Candidate.value` of a solved SDP (inf for an unsolved one)."""
+def sdp_value(objective: str, sol: FixedGainSolution, Qn: NDArray | None, structure: str) -> float:
+    """:attr:`EngineCandidate.value` of a solved SDP (inf for an unsolved one)."""
     if sol.Q is None or sol.Wdec is None:
         return float("inf")
     if objective == "min_trace":
@@ -69,7 +72,7 @@ def _factor_of(W: NDArray, r: int, diagonal: bool) -> NDArray:
     return U[:, ::-1][:, :r] * np.sqrt(np.maximum(w[::-1][:r], 0.0))
 
 
-def _nominal(setup: EngineSetup, Q_nominal) -> NDArray | None:
+def nominal_factor(setup: EngineSetup, Q_nominal) -> NDArray | None:
     if setup.objective != "nearest":
         return None
     if Q_nominal is None:
@@ -83,7 +86,7 @@ def _nominal(setup: EngineSetup, Q_nominal) -> NDArray | None:
     return check_symmetric("Q_nominal", Qn)
 
 
-def _warm(setup: EngineSetup, warm_start) -> NDArray | None:
+def warm_factor(setup: EngineSetup, warm_start) -> NDArray | None:
     if warm_start is None:
         return None
     k = setup.k
@@ -99,7 +102,7 @@ def _warm(setup: EngineSetup, warm_start) -> NDArray | None:
 
 
 @dataclass
-class _Candidate:
+class EngineCandidate:
     """A feasible point of one start: its factor problem (scaled by ``scale``) and x."""
 
     problem: FactorProblem
@@ -127,8 +130,8 @@ def _start_rank(setup: EngineSetup) -> int:
 
 
 # ============================================================================ stages
-def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None, deadline: Deadline,
-                rec: dict) -> _Candidate | None:
+def candidate_from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None, deadline: Deadline,
+                rec: dict) -> EngineCandidate | None:
     """Stage 1 from the decision covariance W (the problem scaled by ``||W||``):
 
     * SQP from W (a factor of :func:`_start_rank` columns) until nearly feasible, the objective
@@ -152,12 +155,12 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
     def problem(rank: int, lower: bool = False) -> FactorProblem:
         return FactorProblem(blocks, rank, stage, nominal, diagonal, lower=lower)
 
-    def found(prob: FactorProblem, x: NDArray, iterations: int) -> _Candidate:
+    def found(prob: FactorProblem, x: NDArray, iterations: int) -> EngineCandidate:
         if stage != setup.objective:   # the same point in the problem of the margin (t = 0)
             V, _, g = prob.unpack(x)
             prob = FactorProblem(blocks, prob.rank, setup.objective, nominal, diagonal, lower=prob.lower)
             x = prob.pack(V, 0.0, g)
-        return _Candidate(prob, x, scale, iterations=iterations)
+        return EngineCandidate(prob, x, scale, iterations=iterations)
 
     prob = problem(_start_rank(setup))
     V0 = _factor_of(Ws, prob.rank, diagonal)
@@ -187,8 +190,8 @@ def _from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArray | None,
     return found(prob, x, rep.iterations + it + it2) if ok else None
 
 
-def _from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
-              Qn: NDArray | None, fixed: bool) -> _Candidate | None:
+def candidate_from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution,
+                       scale: float, Qn: NDArray | None, fixed: bool) -> EngineCandidate | None:
     """A feasible factor point from an SDP solution at the gain of g: its face read off the
     eigenvalue gaps, projected onto the residuals' zero set (``fixed``: g kept), or None."""
     diagonal = setup.structure == "diagonal"
@@ -203,12 +206,12 @@ def _from_sdp(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: Fixed
                              fixed_g=fixed, g_fixed=g if fixed else None)
         x, ok, _ = project(prob, prob.pack(_factor_of(Wm / scale, r, diagonal), t, g))
         if ok:
-            return _Candidate(prob, x, scale, kind="sdp")
+            return EngineCandidate(prob, x, scale, kind="sdp")
     return None
 
 
-def _repair(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution, scale: float,
-            Qn: NDArray | None, deadline: Deadline) -> _Candidate | None:
+def repaired_candidate(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGainSolution,
+                       scale: float, Qn: NDArray | None, deadline: Deadline) -> EngineCandidate | None:
     """A feasible point at the fixed gain of g from an inaccurate SDP point (eigenvalues of the
     wrong sign, residuals far from rounding): Gauss-Newton with a line search from a factor of its
     PSD part, over the candidate ranks, the largest first; None when none converges."""
@@ -222,7 +225,7 @@ def _repair(setup: EngineSetup, blocks: SpectralBlocks, g: NDArray, sol: FixedGa
         prob, x, ok, _ = find_feasible(prob, prob.pack(_factor_of(W / scale, r, diagonal), 0.0, g),
                                        expired=lambda: deadline.expired)
         if ok:
-            return _Candidate(prob, x, scale, kind="repaired sdp")
+            return EngineCandidate(prob, x, scale, kind="repaired sdp")
     return None
 
 

@@ -55,16 +55,15 @@ from ..model.plant import Plant
 from .inverse_kalman_starts import scipy_kalman
 from .spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
 from .spectral_newton import project
-from .tolerances import NORM_FLOOR, POLE_FLOOR_CAP
+from .tolerances import EPS, HOMOTOPY_MIN_STEP, HOMOTOPY_ROUNDING, NORM_FLOOR, POLE_FLOOR_CAP
 
 __all__ = ["pole_path", "track", "TrackReport", "pole_miss", "HOMOTOPY_FIRST_STEP", "HOMOTOPY_MAX_STEP",
            "HOMOTOPY_MIN_STEP", "HOMOTOPY_MAX_STEPS", "HOMOTOPY_FIRST_PASS"]
 
-#: the first step in t, the largest and the smallest (a path whose step falls below it ends: a
-#: turning point or a singular target on the way)
+#: the first step in t and the largest (the smallest:
+#: :data:`~optdesign.engines.tolerances.HOMOTOPY_MIN_STEP`)
 HOMOTOPY_FIRST_STEP = 0.05
 HOMOTOPY_MAX_STEP = 0.25
-HOMOTOPY_MIN_STEP = 1e-6
 #: corrections per path (accepted or not); measured on the large-noise sweep: the tracks that reach
 #: t = 1 take 16-288 (most under 60), those that do not mostly run into this limit
 HOMOTOPY_MAX_STEPS = 300
@@ -81,7 +80,7 @@ def _quadratic_factors(z: NDArray) -> tuple[NDArray, NDArray]:
     ``s^2 + b s + c`` of the stable, conjugate-closed poles z (continuous time) -- the pairs, and
     the real poles paired in sorted order -- and the lone real pole (empty, or one: the most
     negative) when their number is odd."""
-    tol = 1e3 * np.finfo(float).eps * max(1.0, float(np.max(np.abs(z))))
+    tol = HOMOTOPY_ROUNDING * EPS * max(1.0, float(np.max(np.abs(z))))
     up = z[z.imag > tol]
     re = np.sort(z[np.abs(z.imag) <= tol].real)
     lone = re[:re.size % 2]
@@ -130,7 +129,7 @@ def pole_path(start: NDArray, target: NDArray, discrete: bool = False) -> Callab
     r, c = linear_sum_assignment(np.sum((L0[:, None, :] - L1[None, :, :]) ** 2, axis=2))
     L0, L1 = L0[r], L1[c]
     lone0, lone1 = np.log(-l0), np.log(-l1)
-    rtol = 1e3 * np.finfo(float).eps
+    rtol = HOMOTOPY_ROUNDING * EPS
 
     def at(t: float) -> NDArray[np.complex128]:
         b, cc = np.exp((1.0 - t) * L0 + t * L1).T

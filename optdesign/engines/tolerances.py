@@ -58,6 +58,7 @@ __all__ = [
     # region mode
     "REGION_STAGES", "REGION_FTOL", "MARGIN_RTOL", "DUP_FTOL", "DUP_PTOL", "STENCIL_MIN_SCALE",
     "QUADRATIC_MISFIT_TOL", "CLEARANCE_FLOOR", "INSIDE_FRACTION", "MAP_SERIES", "MAP_INVERSE_CLIP",
+    "HOMOTOPY_MIN_STEP", "HOMOTOPY_ROUNDING",
 ]
 
 #: unit roundoff of float64 (2.2e-16)
@@ -331,6 +332,12 @@ MAP_SERIES = 1e-4
 #: a pole handed to the map's inverse sits at most this fraction of the way to the boundary along its
 #: ray (a pole on the boundary is the fold: the inverse takes the increasing branch just inside)
 MAP_INVERSE_CLIP = 1.0 - 1e-12
+#: the target-pole continuation (engines/pole_homotopy.py, issue 26): a path whose step in t falls
+#: below this ends (a turning point or a singular target on the way)
+HOMOTOPY_MIN_STEP = 1e-6
+#: ... a pole with ``|Im|`` below this many roundings of the poles' scale is real when the poles are
+#: written as real quadratic factors, and the interpolated factors' roots are rounded to that level
+HOMOTOPY_ROUNDING = 1e3
 #: the smallest clearance reported for a region's interior point (a guard against a zero divisor;
 #: far below any region's scale)
 CLEARANCE_FLOOR = 1e-12
