@@ -134,7 +134,7 @@ def candidate_from_start(setup: EngineSetup, terms: list, W: NDArray, Qn: NDArra
                 rec: dict) -> EngineCandidate | None:
     """Stage 1 from the decision covariance W (the problem scaled by ``||W||``):
 
-    * SQP from W (a factor of :func:`_start_rank` columns) until nearly feasible, the objective
+    * SQP from W (a factor of ``_start_rank`` columns) until nearly feasible, the objective
       reduced on the way, then projected onto the feasible set; where it stops short, Gauss-Newton
       from its last point (a restoration phase);
     * failing that, Gauss-Newton with a line search from W itself (a full-rank Cholesky factor)

@@ -196,7 +196,7 @@ def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArra
         Corrections at most.
     t0, h0, steps0 : float, float, int
         Where to resume a path (``V0`` its point at ``t0``; ``start`` its start's poles), its
-        next step and its corrections so far (:attr:`TrackReport.t`, ``h``, ``steps``).
+        next step and its corrections so far (its ``t``, ``h``, ``steps``).
     expired : callable, optional
         Returns True when the caller's time is up.
 
