@@ -184,10 +184,9 @@ class RegionModel:
         self.complex = self.np > 0
         self.ncoord = self.r * (self.nr + 2 * self.np)
         self.size = self.ncoord + n_real + 2 * n_pairs
-        # inner radius: the separation barrier's length
-        self.rho = (interior or interior_of(region))[1]
+        x0, self.rho = interior or interior_of(region)  # rho, the inner radius: the barrier's length
         self._cons = QuadraticConstraints(region, self.rho)
-        self.map = PoleMap(self._cons.coef, (interior or interior_of(region))[0])
+        self.map = PoleMap(self._cons.coef, x0)
         # per-member anchor bases of the free real poles and pairs (set by set_anchor)
         self.anchor_r: NDArray = np.zeros((0, n_real, n, r))
         self.anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
