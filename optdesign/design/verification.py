@@ -104,7 +104,13 @@ from ..classical.riccati import (
     relative_residual,
     sort_poles,
 )
-from ..engines.tolerances import FORWARD_ERROR_TOL, POLE_FLOOR_CAP, RICCATI_RESIDUAL_TOL
+from ..engines.tolerances import (
+    FORWARD_ERROR_TOL,
+    MARGIN_RTOL,
+    POLE_FLOOR_CAP,
+    RICCATI_RESIDUAL_TOL,
+    pole_tolerance,
+)
 from ..errors import OptDesignError, RiccatiError
 from ..model.plant import Plant
 from ..results import Check
@@ -173,8 +179,10 @@ RESIDUAL_TOL = RICCATI_RESIDUAL_TOL
 ESTIMATE_FACTOR = 4.0
 #: relative eigen-residual ``||X Z - Z Lambda||_F / (||X||_F ||Z||_F)`` required of a solver's eigenbasis
 EIG_RESIDUAL_TOL = 1e-8
-#: relative distance outside a pole region accepted (raised to the rounding floor of the poles)
-REGION_TOL = 1e-7
+#: relative distance outside a pole region accepted (raised to the rounding floor of the poles); the
+#: region engine accepts its candidates with the same number
+#: (:data:`~optdesign.engines.tolerances.MARGIN_RTOL`, defined there: an engine cannot import design/)
+REGION_TOL = MARGIN_RTOL
 #: relative excess over a gain or eta bound accepted (the metric is recomputed with numpy)
 BOUND_RTOL = 1e-6
 #: the floor and the cap of :func:`kappa2_agreement_tol`
@@ -188,13 +196,6 @@ def relative_difference(x: NDArray, y: NDArray) -> float:
     """``||x - y|| / max(1, ||y||)`` (0 for equal arrays)."""
     d = float(np.linalg.norm(np.asarray(x) - np.asarray(y)))
     return 0.0 if d == 0 else d / max(1.0, float(np.linalg.norm(y)))
-
-
-def pole_tolerance(F: NDArray, tol: float) -> float:
-    """``max(tol, min(floor, POLE_FLOOR_CAP))`` with ``floor`` the rounding floor of the eigenvalues
-    of F: no gain can be verified to better than its poles can be computed; the cap keeps the check
-    meaningful for (nearly) defective poles."""
-    return max(float(tol), min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP))
 
 
 def pole_check(F: NDArray, target: NDArray, tol: float, *, name: str = "pole_error",

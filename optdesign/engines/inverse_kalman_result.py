@@ -16,14 +16,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..analysis.metrics import eigenvalue_rounding_floor
 from ..backends.clarabel_fixed_gain import FixedGainSolution
 from ..classical.placement import pole_error
 from ..classical.riccati import filter_are_error, filter_are_residual
 from ..results import Check, DesignResult, SolverStats, Verification
 from .inverse_kalman_setup import EngineSetup
 from .inverse_kalman_starts import scipy_kalman
-from .tolerances import FORWARD_ERROR_TOL, POLE_FLOOR_CAP, RICCATI_RESIDUAL_TOL, rounding_level
+from .tolerances import (
+    FORWARD_ERROR_TOL,
+    POLE_FLOOR_CAP,
+    RICCATI_RESIDUAL_TOL,
+    pole_tolerance,
+    rounding_level,
+)
 
 __all__ = ["EngineResult", "verify_engine_design", "engine_result", "sdp_record", "POLE_FLOOR_CAP",
            "RICCATI_RESIDUAL_TOL", "FORWARD_ERROR_TOL", "ROUNDING_FACTOR"]
@@ -93,8 +98,7 @@ def verify_engine_design(setup: EngineSetup, target: NDArray, L: NDArray, P: NDA
     A, C, R = plant.A, plant.C, np.asarray(plant.R, dtype=float)
     n = plant.n
     F = A - L @ C
-    floor = min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP)
-    ptol = max(tol, floor)
+    ptol = pole_tolerance(F, tol)
     poles = np.linalg.eigvals(F)
     rnd = rounding_level(n, 1.0, ROUNDING_FACTOR)
     err = filter_are_error(plant.replace(G=None, Q=None), P, Qs=Q)
@@ -137,7 +141,7 @@ def verify_engine_design(setup: EngineSetup, target: NDArray, L: NDArray, P: NDA
                                 "explain, plus the rounding of L itself, 10 n eps kappa(eigenvectors of "
                                 "A - L C))"))
     checks.append(Check.at_most("are_resolve_poles", pole_error(pa, target),
-                                max(tol, min(eigenvalue_rounding_floor(A - La @ C), POLE_FLOOR_CAP)),
+                                pole_tolerance(A - La @ C, tol),
                                 "poles of that re-solve vs the targets"))
     return Verification.of(checks)
 

@@ -48,14 +48,13 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 
-from ..analysis.metrics import eigenvalue_rounding_floor
 from ..classical.placement import pole_error
 from ..formulate.inverse_kalman import spectral_terms
 from ..model.plant import Plant
 from .inverse_kalman_starts import scipy_kalman
 from .spectral_factor import FactorProblem, initial_null_vectors, spectral_blocks
 from .spectral_newton import project
-from .tolerances import EPS, HOMOTOPY_MIN_STEP, HOMOTOPY_ROUNDING, NORM_FLOOR, POLE_FLOOR_CAP
+from .tolerances import EPS, HOMOTOPY_MIN_STEP, HOMOTOPY_ROUNDING, NORM_FLOOR, pole_tolerance
 
 __all__ = ["pole_path", "track", "TrackReport", "pole_miss", "HOMOTOPY_FIRST_STEP", "HOMOTOPY_MAX_STEP",
            "HOMOTOPY_MIN_STEP", "HOMOTOPY_MAX_STEPS", "HOMOTOPY_FIRST_PASS"]
@@ -239,8 +238,8 @@ def track(plant: Plant, Gd: NDArray, V0: NDArray, start: NDArray, target: NDArra
 def pole_miss(plant: Plant, L: NDArray, Q: NDArray, target: NDArray, tol: float,
               resolve: bool = True) -> float:
     """How far a design misses the targets, in units of the verification's pole tolerance
-    (``max(tol, rounding floor)``, as :func:`~optdesign.engines.inverse_kalman_result.verify_engine_design`
-    sets it): the larger of the miss of ``eig(A - L C)`` and (``resolve``) of scipy's Kalman filter
+    (:func:`~optdesign.engines.tolerances.pole_tolerance`, as
+    :func:`~optdesign.engines.inverse_kalman_result.verify_engine_design` sets it): the larger of the miss of ``eig(A - L C)`` and (``resolve``) of scipy's Kalman filter
     of Q -- above 1 the design fails that check; inf without a stabilizing Kalman filter or with
     non-finite values.  The rounding floor is computed only for a miss above ``tol`` (it only
     raises the tolerance): 0.04 ms for ``eig(A - L C)`` within ``tol`` at n = 12, 2 ms for the
@@ -270,5 +269,5 @@ def pole_miss(plant: Plant, L: NDArray, Q: NDArray, target: NDArray, tol: float,
         F = plant.A - K @ plant.C
         err = pole_error(np.linalg.eigvals(F), target)
         if err > tol:
-            out = max(out, err / max(tol, min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP)))
+            out = max(out, err / pole_tolerance(F, tol))
     return out

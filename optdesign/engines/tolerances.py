@@ -31,6 +31,7 @@ A. S. Lewis and M. L. Overton, Math. Program. 141 (2013) 135-163 (BFGS on nonsmo
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
 __all__ = [
     "EPS", "NORM_FLOOR", "rounding_level",
@@ -54,7 +55,7 @@ __all__ = [
     # inverse Kalman engine
     "RANK_EIG_FLOOR", "START_REGULARIZATION", "ESCAPE_STEP", "ESCAPE_NORM_FLOOR", "WARM_EIG_FLOOR",
     "IK_KKT_TOL", "CLARABEL_MARGIN_FACTOR", "INVERSE_KALMAN_POLE_TOL", "FIRST_TRY_TOL", "RICCATI_RESIDUAL_TOL",
-    "FORWARD_ERROR_TOL", "POLE_FLOOR_CAP", "NOMINAL_EIG_FLOOR",
+    "FORWARD_ERROR_TOL", "POLE_FLOOR_CAP", "pole_tolerance", "NOMINAL_EIG_FLOOR",
     # region mode
     "REGION_STAGES", "REGION_FTOL", "MARGIN_RTOL", "DUP_FTOL", "DUP_PTOL", "STENCIL_MIN_SCALE",
     "QUADRATIC_MISFIT_TOL", "CLEARANCE_FLOOR", "INSIDE_FRACTION", "MAP_SERIES", "MAP_INVERSE_CLIP",
@@ -68,6 +69,16 @@ EPS = float(np.finfo(float).eps)
 #: an all-zero matrix, far below any data scale (float64 reaches 2.2e-308), so it never changes a
 #: ratio of nonzero data
 NORM_FLOOR = 1e-300
+
+
+def pole_tolerance(F: NDArray, tol: float) -> float:
+    """``max(tol, min(floor, POLE_FLOOR_CAP))`` with ``floor`` the rounding floor of the eigenvalues
+    of F (:func:`~optdesign.analysis.metrics.eigenvalue_rounding_floor`): no gain can be verified to
+    better than its poles can be computed; the cap keeps the check meaningful for (nearly) defective
+    poles.  The one rule of the engines and of :mod:`optdesign.design.verification` (which re-exports it)."""
+    from ..analysis.metrics import eigenvalue_rounding_floor
+
+    return max(float(tol), min(eigenvalue_rounding_floor(F), POLE_FLOOR_CAP))
 
 
 def rounding_level(size: int, scale: float, factor: float = 1.0) -> float:
