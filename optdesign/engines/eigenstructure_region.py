@@ -187,6 +187,20 @@ class RegionModel:
         x0, self.rho = interior or interior_of(region)  # rho, the inner radius: the barrier's length
         self._cons = QuadraticConstraints(region, self.rho)
         self.map = PoleMap(self._cons.coef, x0)
+        # the separation barrier's pairs of pole slots (i < j, at least one free) and their incidence
+        free = np.zeros(n, dtype=bool)
+        free[:n_real] = True
+        free[self.nr : self.nr + 2 * n_pairs] = True
+        bi, bj = np.triu_indices(n, 1)
+        keep = free[bi] | free[bj]
+        self._bi, self._bj = bi[keep], bj[keep]
+        self._incidence = np.zeros((self._bi.size, n))
+        self._incidence[np.arange(self._bi.size), self._bi] = 1.0
+        self._incidence[np.arange(self._bi.size), self._bj] = -1.0
+        self._slots = np.empty(n, dtype=complex)  # the pinned poles in their slots (free ones: set per call)
+        self._slots[n_real : self.nr] = pin_real
+        self._slots[self.nr + 2 * n_pairs :: 2] = pin_up
+        self._slots[self.nr + 2 * n_pairs + 1 :: 2] = pin_up.conj()
         # per-member anchor bases of the free real poles and pairs (set by set_anchor)
         self.anchor_r: NDArray = np.zeros((0, n_real, n, r))
         self.anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
@@ -197,7 +211,7 @@ class RegionModel:
         """``(coords (s, ncoord), lambda_real (s, nrf), sigma (s, npf), omega (s, npf))``: the
         poles' values (through the :class:`~optdesign.engines.region_map.PoleMap`)."""
         c, t, a, b = self._raw_split(X)
-        return c, self.map.real(t)[0], *self.map.pair(a, b)[:2]
+        return c, self.map.real(t)[0] if self.nrf else t, *(self.map.pair(a, b)[:2] if self.npf else (a, b))
 
     def _raw_split(self, X: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
         """``(coords, real-pole variables, pair variables a, b)``: the columns of ``X``."""
@@ -307,8 +321,8 @@ class RegionModel:
                 self.anchor_r, self.anchor_p = keep
         R = self.r
         c, t, a, b = self._raw_split(X)
-        lr, dlr = self.map.real(t)
-        sg, om, *jac = self.map.pair(a, b)
+        lr, dlr = self.map.real(t) if self.nrf else (t, t)
+        sg, om, *jac = self.map.pair(a, b) if self.npf else (a,) * 6
         f = np.full(s, math.inf)
         G = np.zeros_like(X)
         # every point of the map's image is in the region; the barrier keeps the poles apart
@@ -391,25 +405,21 @@ class RegionModel:
         alignment condition ``N^H Na`` Hermitian: ``S Omega + Omega S = T^H Na - Na^H T``,
         ``S = N^H Na`` (a Lyapunov equation, solved in the eigenbasis of ``S``).
         """
-        Z = self.engine.Z
-        Y = np.einsum("nk,smnr->smkr", Z, N)  # Z^T N
+        Y = self.engine.Z.T @ N  # Z^T N (broadcast over members and slots)
         T1 = Q1.conj() @ np.linalg.solve(np.swapaxes(R1, -1, -2), Y)  # (M^+)^T Z^T N
-        Nh = np.swapaxes(N.conj(), -1, -2)
-        S = Nh @ Na
+        S = np.swapaxes(N.conj(), -1, -2) @ Na
         S = 0.5 * (S + np.swapaxes(S.conj(), -1, -2))
         e, E = np.linalg.eigh(S)
         Eh = np.swapaxes(E.conj(), -1, -2)
+        # B(tau) = (tau T1)^H Na - Na^H (tau T1) = conj(tau) P - tau P^H with P = T1^H Na
+        P = np.swapaxes(T1.conj(), -1, -2) @ Na
+        Ph = np.swapaxes(P.conj(), -1, -2)
+        B = np.stack([np.conj(tau) * P - tau * Ph for tau in directions])
+        Om = E @ ((Eh @ B @ E) / (e[..., :, None] + e[..., None, :])) @ Eh
         z = np.einsum("smnr,smn->smr", N.conj(), Kj)  # N^H K_j^T
-        Nah = np.swapaxes(Na.conj(), -1, -2)
-        out = []
-        for tau in directions:
-            T = tau * T1
-            B = np.swapaxes(T.conj(), -1, -2) @ Na - Nah @ T
-            Om = E @ ((Eh @ B @ E) / (e[..., :, None] + e[..., None, :])) @ Eh
-            h = np.einsum("smn,smn->sm", Kj.conj(), np.einsum("smnr,smr->smn", T, c))
-            v = np.einsum("smr,smr->sm", z.conj(), np.einsum("smab,smb->sma", Om, c))
-            out.append(np.real(h + v))
-        return out
+        v = np.einsum("smr,dsmr->dsm", z.conj(), (Om @ c[..., None])[..., 0])
+        h = np.einsum("smn,smn->sm", Kj.conj(), (T1 @ c[..., None])[..., 0])  # linear in tau
+        return [np.real(tau * h + v[i]) for i, tau in enumerate(directions)]
 
     def _separation_barrier(self, lr: NDArray, sg: NDArray, om: NDArray, mu: float
                             ) -> tuple[NDArray, NDArray, NDArray]:
@@ -424,27 +434,18 @@ class RegionModel:
         barrier did.
         """
         s = lr.shape[0]
+        P = np.broadcast_to(self._slots, (s, self._slots.size)).copy()
+        P[:, : self.nrf] = lr
         up = sg + 1j * om
-        n = self.engine.n
-        P = np.empty((s, n), dtype=complex)
-        P[:, : self.nr] = np.concatenate([lr, np.broadcast_to(self.pin_real, (s, self.pin_real.size))],
-                                         axis=1)
-        allup = np.concatenate([up, np.broadcast_to(self.pin_up, (s, self.pin_up.size))], axis=1)
-        P[:, self.nr :: 2] = allup
-        P[:, self.nr + 1 :: 2] = allup.conj()
-        free = np.zeros(n, dtype=bool)
-        free[: self.nrf] = True
-        free[self.nr : self.nr + 2 * self.npf] = True
-        mask = (free[:, None] | free[None, :]) & ~np.eye(n, dtype=bool)
-        D = P[:, :, None] - P[:, None, :]
-        d2 = (D.real**2 + D.imag**2)[:, mask]
+        P[:, self.nr : self.nr + 2 * self.npf : 2] = up
+        P[:, self.nr + 1 : self.nr + 2 * self.npf : 2] = up.conj()
+        D = P[:, self._bi] - P[:, self._bj]  # each unordered pair once
+        d2 = D.real**2 + D.imag**2
         inside = np.all(d2 > 0, axis=1)
         d2 = np.where(d2 > 0, d2, self.rho**2)
-        val = -0.25 * mu * np.log(d2 / self.rho**2).sum(axis=1)  # ordered pairs: each counted twice
-        ad = D.real**2 + D.imag**2
-        ok = mask & (ad > 0)
-        g = -mu * (np.where(ok, D, 0.0) / np.where(ok, ad, 1.0)).sum(axis=2)  # (d/dRe + j d/dIm) per pole
-        grad = np.zeros((s, self.nrf + 2 * self.npf))
+        val = -0.5 * mu * np.log(d2 / self.rho**2).sum(axis=1)
+        g = (-mu * D / d2) @ self._incidence  # (d/dRe + j d/dIm) per pole
+        grad = np.empty((s, self.nrf + 2 * self.npf))
         grad[:, : self.nrf] = g[:, : self.nrf].real
         gu, gl = g[:, self.nr : self.nr + 2 * self.npf : 2], g[:, self.nr + 1 : self.nr + 2 * self.npf : 2]
         grad[:, self.nrf : self.nrf + self.npf] = (gu + gl).real
