@@ -239,15 +239,14 @@ class RegionModel:
         return np.concatenate([coords, self.map.real_inverse(lr), *self.map.pair_inverse(up)])
 
     # ------------------------------------------------------------------ bases
-    def _raw_bases(self, lam: NDArray) -> tuple[NDArray, NDArray, NDArray]:
-        """``(N, Q1, R1)`` for a stack of poles (any shape ``(...,)``): orthonormal bases of
-        ``S(lambda)`` (``(..., n, r)``) and the thin QR ``(A - lambda I) Z = Q1 R1``."""
+    def _raw_bases(self, lam: NDArray) -> NDArray:
+        """Orthonormal bases ``(..., n, r)`` of ``S(lambda)`` for a stack of poles (any shape ``(...,)``):
+        the last ``r`` columns of the complete QR of ``(A - lambda I) Z``, conjugated (the first anchors)."""
         eng = self.engine
         n, r = eng.n, eng.rank
         lam = np.asarray(lam)
-        M = eng.A @ eng.Z - lam[..., None, None] * eng.Z  # (..., n, n - r)
-        Q, R = np.linalg.qr(M, mode="complete")
-        return Q[..., :, n - r :].conj(), Q[..., :, : n - r], R[..., : n - r, :]
+        Q = np.linalg.qr(eng.A @ eng.Z - lam[..., None, None] * eng.Z, mode="complete")[0]
+        return Q[..., :, n - r :].conj()
 
     @property
     def pinned(self) -> NDArray[np.complex128]:
@@ -259,8 +258,8 @@ class RegionModel:
         (aligned) bases, so that the coordinates keep their meaning; the raw bases the first time."""
         if not self._anchored:
             _, lr, sg, om = self.split(X)
-            self.anchor_r = self._raw_bases(lr)[0].real if self.nrf else np.zeros((X.shape[0], 0, 1, 1))
-            self.anchor_p = self._raw_bases(sg + 1j * om)[0] if self.npf else np.zeros((X.shape[0], 0, 1, 1))
+            self.anchor_r = self._raw_bases(lr).real if self.nrf else np.zeros((X.shape[0], 0, 1, 1))
+            self.anchor_p = self._raw_bases(sg + 1j * om) if self.npf else np.zeros((X.shape[0], 0, 1, 1))
             self._anchored = True
             return
         m = self._members(X)
@@ -269,12 +268,24 @@ class RegionModel:
         if self.npf:
             self.anchor_p = m["Bp"][:, : self.npf, :, : self.engine.rank].copy()
 
-    def _aligned(self, N: NDArray, anchor: NDArray) -> tuple[NDArray, NDArray]:
-        """``N U`` with ``U`` the polar factor of ``N^H anchor`` (the closest basis to the anchor), and
-        the smallest singular value of ``N^H anchor`` per member (the subspace overlap)."""
-        P = np.swapaxes(N.conj(), -1, -2) @ anchor
-        u, s, vh = np.linalg.svd(P)
-        return N @ (u @ vh), s.min(axis=-1).min(axis=-1)
+    def _aligned(self, lam: NDArray, anchor: NDArray) -> tuple[NDArray, ...]:
+        """The basis of ``S(lambda)`` closest to the anchor, ``N = P Na (Na^H P Na)^(-1/2)`` (``P`` the
+        orthogonal projector onto ``S``: the polar factor of ``N_any^H Na`` applied to any orthonormal
+        basis gives the same), from the thin QR ``(A - lambda I) Z = Q1 R1`` (``S`` in column form is
+        the complement of ``conj(Q1)``).  Returns ``(N, overlap, Q1, R1, e, E)``: the overlap is the
+        smallest singular value of ``N^H Na`` (``sqrt`` of the smallest eigenvalue of ``Na^H P Na``),
+        and ``N^H Na = E diag(e) E^H`` (Hermitian: the alignment condition) for the pole derivative.
+        """
+        eng = self.engine
+        M = eng.A @ eng.Z - lam[..., None, None] * eng.Z  # (..., n, n - r)
+        Q1, R1 = np.linalg.qr(M)
+        Qc = Q1.conj()
+        X = anchor - Qc @ (np.swapaxes(Q1, -1, -2) @ anchor)  # P Na
+        mu, E = np.linalg.eigh(np.swapaxes(X.conj(), -1, -2) @ X)
+        e = np.sqrt(np.maximum(mu, 0.0))
+        Eh = np.swapaxes(E.conj(), -1, -2)
+        N = X @ (E / np.where(e > 0, e, np.inf)[..., None, :]) @ Eh
+        return N, e[..., 0].min(axis=-1), Q1, R1, e, E
 
     def _members(self, X: NDArray, parts: tuple | None = None) -> dict[str, NDArray]:
         """Aligned bases (padded to ``r``), ``W``, the QR factors of the free poles and feasibility
@@ -288,13 +299,11 @@ class RegionModel:
         Br = np.zeros((s, self.nr, n, R))
         Bp = np.zeros((s, self.np, n, R), dtype=complex)
         if self.nrf:
-            N, out["Q1r"], out["R1r"] = self._raw_bases(lr)
-            N, ov = self._aligned(N.real, self.anchor_r)
+            N, ov, out["Q1r"], out["R1r"], out["er"], out["Er"] = self._aligned(lr, self.anchor_r)
             Br[:, : self.nrf, :, :r] = N
             ok &= ov > _MIN_OVERLAP
         if self.npf:
-            N, out["Q1p"], out["R1p"] = self._raw_bases(sg + 1j * om)
-            N, ov = self._aligned(N, self.anchor_p)
+            N, ov, out["Q1p"], out["R1p"], out["ep"], out["Ep"] = self._aligned(sg + 1j * om, self.anchor_p)
             Bp[:, : self.npf, :, :r] = N
             ok &= ov > _MIN_OVERLAP
         Br[:, self.nrf :] = self.Npr[None]
@@ -355,7 +364,7 @@ class RegionModel:
         if self.nrf:
             N, Na = Br[:, : self.nrf, :, :r], self.anchor_r[idx]
             cj = X[idx, : R * self.nr].reshape(idx.size, self.nr, R)[:, : self.nrf, :r]
-            (d1,) = self._pole_derivative(N, Na, m["Q1r"][idx].real, m["R1r"][idx].real,
+            (d1,) = self._pole_derivative(N, Na, m["Q1r"][idx], m["R1r"][idx], m["er"][idx], m["Er"][idx],
                                           K[:, : self.nrf], cj, (1.0,))
             G[idx, k0 : k0 + self.nrf] = d1
         if self.npf:
@@ -363,7 +372,8 @@ class RegionModel:
             N, Na = Bp[:, : self.npf, :, :r], self.anchor_p[idx]
             cc = X[idx, R * self.nr : k2] + 1j * X[idx, k2 : self.ncoord]
             cj = cc.reshape(idx.size, self.np, R)[:, : self.npf, :r]
-            ds, dw = self._pole_derivative(N, Na, m["Q1p"][idx], m["R1p"][idx], K[:, rows], cj, (1.0, 1j))
+            ds, dw = self._pole_derivative(N, Na, m["Q1p"][idx], m["R1p"][idx], m["ep"][idx], m["Ep"][idx],
+                                           K[:, rows], cj, (1.0, 1j))
             G[idx, k0 + self.nrf : k0 + self.nrf + self.npf] = 2.0 * ds
             G[idx, k0 + self.nrf + self.npf :] = 2.0 * dw
         G[idx, k0:] += gbar[idx]
@@ -395,7 +405,7 @@ class RegionModel:
         assert K is not None  # a gradient was asked for
         return f, K
 
-    def _pole_derivative(self, N, Na, Q1, R1, Kj, c, directions) -> list[NDArray]:
+    def _pole_derivative(self, N, Na, Q1, R1, e, E, Kj, c, directions) -> list[NDArray]:
         """``Re sum_k conj(K_jk) dw_jk`` per unit change of each pole along ``directions`` (1: the real
         part, 1j: the imaginary part), stacked over members and slots.
 
@@ -403,13 +413,11 @@ class RegionModel:
         the transport ``T = (M^+)^T Z^T N dlambda`` (``M = (A - lambda I) Z = Q1 R1``, the part
         normal to the subspace, basis-independent) and a rotation within the subspace fixed by the
         alignment condition ``N^H Na`` Hermitian: ``S Omega + Omega S = T^H Na - Na^H T``,
-        ``S = N^H Na`` (a Lyapunov equation, solved in the eigenbasis of ``S``).
+        ``S = N^H Na = E diag(e) E^H`` (a Lyapunov equation, solved in the eigenbasis of ``S``, which
+        :meth:`_aligned` returns).
         """
         Y = self.engine.Z.T @ N  # Z^T N (broadcast over members and slots)
         T1 = Q1.conj() @ np.linalg.solve(np.swapaxes(R1, -1, -2), Y)  # (M^+)^T Z^T N
-        S = np.swapaxes(N.conj(), -1, -2) @ Na
-        S = 0.5 * (S + np.swapaxes(S.conj(), -1, -2))
-        e, E = np.linalg.eigh(S)
         Eh = np.swapaxes(E.conj(), -1, -2)
         # B(tau) = (tau T1)^H Na - Na^H (tau T1) = conj(tau) P - tau P^H with P = T1^H Na
         P = np.swapaxes(T1.conj(), -1, -2) @ Na
