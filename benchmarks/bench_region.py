@@ -36,9 +36,10 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the barrier engine), made as the base: ``git archive a924a43``
-PREV_COMMIT = "a924a43"
-PREV_DIR = "/tmp/region-prev-a924a43"
+#: the commit before this round's change (the pole-map engine of the previous stop), made as the base:
+#: ``git archive 3d2df90``
+PREV_COMMIT = "3d2df90"
+PREV_DIR = "/tmp/region-prev-3d2df90"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
