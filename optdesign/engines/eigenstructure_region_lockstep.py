@@ -38,6 +38,7 @@ from .eigenstructure_region import (
     interior_of,
 )
 from .quasi_newton import bfgs_minimize_batch
+from .region_eta import ETA_STAGES, ETA_WARM_STAGES
 from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL
 
 __all__ = ["run_lockstep"]
@@ -178,7 +179,9 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
         model.anchor_r, model.anchor_p = np.concatenate(ar), np.concatenate(ap)
         batch.append((model, np.concatenate(rows)))
     stages = REGION_WARM_STAGES if warm else REGION_STAGES
-    if objective != "kappa2":
+    if objective == "eta":  # the gap's soft-min continuation (region_eta)
+        stages = ETA_WARM_STAGES if warm else ETA_STAGES
+    elif objective != "kappa2":
         stages = ((None, REGION_STAGES[-1][1]),)
     res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
     share = (time.process_time() - t0) / max(1, len(live))

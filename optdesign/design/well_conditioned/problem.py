@@ -494,7 +494,7 @@ class WellConditionedProblem:
         region = self._check_region_mode(region, bounds)
         if chosen is not None:
             n_starts = chosen
-        elif self.route != "multistart" and not self._needs_nlp(bounds) and self.objective != "eta":
+        elif self.route != "multistart" and not self._needs_nlp(bounds):
             n_starts = AUTO_REGION_STARTS
         else:
             n_starts = DEFAULT_STARTS
@@ -615,7 +615,7 @@ class WellConditionedProblem:
         for i, warm in enumerate(warms):
             Pw = np.linalg.eigvals(plant.A - warm @ plant.C)
             warm_specs.append((warm_start_origin(i), warm, PoleStructure.of(Pw, tol=1e-6), Pw, True))
-        engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro")
+        engine_ok = not self._needs_nlp(bounds) and objective in ("kappa2", "kappa_fro", "eta")
         use_eng, n_eng, use_nlp, n_nlp, polish, eng_polish = self._region_plan(engine_ok, n_starts)
         # the engine optimizes from the placements anyway: one YT sweep at sampled poles (issue 28,
         # measured: scipy's default 30-100 sweeps were 20-30 % of a small plant's region design)
