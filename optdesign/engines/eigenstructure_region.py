@@ -322,7 +322,7 @@ class RegionModel:
         if not idx.size:
             return f, G
         W, Br, Bp = m["W"][idx], m["Br"][idx], m["Bp"][idx]
-        gp = 0.0  # eta: its explicit derivative in the poles (region_eta)
+        gp: NDArray | float = 0.0  # eta: its explicit derivative in the poles (region_eta)
         try:
             if objective == "eta":
                 fs, Kg, gp = eta_terms(self, W, lr[idx], sg[idx], om[idx], k)

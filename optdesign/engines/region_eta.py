@@ -95,7 +95,7 @@ def soft_gap2(P: NDArray, k: int | None) -> tuple[NDArray[np.float64], NDArray[n
         g = dmin.copy()
     else:
         w = r**k  # underflows to 0 far from the minimum: harmless
-        g = dmin * w.sum(axis=1) ** (-1.0 / k)
+        g = dmin * np.where(pos, w.sum(axis=1), 1.0) ** (-1.0 / k)
     w = w / np.where(pos, w.sum(axis=1), 1.0)[:, None]
     # dg = g sum w_ij dd_ij / d_ij, dd_ij = 2 Re(conj(D_ij) (dP_i - dP_j))
     t = 2.0 * (g[:, None] * w / np.where(d > 0, d, 1.0)) * D

@@ -659,7 +659,7 @@ class WellConditionedProblem:
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
                 kind = "fallback" if fallback else "backend"
-                detail = _nlp_detail(not fallback, self.mask, bounds, objective == "eta")
+                detail = _nlp_detail(not fallback, self.mask, bounds)
                 if use_eng and not fallback:
                     detail = f"{len(more_r)} start{'s' if len(more_r) != 1 else ''}, beside the engine's"
                 elif not use_eng and engine_ok:
@@ -755,12 +755,11 @@ def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
     return not deadline.expired or not any(np.all(np.isfinite(e[4].L)) for e in evaluated)
 
 
-def _nlp_detail(asked: bool, mask: NDArray | None, bounds: dict[str, float | None], eta: bool = False) -> str:
+def _nlp_detail(asked: bool, mask: NDArray | None, bounds: dict[str, float | None]) -> str:
     """Why the NLP ran: the constraints the engine does not take, or a fallback."""
     if not asked:
         return "fallback: no engine design verified"
     why = [k for k, v in bounds.items() if v is not None] + (["gain_mask"] if mask is not None else [])
-    why += ["eta in a region"] if eta else []
     return ("for " + ", ".join(why)) if why else "asked (route='nlp')"
 
 
