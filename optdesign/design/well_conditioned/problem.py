@@ -619,7 +619,9 @@ class WellConditionedProblem:
         use_eng, n_eng, use_nlp, n_nlp, polish, eng_polish = self._region_plan(engine_ok, n_starts)
         # the engine optimizes from the placements anyway: one YT sweep at sampled poles (issue 28,
         # measured: scipy's default 30-100 sweeps were 20-30 % of a small plant's region design)
-        specs: Iterable[Any] = self._region_starts(region, n_starts, rng, _ENGINE_SWEEPS if use_eng else None)
+        # (eta: IPOPT runs from every start too, from the placements it would get alone)
+        sweeps = _ENGINE_SWEEPS if use_eng and not (objective == "eta" and use_nlp) else None
+        specs: Iterable[Any] = self._region_starts(region, n_starts, rng, sweeps)
         bound = objective_lower_bound(objective, plant.n)
         records: list[StartRecord] = []
         evaluated: list[Evaluated] = []
@@ -691,6 +693,8 @@ class WellConditionedProblem:
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
+        if mode == "auto" and self.objective == "eta":  # the engine alone was worse on 7 of 50 plants
+            return True, n_starts, True, n_starts, self.region_polish, True
         if mode in ("auto", "engine"):
             return True, n_starts, False, 0, self.region_polish, False
         if mode == "multistart":
