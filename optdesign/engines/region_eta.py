@@ -41,6 +41,7 @@ matrices", Numer. Math. 4 (1962) (the departure from normality).
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING
 
@@ -84,7 +85,7 @@ def soft_gap2(P: NDArray, k: int | None) -> tuple[NDArray[np.float64], NDArray[n
         gradients, a subgradient); 0 where ``g = 0``.
     """
     s, n = P.shape
-    iu, ju = np.triu_indices(n, 1)
+    iu, ju, inc = _pairs(n)
     D = P[:, iu] - P[:, ju]  # (s, m)
     d = D.real**2 + D.imag**2
     dmin = d.min(axis=1) if d.shape[1] else np.full(s, math.inf)
@@ -99,13 +100,23 @@ def soft_gap2(P: NDArray, k: int | None) -> tuple[NDArray[np.float64], NDArray[n
     w = w / np.where(pos, w.sum(axis=1), 1.0)[:, None]
     # dg = g sum w_ij dd_ij / d_ij, dd_ij = 2 Re(conj(D_ij) (dP_i - dP_j))
     t = 2.0 * (g[:, None] * w / np.where(d > 0, d, 1.0)) * D
-    inc = np.zeros((iu.size, n))  # the pairs' incidence: +1 at i, -1 at j
-    inc[np.arange(iu.size), iu] = 1.0
-    inc[np.arange(iu.size), ju] = -1.0
     c = t @ inc
     g = np.where(pos, g, 0.0)
     c[~pos] = 0.0
     return g, c
+
+
+@functools.lru_cache(maxsize=64)
+def _pairs(n: int) -> tuple[NDArray, NDArray, NDArray]:
+    """``(i, j, incidence)`` of the pairs ``i < j`` of ``n`` poles; ``incidence`` (m, n): +1 at ``i``,
+    -1 at ``j`` (read-only: shared between calls)."""
+    iu, ju = np.triu_indices(n, 1)
+    inc = np.zeros((iu.size, n))
+    inc[np.arange(iu.size), iu] = 1.0
+    inc[np.arange(iu.size), ju] = -1.0
+    for a in (iu, ju, inc):
+        a.flags.writeable = False
+    return iu, ju, inc
 
 
 def departure2(W: NDArray, P: NDArray) -> tuple[NDArray, NDArray, NDArray, NDArray]:
