@@ -229,3 +229,19 @@ def test_place_region_objective_error():
     plant = _random_plant(7, 3, 1)
     with pytest.raises(ValidationError, match="must be 'kappa2', 'kappa_fro' or 'eta'; found 'gap'"):
         place_region(plant.A, plant.C, _REGION, objective="gap")
+
+
+def test_fixed_pole_eta_of_coincident_poles_is_inf_without_warning():
+    """Start poles projected onto one boundary point coincide: the fixed-pole model's eta is inf
+    (the start is refused as singular), with no numpy division warning reaching the user."""
+    import warnings
+
+    from optdesign.engines.eigenstructure import EigenstructureEngine, FixedPoleModel
+
+    plant = _random_plant(2, 3, 2)
+    model = FixedPoleModel(EigenstructureEngine(plant.A, plant.C), [-1.0, -1.0, -2.0])
+    x = model.random_coords(np.random.default_rng(0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert model.evaluate(x, "eta")[0] == math.inf
+        assert model.metric(x, "eta") == math.inf
