@@ -8,7 +8,7 @@ eigenvectors) is
     \eta^2 = \frac{\|V \Lambda W\|_F^2 - \sum_j |\lambda_j|^2}{\mathrm{gap}^2},
     \qquad \mathrm{gap} = \min_{i \ne j} |\lambda_i - \lambda_j| .
 
-With fixed poles (:meth:`~optdesign.engines.eigenstructure.FixedPoleModel._eta`) the gap is a
+With fixed poles (``FixedPoleModel._eta`` of :mod:`optdesign.engines.eigenstructure`) the gap is a
 constant; in region mode it moves with the poles and is a nonsmooth minimum.  This module gives the
 smooth surrogate the region engine (:class:`~optdesign.engines.eigenstructure_region.RegionModel`)
 minimizes, stage by stage:
