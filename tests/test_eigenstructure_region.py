@@ -203,8 +203,8 @@ def test_region_errors():
     region = suggested_region(plant)
     with pytest.raises(ValidationError, match="region must be an optdesign.regions.Region"):
         place_region(plant.A, plant.C, "disk")
-    with pytest.raises(ValidationError, match="objective must be 'kappa2' or 'kappa_fro' in region mode"):
-        place_region(plant.A, plant.C, region, objective="eta")
+    with pytest.raises(ValidationError, match="must be 'kappa2', 'kappa_fro' or 'eta'; found 'gap'"):
+        place_region(plant.A, plant.C, region, objective="gap")
     with pytest.raises(ValidationError, match="needs at least one start"):
         place_region(plant.A, plant.C, region, n_samples=0)
     ac4 = problems.load("compleib_ac4").plant  # unobservable mode -0.05

@@ -537,6 +537,8 @@ class FixedPoleModel:
         L = self._gain_from(W, V)
         E = eng.A - L @ eng.C
         g2 = self.gap**2 if math.isfinite(self.gap) else 1.0
+        if g2 == 0.0:  # coincident poles (e.g. start poles projected onto one boundary point): eta = inf
+            return np.full(W.shape[0], math.inf), np.zeros_like(W) if gradient else None
         f = (np.einsum("sij,sij->s", E, E) - self.lam2) / g2
         if not gradient:
             return f, None

@@ -71,6 +71,7 @@ from .eigenstructure import (
     spectral_objective,
 )
 from .eigenstructure_fixed import PlacementOutcome, StartRecord
+from .region_eta import eta_terms
 from .region_map import PoleMap
 from .tolerances import (
     CLEARANCE_FLOOR,
@@ -344,8 +345,12 @@ class RegionModel:
         if not idx.size:
             return f, G
         W, Br, Bp = m["W"][idx], m["Br"][idx], m["Bp"][idx]
+        gp: NDArray | float = 0.0  # eta: its explicit derivative in the poles (region_eta)
         try:
-            fs, Kg = self._objective(W, objective, k)
+            if objective == "eta":
+                fs, Kg, gp = eta_terms(self, W, lr[idx], sg[idx], om[idx], k)
+            else:
+                fs, Kg = self._objective(W, objective, k)
         except np.linalg.LinAlgError:
             fs, Kg = self._each(W, np.arange(idx.size), objective, k)
         assert Kg is not None  # a gradient was asked for
@@ -376,7 +381,7 @@ class RegionModel:
                                            K[:, rows], cj, (1.0, 1j))
             G[idx, k0 + self.nrf : k0 + self.nrf + self.npf] = 2.0 * ds
             G[idx, k0 + self.nrf + self.npf :] = 2.0 * dw
-        G[idx, k0:] += gbar[idx]
+        G[idx, k0:] += gbar[idx] + gp
         # the chain rule through the map
         G[idx, k0 : k0 + self.nrf] *= dlr[idx]
         sa, sb, wa, wb = (j[idx] for j in jac)
@@ -608,7 +613,7 @@ def place_region(
     measure: Measure = "right",
     stop_at: float | None = None,
 ) -> PlacementOutcome:
-    """Observer gain minimizing kappa2 (or kappa_fro) of ``A - L C`` with its poles free in ``region``.
+    """Observer gain minimizing kappa2 (or kappa_fro, eta) of ``A - L C`` with its poles free in ``region``.
 
     Parameters
     ----------
@@ -617,7 +622,9 @@ def place_region(
     region : Region
         Convex, symmetric about the real axis, nonempty interior; it must contain every
         unobservable mode of ``(C, A)``.
-    objective : {"kappa2", "kappa_fro"}
+    objective : {"kappa2", "kappa_fro", "eta"}
+        eta: its gap through a soft minimum whose order grows over the stages
+        (:mod:`~optdesign.engines.region_eta`).
     starts : sequence of RegionStart, optional
         The caller's starts (e.g. scipy YT at the open-loop poles moved into the region, a Kalman
         gain).  Poles outside the region are moved inside (projection, then 5 % toward its
@@ -657,11 +664,8 @@ def place_region(
     t0 = time.process_time()
     if not isinstance(region, Region):
         raise ValidationError(f"region must be an optdesign.regions.Region; found {type(region).__name__}")
-    if objective not in ("kappa2", "kappa_fro"):
-        raise ValidationError(
-            f"objective must be 'kappa2' or 'kappa_fro' in region mode (eta's pole gap is not smooth); "
-            f"found {objective!r}"
-        )
+    if objective not in ("kappa2", "kappa_fro", "eta"):
+        raise ValidationError(f"objective must be 'kappa2', 'kappa_fro' or 'eta'; found {objective!r}")
     if measure not in MEASURES:
         raise ValidationError(f"measure must be one of {MEASURES}; found {measure!r}")
     n_samples = as_int("n_samples", n_samples, 0)

@@ -38,6 +38,7 @@ from .eigenstructure_region import (
     interior_of,
 )
 from .quasi_newton import bfgs_minimize_batch
+from .region_eta import ETA_STAGES, ETA_WARM_STAGES
 from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL
 
 __all__ = ["run_lockstep"]
@@ -186,7 +187,9 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
     # is its exact stage (issue 28: the exact free-pole stage ran to its iteration limit on the larger
     # plants, 20 % of the stages' CPU on COMPleib DIS1)
     stages = REGION_WARM_STAGES if warm else REGION_STAGES[:-1]
-    if objective != "kappa2":
+    if objective == "eta":  # the gap's soft-min continuation (region_eta)
+        stages = ETA_WARM_STAGES if warm else ETA_STAGES
+    elif objective != "kappa2":
         stages = ((None, REGION_STAGES[-1][1]),)
     res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
     share = (time.process_time() - t0) / max(1, len(live))

@@ -1,7 +1,7 @@
 """The NLP route of the well-conditioned designs (CasADi / IPOPT): where the placement engine does
 not handle a constraint (a gain bound ``max_gain``, the trade-off bounds ``kappa2_max`` /
-``eta_max``, eta in a region, structural zeros in a region), or as a fallback when the engine's
-design does not verify.
+``eta_max``, structural zeros in a region), beside the engine (eta in a region), or as a fallback
+when the engine's design does not verify.
 
 Every start runs the NLP's continuation (:mod:`optdesign.formulate.well_conditioned`); every stage's
 candidate is verified independently (:mod:`.evaluation`) and each start keeps its best verified one.

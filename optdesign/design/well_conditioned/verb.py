@@ -164,9 +164,10 @@ def well_conditioned_observer(
     -- better than it by more than 1e-3 on 14 plants, worse on one, by 0.9 %).  ``result.route``
     lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`)
     takes the constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``,
-    eta in a region, structural zeros in a region -- and is the fallback when no engine design
-    verifies.  A kappa2 bound with another objective goes through its own continuation (the orders
-    64, 512, 4096 of the surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
+    structural zeros in a region -- and is the fallback when no engine design verifies; for eta in a
+    region both run from every start (the engine alone was worse on some plants).  A kappa2 bound
+    with another objective goes through its own continuation (the orders 64, 512, 4096 of the
+    surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
     every order guarantees ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.
     The problem is non-convex: the best of ``starts`` local solutions is returned and ``starts`` holds
     every run.
