@@ -130,9 +130,9 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              "(new)", "",
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
-             f"{PREV_COMMIT} (the lockstep region engine with the log barrier).  New: this checkout's "
-             "default (the lockstep engine with the poles mapped onto the region, IPOPT only as the "
-             "fallback).  CPU seconds per design (`time.process_time`, single-threaded BLAS), time limit "
+             f"{PREV_COMMIT} (the lockstep region engine with the poles mapped onto the region, the previous "
+             "stop).  New: this checkout's default (the same engine with a leaner evaluation, a capped "
+             "first stage and the polish as the exact stage; IPOPT only as the fallback).  CPU seconds per design (`time.process_time`, single-threaded BLAS), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]
     _, b = _rows(base)
     _, pv = _rows(prev)

@@ -258,7 +258,7 @@ class WellConditionedProblem:
         every start for bounds and gain masks.  For eta ``"auto"`` runs the engine and IPOPT from every
         start, then the engine from IPOPT's best when it is better (``benchmarks/results/region_eta.md``:
         the engine alone, ``"engine"``, was more than 1e-3 worse than IPOPT on 7 of 50 plants, COMPleib
-        DIS2 0.0606 vs 0.0338, and better on 23, AC7 37.6 vs 263,102).  Measured against the previous default
+        DIS2 0.0606 vs 0.0338, and better on 22, AC7 37.6 vs 263,102).  Measured against the previous default
         (``"multistart"``; issue 28, ``benchmarks/results/region.md``, 50 plants: COMPleib n <= 10 and
         random plants n = 3-10): more than 1e-3 better on 14 (HE5 73.96 vs 74.48, AC7 21.94 vs 22.81,
         UWV 917.6 vs 946.4), worse on one (a random n = 6 plant, +0.9 %); median CPU 1.69 s vs 13.2 s.
