@@ -255,13 +255,11 @@ class WellConditionedProblem:
         kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
         (default ``AUTO_REGION_STARTS`` = 8: the naive poles with YT, the Kalman gain, region samples),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
-        every start for bounds and gain masks.  For eta ``"auto"`` runs the engine and IPOPT from every
-        start, then the engine from IPOPT's best when it is better (``benchmarks/results/region_eta.md``:
-        the engine alone, ``"engine"``, was more than 1e-3 worse than IPOPT on 7 of 50 plants, COMPleib
-        DIS2 0.0606 vs 0.0338, and better on 22, AC7 37.6 vs 263,102).  Measured against the previous default
-        (``"multistart"``; issue 28, ``benchmarks/results/region.md``, 50 plants: COMPleib n <= 10 and
-        random plants n = 3-10): more than 1e-3 better on 14 (HE5 73.96 vs 74.48, AC7 21.94 vs 22.81,
-        UWV 917.6 vs 946.4), worse on one (a random n = 6 plant, +0.9 %); median CPU 1.69 s vs 13.2 s.
+        every start for bounds and gain masks; for eta the engine and IPOPT from every start, then the
+        engine from IPOPT's best (``benchmarks/results/region_eta.md``: the engine alone was more than 1e-3
+        worse than IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, and better on 22, AC7 37.6 vs 263,102).
+        Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
+        more than 1e-3 better on 14, worse on one (a random n = 6 plant, +0.9 %); median CPU 1.22 s vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
         start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
         every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish
@@ -688,13 +686,12 @@ class WellConditionedProblem:
         """``(engine?, engine starts, IPOPT?, IPOPT starts, IPOPT polish, engine polish)`` of a region
         solve (the warm starts run in every phase that runs).
 
-        ``"auto"`` / ``"engine"`` (kappa2 / kappa_fro without bounds or structural zeros): the engine
-        from every start (IPOPT as the fallback); eta, ``"auto"``: the engine and IPOPT from every
-        start, then the engine from IPOPT's best.  ``"fast"``: the engine from every start, IPOPT (light
-        polish, :data:`~.nlp_route.REGION_POLISHES` ``"last"``) from the first ``AUTO_NLP_STARTS`` of
-        them, then the engine from IPOPT's best when it is better than the engine's.  ``"multistart"``:
-        IPOPT from every start, then the engine from the best.  ``"nlp"``, or a question the engine
-        does not take: IPOPT only."""
+        ``"auto"`` / ``"engine"`` (no bounds or structural zeros): the engine from every start (IPOPT as
+        the fallback); eta, ``"auto"``: the engine and IPOPT from every start, then the engine from
+        IPOPT's best.  ``"fast"``: the engine from every start, IPOPT (light polish, ``"last"``) from the
+        first ``AUTO_NLP_STARTS``, then the engine from IPOPT's best when it beats the engine's.
+        ``"multistart"``: IPOPT from every start, then the engine from the best.  ``"nlp"``, or a
+        question the engine does not take: IPOPT only."""
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
