@@ -434,6 +434,30 @@ class RegionModel:
         h = np.einsum("smn,smn->sm", Kj.conj(), (T1 @ c[..., None])[..., 0])  # linear in tau
         return [np.real(tau * h + v[i]) for i, tau in enumerate(directions)]
 
+    def all_poles(self, lr: NDArray, sg: NDArray, om: NDArray) -> NDArray[np.complex128]:
+        """Every pole of each member (s, n) in row order (free reals, pinned reals, free pairs, pinned
+        pairs; a pair's upper member, then its conjugate) from the free poles' values ``lr`` (s, nrf)
+        and ``sg + j om`` (s, npf)."""
+        P = np.broadcast_to(self._slots, (lr.shape[0], self._slots.size)).copy()
+        P[:, : self.nrf] = lr
+        up = sg + 1j * om
+        P[:, self.nr : self.nr + 2 * self.npf : 2] = up
+        P[:, self.nr + 1 : self.nr + 2 * self.npf : 2] = up.conj()
+        return P
+
+    def fold(self, c: NDArray) -> NDArray[np.float64]:
+        """A complex per-pole gradient ``c`` (s, n) (``df = Re sum conj(c_j) dlambda_j``, rows as
+        :meth:`all_poles`) as the derivative w.r.t. the free poles' values (s, nrf + 2 npf): the free
+        reals, then ``sigma`` and ``omega`` of the free pairs (a pair's ``sigma + j omega`` moves both
+        its rows)."""
+        nrf, npf, nr = self.nrf, self.npf, self.nr
+        out = np.empty((c.shape[0], nrf + 2 * npf))
+        out[:, :nrf] = c[:, :nrf].real
+        gu, gl = c[:, nr : nr + 2 * npf : 2], c[:, nr + 1 : nr + 2 * npf : 2]
+        out[:, nrf : nrf + npf] = (gu + gl).real
+        out[:, nrf + npf :] = (gu - gl).imag
+        return out
+
     def _separation_barrier(self, lr: NDArray, sg: NDArray, om: NDArray, mu: float
                             ) -> tuple[NDArray, NDArray, NDArray]:
         """``-mu sum log(|lambda_i - lambda_j| / rho)`` over the pairs of poles of which at least one
@@ -446,23 +470,13 @@ class RegionModel:
         keeps them apart, by ``~mu / |df/dlambda|`` at the end of the continuation, as the region
         barrier did.
         """
-        s = lr.shape[0]
-        P = np.broadcast_to(self._slots, (s, self._slots.size)).copy()
-        P[:, : self.nrf] = lr
-        up = sg + 1j * om
-        P[:, self.nr : self.nr + 2 * self.npf : 2] = up
-        P[:, self.nr + 1 : self.nr + 2 * self.npf : 2] = up.conj()
+        P = self.all_poles(lr, sg, om)
         D = P[:, self._bi] - P[:, self._bj]  # each unordered pair once
         d2 = D.real**2 + D.imag**2
         inside = np.all(d2 > 0, axis=1)
         d2 = np.where(d2 > 0, d2, self.rho**2)
         val = -0.5 * mu * np.log(d2 / self.rho**2).sum(axis=1)
-        g = (-mu * D / d2) @ self._incidence  # (d/dRe + j d/dIm) per pole
-        grad = np.empty((s, self.nrf + 2 * self.npf))
-        grad[:, : self.nrf] = g[:, : self.nrf].real
-        gu, gl = g[:, self.nr : self.nr + 2 * self.npf : 2], g[:, self.nr + 1 : self.nr + 2 * self.npf : 2]
-        grad[:, self.nrf : self.nrf + self.npf] = (gu + gl).real
-        grad[:, self.nrf + self.npf :] = (gu - gl).imag
+        grad = self.fold((-mu * D / d2) @ self._incidence)  # (d/dRe + j d/dIm) per pole, folded
         return np.where(inside, val, math.inf), grad, inside
 
     def fixed(self, x: NDArray, member: int = 0) -> tuple[FixedPoleModel, NDArray[np.float64]]:

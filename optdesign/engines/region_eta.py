@@ -53,7 +53,7 @@ from .tolerances import EPS, REGION_STAGES
 if TYPE_CHECKING:  # the region model imports this module's functions
     from .eigenstructure_region import RegionModel
 
-__all__ = ["ETA_STAGES", "ETA_WARM_STAGES", "soft_gap2", "departure2", "eta_terms", "stacked_poles"]
+__all__ = ["ETA_STAGES", "ETA_WARM_STAGES", "soft_gap2", "departure2", "eta_terms"]
 
 #: ``(gap order k, separation-barrier weight)`` per stage of eta in region mode: the orders of the
 #: kappa2 continuation (the soft minimum of ``m`` squared distances is within ``m^(1/k)`` of the
@@ -182,32 +182,6 @@ def _inverse(W: NDArray) -> tuple[NDArray, NDArray]:
     return V, ok
 
 
-def stacked_poles(model: RegionModel, lr: NDArray, sg: NDArray, om: NDArray) -> NDArray[np.complex128]:
-    """Every pole of each member (s, n) in the region model's row order (free reals, pinned reals, free
-    pairs, pinned pairs; a pair's upper member then its conjugate) from the free poles' values."""
-    s = lr.shape[0]
-    n = model.engine.n
-    P = np.empty((s, n), dtype=complex)
-    P[:, : model.nr] = np.concatenate([lr, np.broadcast_to(model.pin_real, (s, model.pin_real.size))], axis=1)
-    up = np.concatenate([sg + 1j * om, np.broadcast_to(model.pin_up, (s, model.pin_up.size))], axis=1)
-    P[:, model.nr :: 2] = up
-    P[:, model.nr + 1 :: 2] = up.conj()
-    return P
-
-
-def _fold(model: RegionModel, c: NDArray) -> NDArray[np.float64]:
-    """The complex per-pole gradient ``c`` (s, n) as the derivative w.r.t. the free poles' values
-    (s, nrf + 2 npf): the free reals, then ``sigma`` and ``omega`` of the free pairs (a pair's
-    ``sigma + j omega`` moves both its rows)."""
-    nrf, npf, nr = model.nrf, model.npf, model.nr
-    out = np.empty((c.shape[0], nrf + 2 * npf))
-    out[:, :nrf] = c[:, :nrf].real
-    gu, gl = c[:, nr : nr + 2 * npf : 2], c[:, nr + 1 : nr + 2 * npf : 2]
-    out[:, nrf : nrf + npf] = (gu + gl).real
-    out[:, nrf + npf :] = (gu - gl).imag
-    return out
-
-
 def eta_terms(model: RegionModel, W: NDArray, lr: NDArray, sg: NDArray, om: NDArray, k: int | None
               ) -> tuple[NDArray[np.float64], NDArray, NDArray[np.float64]]:
     """``log eta_k^2`` of region-model members, ``K = df/dW`` and the explicit pole derivative.
@@ -235,7 +209,7 @@ def eta_terms(model: RegionModel, W: NDArray, lr: NDArray, sg: NDArray, om: NDAr
         ``df`` per unit change of each free real pole, each free pair's ``sigma``, then its
         ``omega``, at fixed ``W`` (0 where ``f`` is inf).
     """
-    P = stacked_poles(model, lr, sg, om)
+    P = model.all_poles(lr, sg, om)
     nu, Kn, cn, ok = departure2(W, P)
     g, cg = soft_gap2(P, k)
     good = ok & (g > 0) & np.isfinite(nu)
@@ -246,4 +220,4 @@ def eta_terms(model: RegionModel, W: NDArray, lr: NDArray, sg: NDArray, om: NDAr
     c = cn / nus[:, None] - cg / gs[:, None]
     K[~good] = 0.0
     c[~good] = 0.0
-    return f, K, _fold(model, c)
+    return f, K, model.fold(c)
