@@ -186,8 +186,7 @@ class RegionModel:
         self.ncoord = self.r * (self.nr + 2 * self.np)
         self.size = self.ncoord + n_real + 2 * n_pairs
         x0, self.rho = interior or interior_of(region)  # rho, the inner radius: the barrier's length
-        self._cons = QuadraticConstraints(region, self.rho)
-        self.map = PoleMap(self._cons.coef, x0)
+        self.map = PoleMap(QuadraticConstraints(region, self.rho).coef, x0)
         # the separation barrier's pairs of pole slots (i < j, at least one free) and their incidence
         free = np.zeros(n, dtype=bool)
         free[:n_real] = True
@@ -225,12 +224,7 @@ class RegionModel:
     def poles(self, x: NDArray) -> NDArray[np.complex128]:
         """All poles of ``x`` in row order (free reals, pinned reals, free pairs, pinned pairs)."""
         _, lr, sg, om = self.split(np.asarray(x, dtype=float)[None, :])
-        up = np.concatenate([sg[0] + 1j * om[0], self.pin_up])
-        out = np.empty(self.engine.n, dtype=complex)
-        out[: self.nr] = np.concatenate([lr[0], self.pin_real])
-        out[self.nr :: 2] = up
-        out[self.nr + 1 :: 2] = up.conj()
-        return out
+        return self.all_poles(lr, sg, om)[0]
 
     def pack(self, coords: NDArray, poles: NDArray) -> NDArray[np.float64]:
         """The variable vector of coordinates (layout of the fixed model at ``poles``) and poles."""

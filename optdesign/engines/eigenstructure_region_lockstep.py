@@ -290,6 +290,9 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             reasons[i], alive[i] = "infeasible start", False
         todo = todo[~bad]
         ftol = REGION_FTOL.get(k, REGION_FTOL[None])
+        # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
+        its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
+            else _REGION_MAX_ITER
         for _ in range(_MAX_REANCHOR + 1):
             if not todo.size:
                 break
@@ -298,8 +301,6 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
                 return evaluate(Z, _todo[idx], _k, _mu)
 
-            first = si == 0 and objective == "kappa2" and len(stages) > 2  # a cold start's k = 4 stage
-            its_cap = _FIRST_STAGE_MAX_ITER if first else _REGION_MAX_ITER
             res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
                                           pass_index=True, H0=[H[i] for i in todo])
             again = []
@@ -318,7 +319,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         if stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at):
             break  # a global optimum: the later stages cannot improve it
         if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
-            _prune(X, alive.copy(), alive, reasons, evaluate, k, mu)
+            _prune(X, alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
     out = []
     for g in range(len(batch)):
@@ -349,10 +350,10 @@ def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> bo
     return True
 
 
-def _prune(X, among, alive, reasons, evaluate, k, mu) -> None:
-    """Of the running members ``among``, keep the :data:`_KEEP` of lowest value running (the others
+def _prune(X, alive, reasons, evaluate, k, mu) -> None:
+    """Of the running members, keep the :data:`_KEEP` of lowest value running (the others
     ``"pruned"``)."""
-    idx = np.flatnonzero(among)
+    idx = np.flatnonzero(alive)
     if idx.size <= _KEEP:
         return
     f = evaluate(X[idx], idx, k, mu)[0]

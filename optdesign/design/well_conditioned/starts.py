@@ -66,8 +66,8 @@ def placement_start(plant: Plant, poles: NDArray, method: str, maxiter: int | No
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            L = (place_observer(plant, poles, method=method) if maxiter is None
-                 else place_observer(plant, poles, method=method, maxiter=maxiter))
+            sweeps = {} if maxiter is None else {"maxiter": maxiter}
+            L = place_observer(plant, poles, method=method, **sweeps)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(L)):

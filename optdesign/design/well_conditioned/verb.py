@@ -159,7 +159,7 @@ def well_conditioned_observer(
 
     In a region (kappa2 / kappa_fro without bounds or structural zeros) the engine runs from eight
     starts in lockstep, IPOPT only as the fallback when no engine design verifies (issue 28: on the
-    50 plants n <= 10 of ``benchmarks/results/region.md`` median CPU 1.69 s against 13.2 s for the
+    50 plants n <= 10 of ``benchmarks/results/region.md`` median CPU 1.22 s against 13.2 s for the
     previous default -- IPOPT from every start, now ``WellConditionedProblem(route="multistart")``
     -- better than it by more than 1e-3 on 14 plants, worse on one, by 0.9 %).  ``result.route``
     lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`)
