@@ -66,12 +66,9 @@ from .eigenstructure import (
     EigenstructureEngine,
     FixedPoleModel,
     Measure,
-    left_spectral_objective,
     padded_bases,
-    spectral_objective,
 )
 from .eigenstructure_fixed import PlacementOutcome, StartRecord
-from .region_eta import eta_terms
 from .region_map import PoleMap
 from .tolerances import (
     CLEARANCE_FLOOR,
@@ -150,6 +147,9 @@ class RegionModel:
         The counts do not add up to ``n``.
     """
 
+    #: smallest overlap with its anchor of a free pole's basis in a feasible member
+    min_overlap = _MIN_OVERLAP
+
     def __init__(
         self,
         engine: EigenstructureEngine,
@@ -187,23 +187,21 @@ class RegionModel:
         self.size = self.ncoord + n_real + 2 * n_pairs
         x0, self.rho = interior or interior_of(region)  # rho, the inner radius: the barrier's length
         self.map = PoleMap(QuadraticConstraints(region, self.rho).coef, x0)
-        # the separation barrier's pairs of pole slots (i < j, at least one free) and their incidence
+        # the separation barrier's pairs of pole slots (i < j, at least one free: region_batch)
         free = np.zeros(n, dtype=bool)
         free[:n_real] = True
         free[self.nr : self.nr + 2 * n_pairs] = True
         bi, bj = np.triu_indices(n, 1)
         keep = free[bi] | free[bj]
         self._bi, self._bj = bi[keep], bj[keep]
-        self._incidence = np.zeros((self._bi.size, n))
-        self._incidence[np.arange(self._bi.size), self._bi] = 1.0
-        self._incidence[np.arange(self._bi.size), self._bj] = -1.0
         self._slots = np.empty(n, dtype=complex)  # the pinned poles in their slots (free ones: set per call)
         self._slots[n_real : self.nr] = pin_real
         self._slots[self.nr + 2 * n_pairs :: 2] = pin_up
         self._slots[self.nr + 2 * n_pairs + 1 :: 2] = pin_up.conj()
         # per-member anchor bases of the free real poles and pairs (set by set_anchor)
-        self.anchor_r: NDArray = np.zeros((0, n_real, n, r))
-        self.anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
+        self._anchor_r: NDArray = np.zeros((0, n_real, n, r))
+        self._anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
+        self._batch = None  # the evaluation (PatternBatch) of these anchors
         self._anchored = False
 
     # ------------------------------------------------------------------ layout
@@ -310,99 +308,37 @@ class RegionModel:
         return out
 
     # ------------------------------------------------------------------ evaluation
+    @property
+    def anchor_r(self) -> NDArray:
+        """Per-member anchor bases of the free real poles ``(s, nrf, n, r)``."""
+        return self._anchor_r
+
+    @anchor_r.setter
+    def anchor_r(self, value: NDArray) -> None:
+        self._anchor_r, self._batch = value, None
+
+    @property
+    def anchor_p(self) -> NDArray:
+        """Per-member anchor bases of the free pairs' upper members ``(s, npf, n, r)``."""
+        return self._anchor_p
+
+    @anchor_p.setter
+    def anchor_p(self, value: NDArray) -> None:
+        self._anchor_p, self._batch = value, None
+
     def evaluate_batch(
         self, X: NDArray, objective: str, k: int | None, mu: float, members: NDArray | None = None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Objective + barrier and the gradient for a stack ``X`` (s, size) of members (``members``:
-        their indices in the anchors, default all)."""
-        s = X.shape[0]
-        if members is not None:
-            keep = self.anchor_r, self.anchor_p
-            self.anchor_r, self.anchor_p = keep[0][members], keep[1][members]
-            try:
-                return self.evaluate_batch(X, objective, k, mu)
-            finally:
-                self.anchor_r, self.anchor_p = keep
-        R = self.r
-        c, t, a, b = self._raw_split(X)
-        lr, dlr = self.map.real(t) if self.nrf else (t, t)
-        sg, om, *jac = self.map.pair(a, b) if self.npf else (a,) * 6
-        f = np.full(s, math.inf)
-        G = np.zeros_like(X)
-        # every point of the map's image is in the region; the barrier keeps the poles apart
-        bar, gbar, ok = self._separation_barrier(lr, sg, om, mu)
-        if not ok.any():
-            return f, G
-        m = self._members(X, (c, lr, sg, om))
-        ok &= m["ok"]
-        idx = np.flatnonzero(ok)
-        if not idx.size:
-            return f, G
-        W, Br, Bp = m["W"][idx], m["Br"][idx], m["Bp"][idx]
-        gp: NDArray | float = 0.0  # eta: its explicit derivative in the poles (region_eta)
-        try:
-            if objective == "eta":
-                fs, Kg, gp = eta_terms(self, W, lr[idx], sg[idx], om[idx], k)
-            else:
-                fs, Kg = self._objective(W, objective, k)
-        except np.linalg.LinAlgError:
-            fs, Kg = self._each(W, np.arange(idx.size), objective, k)
-        assert Kg is not None  # a gradient was asked for
-        K = Kg
-        f[idx] = fs + bar[idx]
-        # coordinates: the fixed-pole gradient with the members' own bases
-        k2 = R * (self.nr + self.np)
-        gr = np.einsum("sjkr,sjk->sjr", Br, K[:, : self.nr].real)
-        zp = 2.0 * np.einsum("sjkr,sjk->sjr", Bp.conj(), K[:, self.nr :: 2])
-        G[idx, : R * self.nr] = gr.reshape(idx.size, -1)
-        G[idx, R * self.nr : k2] = zp.real.reshape(idx.size, -1)
-        G[idx, k2 : self.ncoord] = zp.imag.reshape(idx.size, -1)
-        # poles: the derivative of the anchored bases N(lambda) = transport + rotation within S
-        k0 = self.ncoord
-        r = self.engine.rank
-        if self.nrf:
-            N, Na = Br[:, : self.nrf, :, :r], self.anchor_r[idx]
-            cj = X[idx, : R * self.nr].reshape(idx.size, self.nr, R)[:, : self.nrf, :r]
-            (d1,) = self._pole_derivative(N, Na, m["Q1r"][idx], m["R1r"][idx], m["er"][idx], m["Er"][idx],
-                                          K[:, : self.nrf], cj, (1.0,))
-            G[idx, k0 : k0 + self.nrf] = d1
-        if self.npf:
-            rows = slice(self.nr, self.nr + 2 * self.npf, 2)
-            N, Na = Bp[:, : self.npf, :, :r], self.anchor_p[idx]
-            cc = X[idx, R * self.nr : k2] + 1j * X[idx, k2 : self.ncoord]
-            cj = cc.reshape(idx.size, self.np, R)[:, : self.npf, :r]
-            ds, dw = self._pole_derivative(N, Na, m["Q1p"][idx], m["R1p"][idx], m["ep"][idx], m["Ep"][idx],
-                                           K[:, rows], cj, (1.0, 1j))
-            G[idx, k0 + self.nrf : k0 + self.nrf + self.npf] = 2.0 * ds
-            G[idx, k0 + self.nrf + self.npf :] = 2.0 * dw
-        G[idx, k0:] += gbar[idx] + gp
-        # the chain rule through the map
-        G[idx, k0 : k0 + self.nrf] *= dlr[idx]
-        sa, sb, wa, wb = (j[idx] for j in jac)
-        gs, gw = G[idx, k0 + self.nrf : k0 + self.nrf + self.npf], G[idx, k0 + self.nrf + self.npf :]
-        G[idx, k0 + self.nrf :] = np.concatenate([gs * sa + gw * wa, gs * sb + gw * wb], axis=1)
-        G[~np.isfinite(f)] = 0.0
-        return f, G
+        their indices in the anchors, default the first ``s``): the model's own
+        :class:`~optdesign.engines.region_batch.PatternBatch` (kept until the anchors change)."""
+        from .region_batch import PatternBatch  # it builds on this class
 
-    def _each(self, W, idx, objective, k):
-        fs = np.full(idx.size, math.inf)
-        K = np.zeros((idx.size,) + W.shape[1:], dtype=W.dtype)
-        for i, j in enumerate(idx):
-            try:
-                fi, Ki = self._objective(W[j : j + 1], objective, k)
-            except np.linalg.LinAlgError:
-                continue
-            fs[i], K[i] = fi[0], Ki[0]
-        return fs, K
-
-    def _objective(self, W: NDArray, objective: str, k: int | None) -> tuple[NDArray, NDArray]:
-        """``(f, K = df/dW)`` of the measured eigenvectors (right: ``W^-1``; left: the rows of ``W``)."""
-        if self.measure == "left":
-            f, K = left_spectral_objective(W, objective, k)
-        else:
-            f, K, _ = spectral_objective(W, objective, k)
-        assert K is not None  # a gradient was asked for
-        return f, K
+        if self._batch is None:
+            count = self._anchor_r.shape[0] if self.nrf else self._anchor_p.shape[0]
+            self._batch = PatternBatch([self], [count])
+        rows = np.arange(X.shape[0]) if members is None else np.asarray(members)
+        return self._batch.evaluate(X, rows, objective, k, mu)
 
     def _pole_derivative(self, N, Na, Q1, R1, e, E, Kj, c, directions) -> list[NDArray]:
         """``Re sum_k conj(K_jk) dw_jk`` per unit change of each pole along ``directions`` (1: the real
@@ -438,40 +374,6 @@ class RegionModel:
         P[:, self.nr : self.nr + 2 * self.npf : 2] = up
         P[:, self.nr + 1 : self.nr + 2 * self.npf : 2] = up.conj()
         return P
-
-    def fold(self, c: NDArray) -> NDArray[np.float64]:
-        """A complex per-pole gradient ``c`` (s, n) (``df = Re sum conj(c_j) dlambda_j``, rows as
-        :meth:`all_poles`) as the derivative w.r.t. the free poles' values (s, nrf + 2 npf): the free
-        reals, then ``sigma`` and ``omega`` of the free pairs (a pair's ``sigma + j omega`` moves both
-        its rows)."""
-        nrf, npf, nr = self.nrf, self.npf, self.nr
-        out = np.empty((c.shape[0], nrf + 2 * npf))
-        out[:, :nrf] = c[:, :nrf].real
-        gu, gl = c[:, nr : nr + 2 * npf : 2], c[:, nr + 1 : nr + 2 * npf : 2]
-        out[:, nrf : nrf + npf] = (gu + gl).real
-        out[:, nrf + npf :] = (gu - gl).imag
-        return out
-
-    def _separation_barrier(self, lr: NDArray, sg: NDArray, om: NDArray, mu: float
-                            ) -> tuple[NDArray, NDArray, NDArray]:
-        """``-mu sum log(|lambda_i - lambda_j| / rho)`` over the pairs of poles of which at least one
-        is free (a pair's two members included): ``(value (s,), gradient w.r.t. the pole values (s,
-        nrf + 2 npf), finite (s,))``.
-
-        The map puts every pole in the closed region, so two poles may meet on its boundary (a pair
-        at the real axis, two real poles at one boundary point): a double eigenvalue, whose
-        eigenvectors no one can compute to the digits the objective is reported with.  This term
-        keeps them apart, by ``~mu / |df/dlambda|`` at the end of the continuation, as the region
-        barrier did.
-        """
-        P = self.all_poles(lr, sg, om)
-        D = P[:, self._bi] - P[:, self._bj]  # each unordered pair once
-        d2 = D.real**2 + D.imag**2
-        inside = np.all(d2 > 0, axis=1)
-        d2 = np.where(d2 > 0, d2, self.rho**2)
-        val = -0.5 * mu * np.log(d2 / self.rho**2).sum(axis=1)
-        grad = self.fold((-mu * D / d2) @ self._incidence)  # (d/dRe + j d/dIm) per pole, folded
-        return np.where(inside, val, math.inf), grad, inside
 
     def fixed(self, x: NDArray, member: int = 0) -> tuple[FixedPoleModel, NDArray[np.float64]]:
         """The fixed-pole model at the poles of ``x`` (anchored as member ``member``) and ``x``'s

@@ -38,6 +38,7 @@ from .eigenstructure_region import (
     interior_of,
 )
 from .quasi_newton import bfgs_minimize_batch
+from .region_batch import PatternBatch, fixed_lockstep
 from .region_eta import ETA_STAGES, ETA_WARM_STAGES
 from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL
 
@@ -104,10 +105,10 @@ def _consider(eng, region, objective, model, x, stage, best):
 
 
 def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior, measure="right") -> dict:
-    """One start up to its free-pole stages: its gain and the fixed-pole optimum at its (moved
-    inside) poles as candidates, and the members to free (from the start and from that optimum;
-    a warm start: from the optimum only).  A dict of the start's state; ``"done"`` holds a final
-    record when the start cannot go on."""
+    """One start up to its fixed-pole continuation: its gain and its start in the fixed-pole model
+    at its (moved inside) poles as candidates.  A dict of the start's state (``"fixed"``, ``"x0"``,
+    ``"fstages"``: the continuation :func:`_finish` completes); ``"done"`` holds a final record when
+    the start cannot go on."""
     ts = time.process_time()
     state: dict = {"st": st, "best": None, "its": 0, "evs": 0, "timed_out": False, "cpu": 0.0}
     try:
@@ -138,13 +139,67 @@ def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior,
         return state
     state["best"] = _consider(eng, region, objective, fixed, x0, "start", state["best"])
     fstages = REGION_FIXED_STAGES if objective == "kappa2" and not st.warm else (None,)
-    ((xa, ia, ea, ra),) = run_starts(fixed, x0[None, :], objective, dl, 400, fstages)
+    state.update(fixed=fixed, x0=x0, fstages=fstages, cpu=time.process_time() - ts)
+    return state
+
+
+def _finish(eng, region, objective, pinned, state: dict, out: tuple) -> None:
+    """A prepared start after its fixed-pole continuation ``out = (x, iterations, evaluations,
+    reason)``: the optimum a candidate, and the members to free (from the start and from that
+    optimum; a warm start: from the optimum only)."""
+    xa, ia, ea, ra = out
+    fixed, x0 = state["fixed"], state["x0"]
     state["its"], state["evs"] = ia, ea
     state["best"] = _consider(eng, region, objective, fixed, xa, "fixed poles", state["best"])
     state["timed_out"] = ra == "time_limit"
-    state.update(fixed=fixed, members=xa[None, :] if st.warm else np.stack([x0, xa]),
-                 key=_structure(fixed.poles, pinned), cpu=time.process_time() - ts)
-    return state
+    state.update(members=xa[None, :] if state["st"].warm else np.stack([x0, xa]),
+                 key=_structure(fixed.poles, pinned))
+
+
+def _prepare_all(eng, region, starts, pinned, objective, rng, dl, interior, stop_at, measure) -> list[dict]:
+    """Every start prepared (:func:`_prepare`, :func:`_finish`).  The cold kappa2 starts' fixed-pole
+    continuations run in lockstep (:func:`~optdesign.engines.region_batch.fixed_lockstep`, one
+    evaluation per round for all; the first alone when ``stop_at`` is given: a start that attains it
+    ends the run before the others are prepared); the others one by one.  A start whose candidate
+    attains ``stop_at`` marks every state ``"skip"``."""
+    states: list[dict] = []
+    batch: list[dict] = []
+
+    def attained(group) -> bool:
+        if stop_at is None or not any(s["best"] is not None and s["best"][0] <= stop_at for s in group):
+            return False
+        for s in states:  # a global optimum: no free-pole stage is needed
+            s["skip"] = True
+        return True
+
+    for st in starts:
+        if dl.expired:
+            break
+        s = _prepare(eng, region, st, pinned, objective, rng, dl, interior, measure)
+        states.append(s)
+        if "done" in s:
+            continue
+        if s["fstages"] is REGION_FIXED_STAGES and (stop_at is None or len(states) > 1):
+            batch.append(s)
+            continue
+        ts = time.process_time()
+        (out,) = run_starts(s["fixed"], s["x0"][None, :], objective, dl, 400, s["fstages"])
+        _finish(eng, region, objective, pinned, s, out)
+        s["cpu"] += time.process_time() - ts
+        if attained([s]):
+            return states
+    sizes = sorted({s["fixed"].size for s in batch})
+    for size in sizes:  # one batch per coordinate length (a pole at an unobservable mode pads it)
+        group = [s for s in batch if s["fixed"].size == size]
+        ts = time.process_time()
+        outs = fixed_lockstep([s["fixed"] for s in group], np.stack([s["x0"] for s in group]), objective,
+                              dl, 400, REGION_FIXED_STAGES)
+        share = (time.process_time() - ts) / len(group)
+        for s, out in zip(group, outs, strict=True):
+            _finish(eng, region, objective, pinned, s, out)
+            s["cpu"] += share
+    attained(batch)
+    return states
 
 
 def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, rng, dl, stop_at=None,
@@ -157,15 +212,7 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
     start whose candidate attains ``stop_at`` ends the run (see :func:`place_region`).  ``measure``:
     which eigenvectors the objective measures (:class:`RegionModel`)."""
     interior = interior_of(region)
-    states = []
-    for st in starts:
-        if dl.expired:
-            break
-        states.append(_prepare(eng, region, st, pinned, objective, rng, dl, interior, measure))
-        if stop_at is not None and states[-1]["best"] is not None and states[-1]["best"][0] <= stop_at:
-            for s in states:  # a global optimum: no free-pole stage is needed
-                s["skip"] = True
-            break
+    states = _prepare_all(eng, region, starts, pinned, objective, rng, dl, interior, stop_at, measure)
     live = [s for s in states if "done" not in s and "skip" not in s]
     groups: dict[tuple[int, int], list[dict]] = {}
     for s in live:
@@ -256,7 +303,6 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
     models = [b[0] for b in batch]
     sizes = [b[1].shape[0] for b in batch]
     owner = np.repeat(np.arange(len(batch)), sizes)
-    local = np.concatenate([np.arange(k) for k in sizes])
     X = np.concatenate([b[1] for b in batch])
     total = X.shape[0]
     reasons = ["converged"] * total
@@ -264,17 +310,15 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
     its, evs = np.zeros(total, int), np.zeros(total, int)
     alive = np.ones(total, dtype=bool)
 
+    merged = PatternBatch(models, sizes)
+
     def evaluate(Z, rows, k, mu):
-        f, G = np.full(Z.shape[0], math.inf), np.zeros_like(Z)
-        for g, model in enumerate(models):
-            sel = np.flatnonzero(owner[rows] == g)
-            if sel.size:
-                f[sel], G[sel] = model.evaluate_batch(Z[sel], objective, k, mu, local[rows[sel]])
-        return f, G
+        return merged.evaluate(Z, rows, objective, k, mu)
 
     def anchor():
         for g, model in enumerate(models):
             model.set_anchor(X[owner == g])
+        merged.refresh_anchors()
 
     timed_out = False
     for si, (k, mu) in enumerate(stages):

@@ -43,15 +43,11 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .tolerances import EPS, REGION_STAGES
-
-if TYPE_CHECKING:  # the region model imports this module's functions
-    from .eigenstructure_region import RegionModel
 
 __all__ = ["ETA_STAGES", "ETA_WARM_STAGES", "soft_gap2", "departure2", "eta_terms"]
 
@@ -182,19 +178,15 @@ def _inverse(W: NDArray) -> tuple[NDArray, NDArray]:
     return V, ok
 
 
-def eta_terms(model: RegionModel, W: NDArray, lr: NDArray, sg: NDArray, om: NDArray, k: int | None
-              ) -> tuple[NDArray[np.float64], NDArray, NDArray[np.float64]]:
+def eta_terms(P: NDArray, W: NDArray, k: int | None) -> tuple[NDArray[np.float64], NDArray, NDArray]:
     """``log eta_k^2`` of region-model members, ``K = df/dW`` and the explicit pole derivative.
 
     Parameters
     ----------
-    model : RegionModel
+    P : (s, n) ndarray of complex
+        The members' poles, in the row order of ``W``.
     W : (s, n, n) ndarray
-        The members' left eigenvector rows (the model's row order).
-    lr : (s, nrf) ndarray
-        The free real poles.
-    sg, om : (s, npf) ndarray
-        Real and imaginary parts of the free pairs' upper members.
+        The members' left eigenvector rows.
     k : int or None
         Order of the soft gap (:func:`soft_gap2`; None: the exact gap).
 
@@ -205,11 +197,10 @@ def eta_terms(model: RegionModel, W: NDArray, lr: NDArray, sg: NDArray, om: NDAr
         (up to the departure's rounding floor); inf for a singular ``W`` or coincident poles.
     K : (s, n, n) ndarray
         ``df = Re sum conj(K) dW`` at fixed poles (0 where ``f`` is inf).
-    gp : (s, nrf + 2 npf) ndarray
-        ``df`` per unit change of each free real pole, each free pair's ``sigma``, then its
-        ``omega``, at fixed ``W`` (0 where ``f`` is inf).
+    c : (s, n) ndarray of complex
+        ``df = Re sum conj(c_j) dlambda_j`` at fixed ``W`` (0 where ``f`` is inf); the caller folds
+        a pair's two rows into its variables.
     """
-    P = model.all_poles(lr, sg, om)
     nu, Kn, cn, ok = departure2(W, P)
     g, cg = soft_gap2(P, k)
     good = ok & (g > 0) & np.isfinite(nu)
@@ -220,4 +211,4 @@ def eta_terms(model: RegionModel, W: NDArray, lr: NDArray, sg: NDArray, om: NDAr
     c = cn / nus[:, None] - cg / gs[:, None]
     K[~good] = 0.0
     c[~good] = 0.0
-    return f, K, model.fold(c)
+    return f, K, c

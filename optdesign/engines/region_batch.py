@@ -1,0 +1,339 @@
+"""Every pole pattern of a region-mode round in one evaluation (issue 28).
+
+The lockstep runner (:mod:`~optdesign.engines.eigenstructure_region_lockstep`) keeps one
+:class:`~optdesign.engines.eigenstructure_region.RegionModel` per real/complex pole pattern (3-5 of
+them on a plant's 8 starts); each BFGS round called every model that had running members, about 2
+members per call.  On small plants a call costs numpy's per-call overhead, nearly independent of
+the members it holds (measured on COMPleib REA2, n = 4: 0.37 ms for 1 member, 0.52 ms for 16; DIS1,
+n = 8: 0.67 ms and 1.48 ms), so a round cost about one call per pattern, and within a call one
+stacked QR, inverse and pole derivative per kind of pole (real, pair).
+
+:class:`PatternBatch` evaluates the members of all patterns together.  Their free and pinned poles
+are flattened once into tables (per member and slot: its pole variables, its coordinate columns, its
+anchor), so that a round is one stacked QR for the aligned bases of every free pole of every member,
+one objective (:func:`~optdesign.engines.eigenstructure.spectral_objective` or eta) and one stacked
+pole derivative.  A call that holds a complex pair computes in complex arithmetic throughout -- a
+real pole's basis and row too, real to rounding -- the same formulas as the per-kind code it
+replaces (f and G equal to rounding on the runs of the benchmark; measured on 49 plants n <= 10,
+``benchmarks/results/region.md``: 0.56x the CPU of one call per pattern).  A single model's
+:meth:`RegionModel.evaluate_batch` is its own batch.
+
+:func:`fixed_lockstep` runs the fixed-pole continuation of every start (each at its own poles) in
+one BFGS batch: the starts' fixed-pole models as patterns whose poles are all pinned.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .._deadline import Deadline
+from .eigenstructure import FixedPoleModel, left_spectral_objective, spectral_objective
+from .eigenstructure_region import RegionModel
+from .quasi_newton import bfgs_minimize_batch
+from .region_eta import eta_terms
+from .tolerances import STAGE_FTOL, STAGE_FTOL_DEFAULT, STAGE_GTOL
+
+__all__ = ["PatternBatch", "fixed_lockstep"]
+
+
+def _columns(start: NDArray, width: int) -> NDArray:
+    """``(len(start), width)`` column indices ``start[i] + 0..width-1``."""
+    return np.asarray(start, dtype=int)[:, None] + np.arange(width)[None, :]
+
+
+class PatternBatch:
+    """The members of several region models (one per pole pattern) evaluated together.
+
+    Parameters
+    ----------
+    models : list of RegionModel
+        One per pole pattern, built for the same engine, region, pinned poles and interior point
+        (their variable vectors have the same length).
+    sizes : list of int
+        Members per model; global member ``i`` is member ``i - sum(sizes[:g])`` of model ``g`` (the
+        order of the stacked anchors, :meth:`refresh_anchors`).
+    """
+
+    def __init__(self, models: list[RegionModel], sizes: list[int]) -> None:
+        m0 = models[0]
+        if any((m.size, m.r, m.rho, m.measure) != (m0.size, m0.r, m0.rho, m0.measure) for m in models):
+            raise ValueError("PatternBatch: the models do not share one variable layout and region")
+        self.models, self.sizes = models, list(sizes)
+        self.map, self.rho, self.measure = m0.map, m0.rho, m0.measure
+        eng = m0.engine
+        n, R, r = eng.n, m0.r, eng.rank
+        self.n, self.R, self.r = n, R, r
+        self.owner = np.repeat(np.arange(len(models)), sizes)
+        self.local = np.concatenate([np.arange(s) for s in sizes])
+        self.total = int(sum(sizes))
+        self.cplx = np.array([models[g].complex for g in self.owner], dtype=bool)
+        fr, pr, fp, pp = [], [], [], []  # (member, slot, model's own index) per kind
+        slots0 = np.zeros((self.total, n), dtype=complex)  # the pinned poles in their slots
+        bi, bj = np.triu_indices(n, 1)
+        self._bi, self._bj = bi, bj
+        self._pair_on = np.zeros((self.total, bi.size), dtype=bool)  # the model's barrier pairs
+        self._incidence = np.zeros((bi.size, n))
+        self._incidence[np.arange(bi.size), bi] = 1.0
+        self._incidence[np.arange(bi.size), bj] = -1.0
+        for i, g in enumerate(self.owner):
+            m = models[g]
+            fr += [(i, j, j) for j in range(m.nrf)]
+            pr += [(i, m.nrf + q, q) for q in range(m.nr - m.nrf)]
+            fp += [(i, m.nr + 2 * q, q) for q in range(m.npf)]
+            pp += [(i, m.nr + 2 * (m.npf + q), q) for q in range(m.np - m.npf)]
+            slots0[i] = m._slots
+            on = np.zeros(bi.size, dtype=bool)
+            on[np.searchsorted(bi * n + bj, m._bi * n + m._bj)] = True
+            self._pair_on[i] = on
+        self._slots0 = slots0
+        self._any_pair_on = bool(self._pair_on.any())
+        # one table of the free poles (the real ones first) and one of the pinned: per entry its
+        # member, slot, coordinate columns as RegionModel lays them out (a real slot's R from R j; a
+        # pair's R real parts from R nr, its imaginary parts from R (nr + np); a real entry's
+        # "imaginary" columns are the zero column appended to the points) and pole variables
+        size = m0.size
+        self._free = self._table(
+            fr, fp, r,
+            cols=(lambda m, j: R * j, lambda m, j: R * (m.nr + j)),
+            cols_im=(lambda m, j: 0, lambda m, j: R * (m.nr + m.np + j)),
+            var=(lambda m, j: m.ncoord + j, lambda m, j: m.ncoord + m.nrf + j),
+            var_b=(lambda m, j: size, lambda m, j: m.ncoord + m.nrf + m.npf + j))
+        self._pinned = self._table(
+            pr, pp, R,
+            cols=(lambda m, j: R * (m.nrf + j), lambda m, j: R * (m.nr + m.npf + j)),
+            cols_im=(lambda m, j: 0, lambda m, j: R * (m.nr + m.np + m.npf + j)))
+        for T in (self._free, self._pinned):
+            T["cols_im"][~T["pair"]] = size
+        if pr or pp:
+            B = [models[self.owner[i]].Npr[q] for i, _, q in pr]
+            B += [models[self.owner[i]].Npp[q] for i, _, q in pp]
+            self._pinned["B"] = np.stack(B).astype(complex if pp else float)
+        self.refresh_anchors()
+
+    def _table(self, reals, pairs, width: int, **fields) -> dict[str, NDArray]:
+        """Flat per-entry indices of ``reals`` then ``pairs`` (``(member, slot, j)``, ``j`` the index
+        within its model): member, slot, j, whether a pair, and per field in ``fields`` (a pair of
+        functions ``(model, j) -> column``, for a real entry and for a pair) the column; ``col`` and
+        ``col_im`` become ``width`` columns from there."""
+        rows = list(reals) + list(pairs)
+        kind = [0] * len(reals) + [1] * len(pairs)
+        out = {"mem": np.array([i for i, _, _ in rows], dtype=int),
+               "slot": np.array([sl for _, sl, _ in rows], dtype=int),
+               "j": np.array([j for _, _, j in rows], dtype=int),
+               "pair": np.array(kind, dtype=bool)}
+        models = [self.models[self.owner[i]] for i in out["mem"]]
+        for name, fns in fields.items():
+            col = np.array([fns[k](m, j) for m, j, k in zip(models, out["j"], kind, strict=True)], dtype=int)
+            out[name] = _columns(col, width) if name.startswith("col") else col
+        return out
+
+    def refresh_anchors(self) -> None:
+        """Stack the models' current anchors (after their ``set_anchor``) per free-pole entry."""
+        E = self._free
+        if not E["mem"].size:
+            return
+        stack = [(self.models[self.owner[i]].anchor_p if pair else self.models[self.owner[i]].anchor_r)
+                 [self.local[i], j] for i, j, pair in zip(E["mem"], E["j"], E["pair"], strict=True)]
+        E["anchor"] = np.stack(stack).astype(complex if E["pair"].any() else float)
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, Z: NDArray, rows: NDArray, objective: str, k: int | None, mu: float
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Objective + barrier and gradient of the members ``rows`` (global indices) at the points
+        ``Z`` (len(rows), size), each in its own model's terms: ``(f (s,), G (s, size))``, ``f = inf``
+        (and ``G = 0``) for a member with two poles at one point or a basis past its chart."""
+        s, size = Z.shape
+        Zx = np.zeros((s, size + 1))  # the zero column of the real entries' "imaginary" parts
+        Zx[:, :size] = Z
+        where = np.full(self.total, -1)
+        where[rows] = np.arange(s)
+        E = self._select(self._free, where)
+        pm, slot, nre = E["pm"], E["slot"], E["nre"]
+        f, Gx = np.full(s, math.inf), np.zeros_like(Zx)
+        # the free poles through the map, then every pole in its slot
+        if pm.size:
+            lr, dlr = self.map.real(Zx[pm[:nre], E["var"][:nre]])
+            ab = Zx[pm[nre:], E["var"][nre:]], Zx[pm[nre:], E["var_b"][nre:]]
+            sg, om, sa, sb, wa, wb = self.map.pair(*ab)
+        else:  # fixed poles only (fixed_lockstep)
+            lr = sg = om = np.zeros(0)
+        up = sg + 1j * om
+        P = self._slots0[rows].copy()
+        P[pm[:nre], slot[:nre]] = lr
+        P[pm[nre:], slot[nre:]] = up
+        P[pm[nre:], slot[nre:] + 1] = up.conj()
+        bar, cbar, ok = self._barrier(P, rows, mu)
+        if not ok.any():
+            return f, Gx[:, :size]
+        Ep = self._select(self._pinned, where) if self._pinned["mem"].size else None
+        cplx = nre < pm.size or (Ep is not None and Ep["nre"] < Ep["pm"].size)
+        # the aligned bases of the free poles (one stacked QR), the rows of W
+        W = np.zeros((s, self.n, self.n), dtype=complex if cplx else float)
+        if pm.size:
+            lam = np.concatenate([lr, up]) if cplx else lr
+            anchor = E["anchor"] if cplx else E["anchor"].real
+            N, ov, Q1, R1, e, Ev = (x[:, 0] if x.ndim > 1 else x
+                                    for x in self.models[0]._aligned(lam[:, None], anchor[:, None]))
+            ok[pm[~(ov > RegionModel.min_overlap)]] = False
+            c = self._put(W, Zx, E, N, cplx)
+        if Ep is not None:
+            self._put(W, Zx, Ep, Ep["B"] if cplx else Ep["B"].real, cplx)
+        idx = np.flatnonzero(ok)
+        if not idx.size:
+            return f, Gx[:, :size]
+        fs, K, cp = self._objective(W[idx], P[idx], objective, k)
+        f[idx] = fs + bar[idx]
+        Kf = np.zeros((s, self.n, self.n), dtype=K.dtype)
+        Kf[idx] = K
+        cs = cbar.copy()
+        cs[idx] += cp
+        # coordinates: B^H K per slot (a pair's two rows: 2 B^H K of its upper one)
+        for T, B in ((E, N if pm.size else None), (Ep, None if Ep is None else Ep["B"])):
+            if T is not None and T["pm"].size:
+                z = np.einsum("ekr,ek->er", B.conj(), Kf[T["pm"], T["slot"]])
+                z[T["nre"]:] *= 2.0
+                Gx[T["pm"][:, None], T["cols"]] = z.real
+                Gx[T["pm"][T["nre"]:, None], T["cols_im"][T["nre"]:]] = z[T["nre"]:].imag
+        # poles: the bases' derivative (RegionModel._pole_derivative) + the explicit terms, folded,
+        # then the chain rule through the map
+        if pm.size:
+            Kj = Kf[pm, slot]
+            if not cplx:
+                Kj = Kj.real
+            one = (x[:, None] for x in (N, anchor, Q1, R1, e, Ev, Kj, c))  # each entry its own "member"
+            d = self.models[0]._pole_derivative(*one, (1.0, 1j) if cplx else (1.0,))
+            Gx[pm[:nre], E["var"][:nre]] = (d[0][:nre, 0] + cs[pm[:nre], slot[:nre]].real) * dlr
+            gu, gl = cs[pm[nre:], slot[nre:]], cs[pm[nre:], slot[nre:] + 1]
+            if cplx:
+                gs = 2.0 * d[0][nre:, 0] + (gu + gl).real
+                gw = 2.0 * d[1][nre:, 0] + (gu - gl).imag
+                Gx[pm[nre:], E["var"][nre:]] = gs * sa + gw * wa
+                Gx[pm[nre:], E["var_b"][nre:]] = gs * sb + gw * wb
+        G = Gx[:, :size]
+        G[~np.isfinite(f)] = 0.0
+        return f, G
+
+    @staticmethod
+    def _select(T: dict[str, NDArray], where: NDArray) -> dict[str, NDArray]:
+        """The entries of table ``T`` whose member is evaluated, with their position ``pm`` among the
+        points and ``nre``, how many of them are real (they come first)."""
+        pos = where[T["mem"]]
+        e = np.flatnonzero(pos >= 0)
+        out = {key: v[e] for key, v in T.items()}
+        out.update(pm=pos[e], nre=int(np.count_nonzero(~out["pair"])))
+        return out
+
+    @staticmethod
+    def _put(W: NDArray, Zx: NDArray, T: dict[str, NDArray], B: NDArray, cplx: bool) -> NDArray:
+        """Each entry's eigenvector row ``B c`` into ``W`` (a pair: the row and its conjugate);
+        returns the coordinates ``c`` (complex in a complex call)."""
+        pm, nre = T["pm"], T["nre"]
+        c = Zx[pm[:, None], T["cols"]]
+        if cplx:
+            c = c + 1j * Zx[pm[:, None], T["cols_im"]]
+        w = np.einsum("ekr,er->ek", B, c)
+        W[pm, T["slot"]] = w
+        W[pm[nre:], T["slot"][nre:] + 1] = w[nre:].conj()
+        return c
+
+    def _barrier(self, P: NDArray, rows: NDArray, mu: float) -> tuple[NDArray, NDArray, NDArray]:
+        """The separation barrier ``-mu sum log(|lambda_i - lambda_j| / rho)`` of each member over its
+        model's pole pairs (at least one pole free): ``(value, per-slot complex gradient (s, n),
+        finite)``.
+
+        The map puts every pole in the closed region, so two poles may meet on its boundary (a pair
+        at the real axis, two real poles at one boundary point): a double eigenvalue, whose
+        eigenvectors no one can compute to the digits the objective is reported with.  This term
+        keeps them apart, by ``~mu / |df/dlambda|`` at the end of the continuation.
+        """
+        if not self._any_pair_on:  # fixed poles only: no barrier
+            return np.zeros(P.shape[0]), np.zeros(P.shape, dtype=complex), np.ones(P.shape[0], dtype=bool)
+        on = self._pair_on[rows]
+        D = P[:, self._bi] - P[:, self._bj]
+        d2 = D.real**2 + D.imag**2
+        inside = np.all((d2 > 0) | ~on, axis=1)
+        d2 = np.where(on & (d2 > 0), d2, self.rho**2)
+        val = -0.5 * mu * np.log(d2 / self.rho**2).sum(axis=1)
+        c = (np.where(on, -mu * D / d2, 0.0)) @ self._incidence
+        return np.where(inside, val, math.inf), c, inside
+
+    def _objective(self, W: NDArray, P: NDArray, objective: str, k: int | None
+                   ) -> tuple[NDArray, NDArray, NDArray]:
+        """``(f, K = df/dW, explicit per-slot pole gradient)`` of the members' ``W`` and poles ``P``:
+        the measured eigenvectors' kappa2 / bound / kappa_fro (member by member where the stacked
+        inverse fails) or :func:`~optdesign.engines.region_eta.eta_terms`."""
+        if objective == "eta":
+            return eta_terms(P, W, k)
+        try:
+            fs, K = _spectral(W, objective, k, self.measure)
+        except np.linalg.LinAlgError:
+            fs, K = np.full(W.shape[0], math.inf), np.zeros_like(W)
+            for i in range(W.shape[0]):
+                try:
+                    (fs[i],), (K[i],) = _spectral(W[i : i + 1], objective, k, self.measure)
+                except np.linalg.LinAlgError:
+                    pass
+        return fs, K, np.zeros(P.shape, dtype=complex)
+
+
+def _spectral(W: NDArray, objective: str, k: int | None, measure: str) -> tuple[NDArray, NDArray]:
+    """``(f, K = df/dW)`` of the measured eigenvectors (right: ``W^-1``; left: the rows of ``W``)."""
+    if measure == "left":
+        f, K = left_spectral_objective(W, objective, k)
+    else:
+        f, K, _ = spectral_objective(W, objective, k)
+    assert K is not None  # a gradient was asked for
+    return f, K
+
+
+class _Pinned:
+    """A :class:`~optdesign.engines.eigenstructure.FixedPoleModel` as a region model whose poles are
+    all pinned (its coordinate layout is the pinned part of RegionModel's: real slots, then pairs'
+    real parts, then their imaginary parts), for :func:`fixed_lockstep`."""
+
+    nrf = npf = 0
+    rho = 1.0
+    map = None
+    _bi = _bj = np.zeros(0, dtype=int)
+
+    def __init__(self, model: FixedPoleModel) -> None:
+        self.engine, self.size, self.r = model.engine, model.size, model.r
+        self.measure, self.complex = model.measure, model.complex
+        self.ncoord = model.size
+        self.nr, self.np = model.slots.nr, model.slots.npair
+        self.Npr, self.Npp = model.Nr, model.Np
+        self._slots = model.poles.astype(complex)
+
+
+def fixed_lockstep(models: list[FixedPoleModel], X0: NDArray, objective: str, deadline: Deadline,
+                   max_iter: int, stages: tuple[int | None, ...]) -> list[tuple[NDArray, int, int, str]]:
+    """:func:`~optdesign.engines.eigenstructure_fixed.run_starts` of one start per model (each at its
+    own poles, ``X0`` (s, size) their coordinates), all in one BFGS batch per stage: one evaluation
+    per round for all (:class:`PatternBatch`) instead of one per start.  Each member's iterates are
+    those of its own ``run_starts`` (a BFGS member does not see the others; one start per model has
+    no duplicates to drop).  Per model ``(normalized x, iterations, evaluations, reason)``."""
+    batch = PatternBatch([_Pinned(m) for m in models], [1] * len(models))
+    X = np.array(X0, dtype=float)
+    s = X.shape[0]
+    its, evs, reasons = np.zeros(s, int), np.zeros(s, int), ["converged"] * s
+    H: list[NDArray | None] = [None] * s
+    rows = np.arange(s)
+    for k in stages:
+        if deadline.expired:
+            reasons = ["time_limit"] * s
+            break
+
+        def fun(Z, idx, _k=k):
+            return batch.evaluate(Z, rows[idx], objective, _k, 0.0)
+
+        res, Hs = bfgs_minimize_batch(fun, X, max_iter=max_iter, ftol=STAGE_FTOL.get(k, STAGE_FTOL_DEFAULT),
+                                      gtol=0.0 if k is None else STAGE_GTOL, deadline=deadline, H0=H,
+                                      pass_index=True)
+        for i, r in enumerate(res):
+            X[i], H[i], reasons[i] = r.x, Hs[i], r.reason
+            its[i] += r.iterations
+            evs[i] += r.evaluations
+    return [(m.normalize(X[i]), int(its[i]), int(evs[i]), reasons[i]) for i, m in enumerate(models)]
