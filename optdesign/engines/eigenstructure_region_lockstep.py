@@ -240,49 +240,71 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
         stages = ((None, REGION_STAGES[-1][1]),)
     res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
     share = (time.process_time() - t0) / max(1, len(live))
-    out = []
+    jobs: list[tuple[dict, FixedPoleModel, NDArray]] = []
+    mine: dict[int, list[str]] = {}
     for s in states:
         if "done" in s:
-            out.append((s["done"], s["best"], False))
             continue
-        ts = time.process_time()
-        mine = ["converged"]
+        mine[id(s)] = ["converged"]
         for g, k0 in s.get("parts", []) if "skip" not in s else []:
             Xg, reasons, its, evs, tb = res[g]
             model, m = batch[g][0], s["members"].shape[0]
             s["its"] += int(its[k0 : k0 + m].sum())
             s["evs"] += int(evs[k0 : k0 + m].sum())
             s["timed_out"] |= tb
-            mine = mine + reasons[k0 : k0 + m]
+            mine[id(s)] += reasons[k0 : k0 + m]
             if "infeasible start" in reasons[k0 : k0 + m]:
                 continue
             for i in range(k0, k0 + m):
                 if reasons[i] not in ("pruned", "duplicate"):  # a better member went on from there
-                    _polish(eng, region, objective, model, Xg[i], i, s, dl)
-        mine = mine[1:] or mine
+                    fm, xc = model.fixed(Xg[i], i)
+                    s["best"] = _consider(eng, region, objective, fm, xc, "free poles", s["best"])
+                    jobs.append((s, fm, xc))
+    _polish(eng, region, objective, jobs, dl)
+    out = []
+    for s in states:
+        if "done" in s:
+            out.append((s["done"], s["best"], False))
+            continue
+        reasons = mine[id(s)][1:] or mine[id(s)]
         best = s["best"]
         val = best[0] if best is not None else math.inf
         k2 = math.inf
         if best is not None:
             sv = np.linalg.svd(best[2], compute_uv=False)
             k2 = float(sv[0] / sv[-1])
-        reason = min(mine, key=lambda r: r != "converged")
+        reason = min(reasons, key=lambda r: r != "converged")
         design = (best[1], best[2], best[3]) if best is not None else (None, None, None)
-        cpu = s["cpu"] + share + time.process_time() - ts
+        cpu = s["cpu"] + share
         rec = StartRecord(s["st"].origin, k2, val, s["v0"], s["its"], s["evs"], reason, cpu, *design)
         out.append((rec, best, s["timed_out"]))
     return out
 
 
-def _polish(eng, region, objective, model: RegionModel, x: NDArray, member: int, s: dict, dl) -> None:
-    """The free-pole design ``x`` (member ``member`` of ``model``) and its fixed-pole polish at its
-    final poles, each a candidate of the start ``s``."""
-    fm, xc = model.fixed(x, member)
-    s["best"] = _consider(eng, region, objective, fm, xc, "free poles", s["best"])
-    ((xp, ip, ep, rp),) = run_starts(fm, xc[None, :], objective, dl, 400, (None,))
-    s["its"], s["evs"] = s["its"] + ip, s["evs"] + ep
-    s["best"] = _consider(eng, region, objective, fm, xp, "free poles, polished", s["best"])
-    s["timed_out"] |= rp == "time_limit"
+def _polish(eng, region, objective, jobs: list[tuple[dict, FixedPoleModel, NDArray]], dl) -> None:
+    """Every free-pole design ``(start state, fixed-pole model at its final poles, coordinates)``
+    polished at its poles, a candidate of its start: for kappa2 all in one BFGS batch
+    (:func:`~optdesign.engines.region_batch.fixed_lockstep`, per coordinate length), otherwise one by
+    one (:func:`~optdesign.engines.eigenstructure_fixed.run_starts`: eta's fixed-pole objective is
+    the gain form, not the region batch's)."""
+    ts = time.process_time()
+    outs: list[tuple | None] = [None] * len(jobs)
+    if objective == "kappa2":
+        for size in sorted({fm.size for _, fm, _ in jobs}):
+            idx = [j for j, (_, fm, _) in enumerate(jobs) if fm.size == size]
+            done = fixed_lockstep([jobs[j][1] for j in idx], np.stack([jobs[j][2] for j in idx]), objective,
+                                  dl, 400, (None,))
+            for j, o in zip(idx, done, strict=True):
+                outs[j] = o
+    else:
+        outs = [run_starts(fm, xc[None, :], objective, dl, 400, (None,))[0] for _, fm, xc in jobs]
+    share = (time.process_time() - ts) / max(1, len(jobs))
+    for (s, fm, _), o in zip(jobs, outs, strict=True):
+        assert o is not None
+        xp, ip, ep, rp = o
+        s["its"], s["evs"], s["cpu"] = s["its"] + ip, s["evs"] + ep, s["cpu"] + share
+        s["best"] = _consider(eng, region, objective, fm, xp, "free poles, polished", s["best"])
+        s["timed_out"] |= rp == "time_limit"
 
 
 def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
