@@ -16,6 +16,7 @@ from optdesign import problems
 from optdesign._deadline import Deadline
 from optdesign._validate import as_poles
 from optdesign.design.well_conditioned import suggested_region
+from optdesign.engines import region_batch
 from optdesign.engines.eigenstructure import EigenstructureEngine, FixedPoleModel
 from optdesign.engines.eigenstructure_fixed import run_starts
 from optdesign.engines.eigenstructure_region import REGION_FIXED_STAGES, RegionModel
@@ -67,11 +68,14 @@ CASES = [("compleib_ac6", "right", "kappa2"), ("compleib_ac4", "right", "kappa2"
          ("compleib_he2", "right", "eta")]
 
 
+@pytest.mark.parametrize("split", [False, True])
 @pytest.mark.parametrize("name,measure,objective", CASES)
-def test_merged_patterns_are_each_model_alone(name, measure, objective):
+def test_merged_patterns_are_each_model_alone(name, measure, objective, split, monkeypatch):
     """Members of several pole patterns (reals only, mixed, pairs only; pinned real poles on AC4, a
     pinned pair), asked for in a shuffled subset as a BFGS round does: each value and gradient is
-    that of the member's own model, to rounding."""
+    that of the member's own model, to rounding -- in one arithmetic, or (``split``, as at n >= 16)
+    the real poles and the all-real members in real arithmetic, apart."""
+    monkeypatch.setattr(region_batch, "_SPLIT_N", 1 if split else 10**6)
     models, Xs = _models(name, measure)
     assert len(models) >= 2  # a merge to test
     batch = PatternBatch(models, [X.shape[0] for X in Xs])
@@ -87,9 +91,12 @@ def test_merged_patterns_are_each_model_alone(name, measure, objective):
         np.testing.assert_allclose(G[i], Gm[0], rtol=0, atol=1e-7 * max(1.0, np.max(np.abs(Gm[0]))))
 
 
+@pytest.mark.parametrize("split", [False, True])
 @pytest.mark.parametrize("name,measure,objective", CASES[:1] + CASES[2:3] + CASES[4:])
-def test_merged_gradient_matches_finite_differences(name, measure, objective):
-    """The gradient of a merged call, member by member, against central differences of its value."""
+def test_merged_gradient_matches_finite_differences(name, measure, objective, split, monkeypatch):
+    """The gradient of a merged call, member by member, against central differences of its value
+    (both arithmetics, as in the test above)."""
+    monkeypatch.setattr(region_batch, "_SPLIT_N", 1 if split else 10**6)
     models, Xs = _models(name, measure, members=1, seed=3)
     batch = PatternBatch(models, [1] * len(models))
     X = np.concatenate(Xs)

@@ -38,6 +38,11 @@ from .tolerances import STAGE_FTOL, STAGE_FTOL_DEFAULT, STAGE_GTOL
 
 __all__ = ["PatternBatch", "fixed_lockstep"]
 
+#: from this many states on, a call holding pairs computes its real poles and its all-real members
+#: in real arithmetic, apart (two stacked QRs and objectives instead of one): measured on random
+#: n = 20 and 30 plants (issue 28), where complex arithmetic for them cost more than the call saved
+_SPLIT_N = 16
+
 
 def _columns(start: NDArray, width: int) -> NDArray:
     """``(len(start), width)`` column indices ``start[i] + 0..width-1``."""
@@ -170,13 +175,23 @@ class PatternBatch:
             return f, Gx[:, :size]
         Ep = self._select(self._pinned, where) if self._pinned["mem"].size else None
         cplx = nre < pm.size or (Ep is not None and Ep["nre"] < Ep["pm"].size)
-        # the aligned bases of the free poles (one stacked QR), the rows of W
+        # at sizes where arithmetic, not calls, is the cost: real arithmetic for the real poles and
+        # for the all-real patterns' members, as their own models compute them
+        split = cplx and self.n >= _SPLIT_N
+        # the aligned bases of the free poles (one stacked QR per kind), the rows of W
         W = np.zeros((s, self.n, self.n), dtype=complex if cplx else float)
         if pm.size:
-            lam = np.concatenate([lr, up]) if cplx else lr
             anchor = E["anchor"] if cplx else E["anchor"].real
-            N, ov, Q1, R1, e, Ev = (x[:, 0] if x.ndim > 1 else x
-                                    for x in self.models[0]._aligned(lam[:, None], anchor[:, None]))
+            lam = np.concatenate([lr, up]) if cplx else lr
+            kinds = self._kinds(nre, pm.size, split)
+            al = []
+            for sl in kinds:
+                real = split and sl.stop == nre  # the real poles of a split call
+                al.append(self.models[0]._aligned((lam[sl].real if real else lam[sl])[:, None],
+                                                  (anchor[sl].real if real else anchor[sl])[:, None]))
+            N, ov, Q1, R1, e, Ev = (np.concatenate([x[:, 0] if x.ndim > 1 else x for x in xs])
+                                    if len(kinds) > 1 else (xs[0][:, 0] if xs[0].ndim > 1 else xs[0])
+                                    for xs in zip(*al, strict=True))
             ok[pm[~(ov > RegionModel.min_overlap)]] = False
             c = self._put(W, Zx, E, N, cplx)
         if Ep is not None:
@@ -184,7 +199,7 @@ class PatternBatch:
         idx = np.flatnonzero(ok)
         if not idx.size:
             return f, Gx[:, :size]
-        fs, K, cp = self._objective(W[idx], P[idx], objective, k)
+        fs, K, cp = self._objective(W[idx], P[idx], objective, k, self.cplx[rows[idx]] if split else None)
         f[idx] = fs + bar[idx]
         Kf = np.zeros((s, self.n, self.n), dtype=K.dtype)
         Kf[idx] = K
@@ -203,18 +218,31 @@ class PatternBatch:
             Kj = Kf[pm, slot]
             if not cplx:
                 Kj = Kj.real
-            one = (x[:, None] for x in (N, anchor, Q1, R1, e, Ev, Kj, c))  # each entry its own "member"
-            d = self.models[0]._pole_derivative(*one, (1.0, 1j) if cplx else (1.0,))
-            Gx[pm[:nre], E["var"][:nre]] = (d[0][:nre, 0] + cs[pm[:nre], slot[:nre]].real) * dlr
+            d = [np.zeros(pm.size), np.zeros(pm.size)]
+            for sl in kinds:
+                real = not cplx or (split and sl.stop == nre)
+                one = (x[sl, None].real if real else x[sl, None]  # each entry its own "member"
+                       for x in (N, anchor, Q1, R1, e, Ev, Kj, c))
+                for i, dd in enumerate(self.models[0]._pole_derivative(*one, (1.0,) if real else (1.0, 1j))):
+                    d[i][sl] = dd[:, 0]
+            Gx[pm[:nre], E["var"][:nre]] = (d[0][:nre] + cs[pm[:nre], slot[:nre]].real) * dlr
             gu, gl = cs[pm[nre:], slot[nre:]], cs[pm[nre:], slot[nre:] + 1]
             if cplx:
-                gs = 2.0 * d[0][nre:, 0] + (gu + gl).real
-                gw = 2.0 * d[1][nre:, 0] + (gu - gl).imag
+                gs = 2.0 * d[0][nre:] + (gu + gl).real
+                gw = 2.0 * d[1][nre:] + (gu - gl).imag
                 Gx[pm[nre:], E["var"][nre:]] = gs * sa + gw * wa
                 Gx[pm[nre:], E["var_b"][nre:]] = gs * sb + gw * wb
         G = Gx[:, :size]
         G[~np.isfinite(f)] = 0.0
         return f, G
+
+    @staticmethod
+    def _kinds(nre: int, ne: int, split: bool) -> list[slice]:
+        """The groups of free-pole entries computed together: all of them, or (``split``) the real
+        ones and the pairs."""
+        if split and 0 < nre < ne:
+            return [slice(0, nre), slice(nre, ne)]
+        return [slice(0, ne)]
 
     @staticmethod
     def _select(T: dict[str, NDArray], where: NDArray) -> dict[str, NDArray]:
@@ -260,11 +288,19 @@ class PatternBatch:
         c = (np.where(on, -mu * D / d2, 0.0)) @ self._incidence
         return np.where(inside, val, math.inf), c, inside
 
-    def _objective(self, W: NDArray, P: NDArray, objective: str, k: int | None
+    def _objective(self, W: NDArray, P: NDArray, objective: str, k: int | None, kinds: NDArray | None = None
                    ) -> tuple[NDArray, NDArray, NDArray]:
         """``(f, K = df/dW, explicit per-slot pole gradient)`` of the members' ``W`` and poles ``P``:
         the measured eigenvectors' kappa2 / bound / kappa_fro (member by member where the stacked
-        inverse fails) or :func:`~optdesign.engines.region_eta.eta_terms`."""
+        inverse fails) or :func:`~optdesign.engines.region_eta.eta_terms`.  ``kinds`` (per member,
+        whether its model has pairs): the all-real members in real arithmetic, apart."""
+        if kinds is not None and 0 < kinds.sum() < kinds.size:
+            out = [np.empty(W.shape[0]), np.zeros(W.shape, dtype=complex), np.zeros(P.shape, dtype=complex)]
+            for sel in (~kinds, kinds):
+                part = self._objective(W[sel] if sel is kinds else W[sel].real, P[sel], objective, k)
+                for o, v in zip(out, part, strict=True):
+                    o[sel] = v
+            return out[0], out[1], out[2]
         if objective == "eta":
             return eta_terms(P, W, k)
         try:
