@@ -36,10 +36,10 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the pole-map engine of the previous stop), made as the base:
-#: ``git archive 3d2df90``
-PREV_COMMIT = "3d2df90"
-PREV_DIR = "/tmp/region-prev-3d2df90"
+#: the commit before this round's change (the previous stop's final engine: one evaluation per pole
+#: pattern), made as the base: ``git archive 59ab1b4``
+PREV_COMMIT = "59ab1b4"
+PREV_DIR = "/tmp/region-prev-59ab1b4"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
@@ -130,9 +130,11 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              "(new)", "",
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
-             f"{PREV_COMMIT} (the lockstep region engine with the poles mapped onto the region, the previous "
-             "stop).  New: this checkout's default (the same engine with a leaner evaluation, a capped "
-             "first stage and the polish as the exact stage; IPOPT only as the fallback).  CPU seconds per design (`time.process_time`, single-threaded BLAS), time limit "
+             f"{PREV_COMMIT} (the lockstep region engine of the previous stop: one evaluation per pole "
+             "pattern and round, the starts' fixed-pole continuations one after another).  New: this "
+             "checkout's default (the same engine and path, every pattern of a round in one evaluation "
+             "and the continuations and polishes in lockstep; IPOPT only as the fallback).  CPU seconds "
+             "per design (`time.process_time`, single-threaded BLAS), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]
     _, b = _rows(base)
     _, pv = _rows(prev)
