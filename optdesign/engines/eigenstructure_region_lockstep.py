@@ -1,12 +1,14 @@
 """The lockstep runner of the eigenstructure engine's region mode (issue 28).
 
 :func:`run_lockstep` takes the starts of :func:`~optdesign.engines.eigenstructure_region.place_region`
-through the free-pole continuation together: each start prepared on its own (its gain and the
-fixed-pole optimum at its poles as candidates), then the free-pole stages of every start -- for each
-real/complex pole pattern on one :class:`~optdesign.engines.eigenstructure_region.RegionModel` -- in
-one BFGS batch (one evaluation per model and round instead of one per start and round), members
-re-anchored at their chart's edge, de-duplicated and pruned
-between stages; then every surviving member polished at its final poles.
+through the free-pole continuation together: every start prepared (its gain and the fixed-pole
+optimum at its poles as candidates; the cold starts' fixed-pole continuations in one BFGS batch,
+:func:`~optdesign.engines.region_batch.fixed_lockstep`), then the free-pole stages of every start
+-- one :class:`~optdesign.engines.eigenstructure_region.RegionModel` per real/complex pole pattern --
+in one BFGS batch whose every round is one evaluation of all patterns
+(:class:`~optdesign.engines.region_batch.PatternBatch`), members re-anchored at their chart's edge,
+de-duplicated and pruned between stages; then every surviving member polished at its final poles
+(for kappa2 in one batch too).
 
 References
 ----------
@@ -204,11 +206,11 @@ def _prepare_all(eng, region, starts, pinned, objective, rng, dl, interior, stop
 
 def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, rng, dl, stop_at=None,
                  measure="right"):
-    """Every start in lockstep: each prepared (``_prepare``), the free-pole stages of all
-    starts with the same real/complex pole pattern on one model and of all patterns in one BFGS
-    batch (``_region_stages``: one evaluation per pattern and round instead of one per start
-    and round -- measured on COMPleib DIS1, an evaluation of 16 members costs 3.5x one of 1), then
-    each member polished at its final poles.  Per start ``(record, best candidate, timed_out)``; a
+    """Every start in lockstep: each prepared (``_prepare_all``), the free-pole stages of all starts
+    in one BFGS batch (``_region_stages``: the starts with the same real/complex pole pattern on one
+    model, one evaluation of every pattern per round -- on small plants a round's cost is numpy's
+    per-call overhead, ``region_batch``), then each member polished at its final poles
+    (``_polish``).  Per start ``(record, best candidate, timed_out)``; a
     start whose candidate attains ``stop_at`` ends the run (see :func:`place_region`).  ``measure``:
     which eigenvectors the objective measures (:class:`RegionModel`)."""
     interior = interior_of(region)

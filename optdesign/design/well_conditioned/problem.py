@@ -259,7 +259,7 @@ class WellConditionedProblem:
         engine from IPOPT's best (``benchmarks/results/region_eta.md``: the engine alone was more than 1e-3
         worse than IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, and better on 22, AC7 37.6 vs 263,102).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
-        more than 1e-3 better on 14, worse on one (a random n = 6 plant, +0.9 %); median CPU 1.22 s vs 13.2 s.
+        more than 1e-3 better on 14, worse on 2 (random n = 6 +0.9 %, n = 9 +0.1 %); median 0.75 s vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
         start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
         every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish

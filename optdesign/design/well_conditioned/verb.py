@@ -159,9 +159,9 @@ def well_conditioned_observer(
 
     In a region (kappa2 / kappa_fro without bounds or structural zeros) the engine runs from eight
     starts in lockstep, IPOPT only as the fallback when no engine design verifies (issue 28: on the
-    50 plants n <= 10 of ``benchmarks/results/region.md`` median CPU 1.22 s against 13.2 s for the
+    50 plants n <= 10 of ``benchmarks/results/region.md`` median CPU 0.75 s against 13.2 s for the
     previous default -- IPOPT from every start, now ``WellConditionedProblem(route="multistart")``
-    -- better than it by more than 1e-3 on 14 plants, worse on one, by 0.9 %).  ``result.route``
+    -- better than it by more than 1e-3 on 14 plants, worse on two, by 0.9 % and 0.1 %).  ``result.route``
     lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`)
     takes the constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``,
     structural zeros in a region -- and is the fallback when no engine design verifies; for eta in a
