@@ -51,6 +51,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -76,6 +77,9 @@ from .tolerances import (
     REGION_STAGES,
     STENCIL_MIN_SCALE,
 )
+
+if TYPE_CHECKING:  # it builds on this module's model
+    from .region_batch import PatternBatch
 
 __all__ = [
     "RegionModel",
@@ -201,7 +205,7 @@ class RegionModel:
         # per-member anchor bases of the free real poles and pairs (set by set_anchor)
         self._anchor_r: NDArray = np.zeros((0, n_real, n, r))
         self._anchor_p: NDArray = np.zeros((0, n_pairs, n, r), dtype=complex)
-        self._batch = None  # the evaluation (PatternBatch) of these anchors
+        self._batch: PatternBatch | None = None  # the evaluation of these anchors
         self._anchored = False
 
     # ------------------------------------------------------------------ layout

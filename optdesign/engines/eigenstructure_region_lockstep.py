@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -290,7 +291,7 @@ def _polish(eng, region, objective, jobs: list[tuple[dict, FixedPoleModel, NDArr
     one (:func:`~optdesign.engines.eigenstructure_fixed.run_starts`: eta's fixed-pole objective is
     the gain form, not the region batch's)."""
     ts = time.process_time()
-    outs: list[tuple | None] = [None] * len(jobs)
+    outs: list[Any] = [None] * len(jobs)
     if objective == "kappa2":
         for size in sorted({fm.size for _, fm, _ in jobs}):
             idx = [j for j, (_, fm, _) in enumerate(jobs) if fm.size == size]

@@ -25,6 +25,7 @@ one BFGS batch: the starts' fixed-pole models as patterns whose poles are all pi
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,7 +55,7 @@ class PatternBatch:
 
     Parameters
     ----------
-    models : list of RegionModel
+    models : list of RegionModel (or of fixed-pole models as :func:`fixed_lockstep` wraps them)
         One per pole pattern, built for the same engine, region, pinned poles and interior point
         (their variable vectors have the same length).
     sizes : list of int
@@ -62,7 +63,7 @@ class PatternBatch:
         order of the stacked anchors, :meth:`refresh_anchors`).
     """
 
-    def __init__(self, models: list[RegionModel], sizes: list[int]) -> None:
+    def __init__(self, models: list[Any], sizes: list[int]) -> None:
         m0 = models[0]
         if any((m.size, m.r, m.rho, m.measure) != (m0.size, m0.r, m0.rho, m0.measure) for m in models):
             raise ValueError("PatternBatch: the models do not share one variable layout and region")
@@ -118,7 +119,7 @@ class PatternBatch:
             self._pinned["B"] = np.stack(B).astype(complex if pp else float)
         self.refresh_anchors()
 
-    def _table(self, reals, pairs, width: int, **fields) -> dict[str, NDArray]:
+    def _table(self, reals, pairs, width: int, **fields) -> dict[str, Any]:
         """Flat per-entry indices of ``reals`` then ``pairs`` (``(member, slot, j)``, ``j`` the index
         within its model): member, slot, j, whether a pair, and per field in ``fields`` (a pair of
         functions ``(model, j) -> column``, for a real entry and for a pair) the column; ``col`` and
@@ -156,7 +157,7 @@ class PatternBatch:
         where = np.full(self.total, -1)
         where[rows] = np.arange(s)
         E = self._select(self._free, where)
-        pm, slot, nre = E["pm"], E["slot"], E["nre"]
+        pm, slot, nre = E["pm"], E["slot"], int(E["nre"])
         f, Gx = np.full(s, math.inf), np.zeros_like(Zx)
         # the free poles through the map, then every pole in its slot
         if pm.size:
@@ -174,10 +175,10 @@ class PatternBatch:
         if not ok.any():
             return f, Gx[:, :size]
         Ep = self._select(self._pinned, where) if self._pinned["mem"].size else None
-        cplx = nre < pm.size or (Ep is not None and Ep["nre"] < Ep["pm"].size)
+        cplx = bool(nre < pm.size or (Ep is not None and Ep["nre"] < Ep["pm"].size))
         # at sizes where arithmetic, not calls, is the cost: real arithmetic for the real poles and
         # for the all-real patterns' members, as their own models compute them
-        split = cplx and self.n >= _SPLIT_N
+        split = bool(cplx and self.n >= _SPLIT_N)
         # the aligned bases of the free poles (one stacked QR per kind), the rows of W
         W = np.zeros((s, self.n, self.n), dtype=complex if cplx else float)
         if pm.size:
@@ -206,12 +207,12 @@ class PatternBatch:
         cs = cbar.copy()
         cs[idx] += cp
         # coordinates: B^H K per slot (a pair's two rows: 2 B^H K of its upper one)
-        for T, B in ((E, N if pm.size else None), (Ep, None if Ep is None else Ep["B"])):
-            if T is not None and T["pm"].size:
-                z = np.einsum("ekr,ek->er", B.conj(), Kf[T["pm"], T["slot"]])
-                z[T["nre"]:] *= 2.0
-                Gx[T["pm"][:, None], T["cols"]] = z.real
-                Gx[T["pm"][T["nre"]:, None], T["cols_im"][T["nre"]:]] = z[T["nre"]:].imag
+        parts = ([(E, N)] if pm.size else []) + ([(Ep, Ep["B"])] if Ep is not None and Ep["pm"].size else [])
+        for T, B in parts:
+            z = np.einsum("ekr,ek->er", B.conj(), Kf[T["pm"], T["slot"]])
+            z[T["nre"]:] *= 2.0
+            Gx[T["pm"][:, None], T["cols"]] = z.real
+            Gx[T["pm"][T["nre"]:, None], T["cols_im"][T["nre"]:]] = z[T["nre"]:].imag
         # poles: the bases' derivative (RegionModel._pole_derivative) + the explicit terms, folded,
         # then the chain rule through the map
         if pm.size:
@@ -223,7 +224,8 @@ class PatternBatch:
                 real = not cplx or (split and sl.stop == nre)
                 one = (x[sl, None].real if real else x[sl, None]  # each entry its own "member"
                        for x in (N, anchor, Q1, R1, e, Ev, Kj, c))
-                for i, dd in enumerate(self.models[0]._pole_derivative(*one, (1.0,) if real else (1.0, 1j))):
+                derivative: Any = self.models[0]._pole_derivative
+                for i, dd in enumerate(derivative(*one, (1.0,) if real else (1.0, 1j))):
                     d[i][sl] = dd[:, 0]
             Gx[pm[:nre], E["var"][:nre]] = (d[0][:nre] + cs[pm[:nre], slot[:nre]].real) * dlr
             gu, gl = cs[pm[nre:], slot[nre:]], cs[pm[nre:], slot[nre:] + 1]
@@ -245,7 +247,7 @@ class PatternBatch:
         return [slice(0, ne)]
 
     @staticmethod
-    def _select(T: dict[str, NDArray], where: NDArray) -> dict[str, NDArray]:
+    def _select(T: dict[str, Any], where: NDArray) -> dict[str, Any]:
         """The entries of table ``T`` whose member is evaluated, with their position ``pm`` among the
         points and ``nre``, how many of them are real (they come first)."""
         pos = where[T["mem"]]
@@ -255,7 +257,7 @@ class PatternBatch:
         return out
 
     @staticmethod
-    def _put(W: NDArray, Zx: NDArray, T: dict[str, NDArray], B: NDArray, cplx: bool) -> NDArray:
+    def _put(W: NDArray, Zx: NDArray, T: dict[str, Any], B: NDArray, cplx: bool) -> NDArray:
         """Each entry's eigenvector row ``B c`` into ``W`` (a pair: the row and its conjugate);
         returns the coordinates ``c`` (complex in a complex call)."""
         pm, nre = T["pm"], T["nre"]
