@@ -155,3 +155,21 @@ def test_fixed_lockstep_ends_where_each_start_ends_alone():
         ((xa, _, _, _),) = run_starts(m, x0[None], "kappa2", Deadline(None), 400, REGION_FIXED_STAGES)
         assert its > 0 and reason in ("converged", "line search", "max_iter")
         assert m.metric(x, "kappa2") == pytest.approx(m.metric(xa, "kappa2"), rel=1e-6)
+
+
+def test_a_model_evaluates_with_its_current_anchors():
+    """RegionModel.evaluate_batch keeps its batch only while the anchors stay: after set_anchor at
+    a moved point, the value off the anchor is that of a model anchored there from the start."""
+    models, Xs = _models("compleib_ac6", members=1, seed=4)
+    g = next(i for i, m in enumerate(models) if m.nrf and m.npf)
+    model, X = models[g], Xs[g]
+    Z = X.copy()
+    Z[:, model.ncoord :] += 0.01 * model.rho
+    before = model.evaluate_batch(Z, "kappa2", 64, 1e-3)[0][0]
+    model.set_anchor(X)  # the aligned bases at X (moved off the first anchors above)
+    after, G = model.evaluate_batch(Z, "kappa2", 64, 1e-3)
+    fresh = PatternBatch([model], [1])  # built from the current anchors
+    f_fresh, G_fresh = fresh.evaluate(Z, np.arange(1), "kappa2", 64, 1e-3)
+    assert after[0] == pytest.approx(f_fresh[0], rel=1e-12)
+    np.testing.assert_allclose(G, G_fresh, rtol=1e-12, atol=1e-14)
+    assert np.isfinite(before) and np.isfinite(after[0])
