@@ -122,8 +122,8 @@ class PatternBatch:
     def _table(self, reals, pairs, width: int, **fields) -> dict[str, Any]:
         """Flat per-entry indices of ``reals`` then ``pairs`` (``(member, slot, j)``, ``j`` the index
         within its model): member, slot, j, whether a pair, and per field in ``fields`` (a pair of
-        functions ``(model, j) -> column``, for a real entry and for a pair) the column; ``col`` and
-        ``col_im`` become ``width`` columns from there."""
+        functions ``(model, j) -> column``, for a real entry and for a pair) the column; ``cols`` and
+        ``cols_im`` (a coordinate block's first column) become ``width`` columns from there."""
         rows = list(reals) + list(pairs)
         kind = [0] * len(reals) + [1] * len(pairs)
         out = {"mem": np.array([i for i, _, _ in rows], dtype=int),
