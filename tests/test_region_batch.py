@@ -173,3 +173,12 @@ def test_a_model_evaluates_with_its_current_anchors():
     assert after[0] == pytest.approx(f_fresh[0], rel=1e-12)
     np.testing.assert_allclose(G, G_fresh, rtol=1e-12, atol=1e-14)
     assert np.isfinite(before) and np.isfinite(after[0])
+
+
+def test_models_of_different_layouts_are_refused():
+    """Members of one batch must share the variable layout and the region (one engine, the same
+    pinned poles and interior point): two plants' models are refused with a message saying so."""
+    (a, *_), _ = _models("compleib_ac6")
+    (b, *_), _ = _models("compleib_he2")
+    with pytest.raises(ValueError, match="do not share one variable layout and region"):
+        PatternBatch([a, b], [1, 1])

@@ -284,32 +284,24 @@ class RegionModel:
         N = X @ (E / np.where(e > 0, e, np.inf)[..., None, :]) @ Eh
         return N, e[..., 0].min(axis=-1), Q1, R1, e, E
 
-    def _members(self, X: NDArray, parts: tuple | None = None) -> dict[str, NDArray]:
-        """Aligned bases (padded to ``r``), ``W``, the QR factors of the free poles and feasibility
-        (``parts``: ``split(X)`` when the caller has it)."""
+    def _members(self, X: NDArray) -> dict[str, NDArray]:
+        """The aligned bases (``Br``, ``Bp``, padded to ``r``) and ``W`` of the members ``X`` at their
+        anchors (the evaluation itself is :class:`~optdesign.engines.region_batch.PatternBatch`'s)."""
         s = X.shape[0]
-        eng = self.engine
-        n, r, R = eng.n, eng.rank, self.r
-        c, lr, sg, om = parts if parts is not None else self.split(X)
-        ok = np.ones(s, dtype=bool)
-        out: dict[str, NDArray] = {}
+        n, r, R = self.engine.n, self.engine.rank, self.r
+        c, lr, sg, om = self.split(X)
         Br = np.zeros((s, self.nr, n, R))
         Bp = np.zeros((s, self.np, n, R), dtype=complex)
         if self.nrf:
-            N, ov, out["Q1r"], out["R1r"], out["er"], out["Er"] = self._aligned(lr, self.anchor_r)
-            Br[:, : self.nrf, :, :r] = N
-            ok &= ov > _MIN_OVERLAP
+            Br[:, : self.nrf, :, :r] = self._aligned(lr, self.anchor_r)[0]
         if self.npf:
-            N, ov, out["Q1p"], out["R1p"], out["ep"], out["Ep"] = self._aligned(sg + 1j * om, self.anchor_p)
-            Bp[:, : self.npf, :, :r] = N
-            ok &= ov > _MIN_OVERLAP
+            Bp[:, : self.npf, :, :r] = self._aligned(sg + 1j * om, self.anchor_p)[0]
         Br[:, self.nrf :] = self.Npr[None]
         Bp[:, self.npf :] = self.Npp[None]
         k2 = R * (self.nr + self.np)
         cr = c[:, : R * self.nr].reshape(s, self.nr, R)
         cp = (c[:, R * self.nr : k2] + 1j * c[:, k2:]).reshape(s, self.np, R)
-        out.update(Br=Br, Bp=Bp, W=_rows(Br, Bp, cr, cp, self.complex), ok=ok)
-        return out
+        return {"Br": Br, "Bp": Bp, "W": _rows(Br, Bp, cr, cp, self.complex)}
 
     # ------------------------------------------------------------------ evaluation
     @property

@@ -34,7 +34,7 @@ from .._deadline import Deadline
 from .eigenstructure import FixedPoleModel, left_spectral_objective, spectral_objective
 from .eigenstructure_region import RegionModel
 from .quasi_newton import bfgs_minimize_batch
-from .region_eta import eta_terms
+from .region_eta import eta_terms, pole_pairs
 from .tolerances import STAGE_FTOL, STAGE_FTOL_DEFAULT, STAGE_GTOL
 
 __all__ = ["PatternBatch", "fixed_lockstep"]
@@ -78,12 +78,9 @@ class PatternBatch:
         self.cplx = np.array([models[g].complex for g in self.owner], dtype=bool)
         fr, pr, fp, pp = [], [], [], []  # (member, slot, model's own index) per kind
         slots0 = np.zeros((self.total, n), dtype=complex)  # the pinned poles in their slots
-        bi, bj = np.triu_indices(n, 1)
+        bi, bj, self._incidence = pole_pairs(n)
         self._bi, self._bj = bi, bj
         self._pair_on = np.zeros((self.total, bi.size), dtype=bool)  # the model's barrier pairs
-        self._incidence = np.zeros((bi.size, n))
-        self._incidence[np.arange(bi.size), bi] = 1.0
-        self._incidence[np.arange(bi.size), bj] = -1.0
         for i, g in enumerate(self.owner):
             m = models[g]
             fr += [(i, j, j) for j in range(m.nrf)]

@@ -49,7 +49,7 @@ from numpy.typing import NDArray
 
 from .tolerances import EPS, REGION_STAGES
 
-__all__ = ["ETA_STAGES", "ETA_WARM_STAGES", "soft_gap2", "departure2", "eta_terms"]
+__all__ = ["ETA_STAGES", "ETA_WARM_STAGES", "soft_gap2", "departure2", "eta_terms", "pole_pairs"]
 
 #: ``(gap order k, separation-barrier weight)`` per stage of eta in region mode: the orders of the
 #: kappa2 continuation (the soft minimum of ``m`` squared distances is within ``m^(1/k)`` of the
@@ -81,7 +81,7 @@ def soft_gap2(P: NDArray, k: int | None) -> tuple[NDArray[np.float64], NDArray[n
         gradients, a subgradient); 0 where ``g = 0``.
     """
     s, n = P.shape
-    iu, ju, inc = _pairs(n)
+    iu, ju, inc = pole_pairs(n)
     D = P[:, iu] - P[:, ju]  # (s, m)
     d = D.real**2 + D.imag**2
     dmin = d.min(axis=1) if d.shape[1] else np.full(s, math.inf)
@@ -103,7 +103,7 @@ def soft_gap2(P: NDArray, k: int | None) -> tuple[NDArray[np.float64], NDArray[n
 
 
 @functools.lru_cache(maxsize=64)
-def _pairs(n: int) -> tuple[NDArray, NDArray, NDArray]:
+def pole_pairs(n: int) -> tuple[NDArray, NDArray, NDArray]:
     """``(i, j, incidence)`` of the pairs ``i < j`` of ``n`` poles; ``incidence`` (m, n): +1 at ``i``,
     -1 at ``j`` (read-only: shared between calls)."""
     iu, ju = np.triu_indices(n, 1)
