@@ -48,7 +48,7 @@ from .evaluation import (
 from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
 from .results import ObserverDesign, StartRecord, n_converged, no_design
 from .route import ENGINE_FIXED, ENGINE_REGION, IPOPT, Phase, proof_route, route_of
-from .starts import fixed_starts, iter_region_starts
+from .starts import default_region_starts, fixed_starts, iter_region_starts
 
 __all__ = ["WellConditionedProblem", "LocalOptimum", "local_optima", "warm_start_origin", "Objective",
            "DEFAULT_STARTS", "check_region", "kappa2_bound",
@@ -60,12 +60,10 @@ Objective = Literal["kappa2", "kappa_fro", "eta"]
 #: engine use :func:`~optdesign.engines.eigenstructure_fixed.default_starts`
 DEFAULT_STARTS = 8
 
-#: route "fast" in a region (kappa2 / kappa_fro): the engine's starts when none are given, and how many
-#: of them IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches
-#: kappa2 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches
-#: 1.46204 where IPOPT's first two starts stop at 1.481; on random plants n = 5, p = 1 and n = 8, p = 2
-#: 8 engine starts reach 121.1 and 114.7 where 3 reach 248.6 and 122.6, at 1.1-1.8x their CPU)
-AUTO_REGION_STARTS = 8
+#: route "fast" in a region: of the engine's starts (:func:`~.starts.default_region_starts`), how many
+#: IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches kappa2
+#: 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches 1.46204
+#: where IPOPT's first two starts stop at 1.481)
 AUTO_NLP_STARTS = 2
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)
@@ -233,8 +231,8 @@ class WellConditionedProblem:
         Default: :data:`DEFAULT_STARTS` (8), except fixed poles on the placement engine (no bounds, no
         structural zeros): :func:`~optdesign.engines.eigenstructure_fixed.default_starts` (6 up to
         n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
-        ``"auto"``, ``"engine"``, ``"fast"`` (kappa2 / kappa_fro, no bounds or structural zeros):
-        ``AUTO_REGION_STARTS``.
+        ``"auto"``, ``"engine"``, ``"fast"`` (no bounds or structural zeros):
+        :func:`~.starts.default_region_starts` (8 up to n = 12, 4 up to 24, then 2).
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -253,7 +251,7 @@ class WellConditionedProblem:
     route : {"auto", "engine", "fast", "multistart", "nlp"}, default "auto"
         Region mode (``_region_plan``; what ran is ``result.route``).  ``"auto"`` (= ``"engine"``): for
         kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
-        (default ``AUTO_REGION_STARTS`` = 8: the naive poles with YT, the Kalman gain, region samples),
+        (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
         every start for bounds and gain masks; for eta the engine and IPOPT from every start, then the
         engine from IPOPT's best (``benchmarks/results/region_eta.md``: the engine alone was more than 1e-3
@@ -496,7 +494,7 @@ class WellConditionedProblem:
         if chosen is not None:
             n_starts = chosen
         elif self.route != "multistart" and not self._needs_nlp(bounds):
-            n_starts = AUTO_REGION_STARTS
+            n_starts = default_region_starts(self.plant.n)
         else:
             n_starts = DEFAULT_STARTS
         return self._free(region, bounds, n_starts, seed, deadline, warms, progress)
