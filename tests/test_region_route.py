@@ -268,12 +268,14 @@ def test_accuracy_check_nearly_semisimple_pair_passes_nearly_defective_fails():
 
 
 def test_default_region_starts_by_size():
-    """8 starts up to n = 12, 4 up to 24, then 2 (measured in default_region_starts' docstring); the
-    count is validated."""
+    """8 starts up to n = 12, 4 up to 24, then 2 (measured in default_region_starts' docstring); eta
+    8 at every size; the count is validated."""
     from optdesign.design.well_conditioned.starts import default_region_starts
     from optdesign.errors import ValidationError
 
     assert [default_region_starts(n) for n in (1, 12, 13, 24, 25, 50)] == [8, 8, 4, 4, 2, 2]
+    assert [default_region_starts(n, "kappa_fro") for n in (12, 13, 25)] == [8, 4, 2]
+    assert [default_region_starts(n, "eta") for n in (12, 13, 25)] == [8, 8, 8]
     with pytest.raises(ValidationError, match="n"):
         default_region_starts(0)
 
@@ -285,13 +287,13 @@ def test_region_design_without_starts_uses_the_size_default(monkeypatch):
 
     seen = []
 
-    def three(n):
-        seen.append(n)
+    def three(n, objective):
+        seen.append((n, objective))
         return 3
 
     monkeypatch.setattr(problem, "default_region_starts", three)
     plant = _random_plant(3, 3, 2)
     d = WellConditionedProblem(plant).solve(region=_REGION)
-    assert d.success and seen == [3] and len(d.starts) == 3
+    assert d.success and seen == [(3, "kappa2")] and len(d.starts) == 3
     d = WellConditionedProblem(plant).solve(region=_REGION, starts=2)
-    assert d.success and seen == [3] and len(d.starts) == 2
+    assert d.success and seen == [(3, "kappa2")] and len(d.starts) == 2

@@ -323,7 +323,7 @@ def region_controller_fields(A: NDArray, B: NDArray, region: Any, *, dual: Any, 
         best = _verified(A, B, dual_K, None, region, discrete, "dual", best)
     k2_dual = best[0] if best is not None else math.nan
     rng = np.random.default_rng(seed)
-    n_starts = default_region_starts(A.shape[0]) if starts is None else int(starts)
+    n_starts = default_region_starts(A.shape[0], objective) if starts is None else int(starts)
     specs += [RegionStart(o, np.asarray(P0, dtype=complex), L0)
               for o, L0, _, P0 in iter_region_starts(dual, region, n_starts, rng, None)]
     out, done, its, timed_out = _region_engine(A, B, region, specs, objective, seed, deadline)

@@ -232,7 +232,7 @@ class WellConditionedProblem:
         structural zeros): :func:`~optdesign.engines.eigenstructure_fixed.default_starts` (6 up to
         n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
         ``"auto"``, ``"engine"``, ``"fast"`` (no bounds or structural zeros):
-        :func:`~.starts.default_region_starts` (8 up to n = 12, 4 up to 24, then 2).
+        :func:`~.starts.default_region_starts` (8 up to n = 12, 4 up to 24, then 2; eta: 8).
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -494,7 +494,7 @@ class WellConditionedProblem:
         if chosen is not None:
             n_starts = chosen
         elif self.route != "multistart" and not self._needs_nlp(bounds):
-            n_starts = default_region_starts(self.plant.n)
+            n_starts = default_region_starts(self.plant.n, self.objective)
         else:
             n_starts = DEFAULT_STARTS
         return self._free(region, bounds, n_starts, seed, deadline, warms, progress)
