@@ -167,12 +167,13 @@ def test_engine_eta_against_ipopt(seed, n, p):
 
 
 def test_default_eta_takes_the_better_of_engine_and_ipopt():
-    """COMPleib DIS2: the engine alone ends in a worse local optimum (eta 0.0606: the real pole on
-    the disk's edge) than IPOPT (0.0338: on the half-plane's edge) -- so the default route for eta runs
-    both from every start, and answers at least as well as each."""
+    """COMPleib DIS2: the engine from 8 starts ends in a worse local optimum (eta 0.0606: the real pole
+    on the disk's edge) than IPOPT from 8 (0.0338: on the half-plane's edge).  The default route for
+    eta (the engine from 16 starts, IPOPT from its first two, the engine from IPOPT's best) answers at
+    least as well as each (measured: its 15th engine start reaches 0.0338)."""
     plant = problems.load("compleib_dis2").plant
     region = suggested_region(plant)
-    eng = WellConditionedProblem(plant, objective="eta", route="engine").solve(region=region)
+    eng = WellConditionedProblem(plant, objective="eta", route="engine", starts=8).solve(region=region)
     nlp = WellConditionedProblem(plant, objective="eta", route="nlp").solve(region=region)
     d = WellConditionedProblem(plant, objective="eta").solve(region=region)
     _check_design(plant, region, d)

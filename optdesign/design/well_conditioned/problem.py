@@ -685,17 +685,14 @@ class WellConditionedProblem:
         solve (the warm starts run in every phase that runs).
 
         ``"auto"`` / ``"engine"`` (no bounds or structural zeros): the engine from every start (IPOPT as
-        the fallback); eta, ``"auto"``: the engine and IPOPT from every start, then the engine from
-        IPOPT's best.  ``"fast"``: the engine from every start, IPOPT (light polish, ``"last"``) from the
-        first ``AUTO_NLP_STARTS``, then the engine from IPOPT's best when it beats the engine's.
-        ``"multistart"``: IPOPT from every start, then the engine from the best.  ``"nlp"``, or a
-        question the engine does not take: IPOPT only."""
+        the fallback).  ``"fast"``, and eta on ``"auto"``: the engine from every start, IPOPT (light
+        polish, ``"last"``) from the first ``AUTO_NLP_STARTS``, then the engine from IPOPT's best when
+        it beats the engine's.  ``"multistart"``: IPOPT from every start, then the engine from the
+        best.  ``"nlp"``, or a question the engine does not take: IPOPT only."""
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
-        if mode == "auto" and self.objective == "eta":  # the engine alone was worse on 7 of 50 plants
-            return True, n_starts, True, n_starts, self.region_polish, True
-        if mode in ("auto", "engine"):
+        if mode == "engine" or (mode == "auto" and self.objective != "eta"):
             return True, n_starts, False, 0, self.region_polish, False
         if mode == "multistart":
             return False, 0, True, n_starts, self.region_polish, True

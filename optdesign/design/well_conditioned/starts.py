@@ -297,7 +297,7 @@ def naive_poles(plant: Plant, region: Region) -> NDArray[np.complex128]:
 def default_region_starts(n: int, objective: str = "kappa2") -> int:
     """Starts of a region design on the placement engine when none are given: 8 up to ``n = 12``, 4 up
     to 24, then 2 (the region analogue of the fixed-pole engine's
-    :func:`~optdesign.engines.eigenstructure_fixed.default_starts`); 8 at every size for eta.
+    :func:`~optdesign.engines.eigenstructure_fixed.default_starts`); for eta 16 at every size.
 
     Measured (issue 28): on random plants n = 5, p = 1 and n = 8, p = 2, 8 engine starts reach kappa2
     121.1 and 114.7 where 3 reach 248.6 and 122.6, at 1.1-1.8x their CPU.  Above n = 12 (random plants of
@@ -306,13 +306,19 @@ def default_region_starts(n: int, objective: str = "kappa2") -> int:
     plants) 4 starts take 0.53-0.75x the CPU of 8 and end within 1 % of their kappa2 (at most
     +0.95 %, n = 16; 0 to +0.4 % at n = 20 and 24); at n = 30, p = 7 (3 plants) 2 starts take 9-11 s
     against 36-40 s for 8, within 0.4 % (61.67 vs 61.64 on the benchmark's plant, where the commit
-    before issue 28 reached 386.7 in 150 s).  Not for eta, whose default runs IPOPT from every start too
-    and stops at the 150 s limit at n = 20 and 30 either way: with 4 starts its n = 20 design ended at
-    eta 65.07 against 60.94 with 8.  Pass ``starts`` for more.
+    before issue 28 reached 386.7 in 150 s).  Pass ``starts`` for more.
+
+    eta (the engine from every start, IPOPT from the first two, :meth:`WellConditionedProblem.solve`):
+    on the 50 plants n <= 10 of ``benchmarks/bench_region.py`` the engine from 16 starts matched or beat
+    IPOPT from 8 on every plant where the engine from 8 did not (COMPleib DIS2 0.0338 from its 15th
+    start, HE3, random n = 4, 9), and with IPOPT from two starts beside it was never more than 1e-3 worse
+    than IPOPT from 8 (12 starts: 2 plants worse, DIS2 +79 %; 24: none, 1.2x the CPU of 16).  At
+    n = 20 and 30 (p = 5, 7; both stopped by a 150 s limit) 16 starts ended at 57.0 and 96.3 against
+    60.9 and 110.5 with 8; with 4 starts at n = 20, 65.1.
     """
     n = as_int("n", n, 1)
     if objective == "eta":
-        return 8
+        return 16
     return 8 if n <= 12 else 4 if n <= 24 else 2
 
 
