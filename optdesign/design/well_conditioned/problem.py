@@ -60,8 +60,8 @@ Objective = Literal["kappa2", "kappa_fro", "eta"]
 #: engine use :func:`~optdesign.engines.eigenstructure_fixed.default_starts`
 DEFAULT_STARTS = 8
 
-#: route "fast" in a region: of the engine's starts (:func:`~.starts.default_region_starts`), how many
-#: IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches kappa2
+#: route "fast" in a region (and eta's "auto"): of the engine's starts (``default_region_starts``), how
+#: many IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches kappa2
 #: 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches 1.46204
 #: where IPOPT's first two starts stop at 1.481)
 AUTO_NLP_STARTS = 2
@@ -232,7 +232,8 @@ class WellConditionedProblem:
         structural zeros): :func:`~optdesign.engines.eigenstructure_fixed.default_starts` (6 up to
         n = 12, 2 up to 24, then 1 -- what the engine needs, measured), and a region on the route
         ``"auto"``, ``"engine"``, ``"fast"`` (no bounds or structural zeros):
-        :func:`~.starts.default_region_starts` (8 up to n = 12, 4 up to 24, then 2; eta: 8).
+        :func:`~optdesign.design.well_conditioned.starts.default_region_starts`
+        (8 up to n = 12, 4 up to 24, then 2; eta: 16).
     seed : int, default 0
     nlp_solver : {"ipopt"}
     scaling : bool, default True
@@ -253,9 +254,9 @@ class WellConditionedProblem:
         kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
         (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
-        every start for bounds and gain masks; for eta the engine and IPOPT from every start, then the
-        engine from IPOPT's best (``benchmarks/results/region_eta.md``: the engine alone was more than 1e-3
-        worse than IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, and better on 22, AC7 37.6 vs 263,102).
+        every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts
+        (``benchmarks/results/region_eta.md``: the engine alone from 8 was more than 1e-3 worse than
+        IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, from 16 with IPOPT from 2 beside it on none).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
         more than 1e-3 better on 14, worse on 2 (random n = 6 +0.9 %, n = 9 +0.1 %); median 0.75 s vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine

@@ -303,7 +303,7 @@ def default_region_starts(n: int, objective: str = "kappa2") -> int:
     121.1 and 114.7 where 3 reach 248.6 and 122.6, at 1.1-1.8x their CPU.  Above n = 12 (random plants of
     ``benchmarks/bench_region.py``, region ``HalfPlane(0.5) &
     Sector.from_damping(0.5) & Disk(0, 5)``, CPU per design): at n = 14, 16, 20, 24 (p = 4..6, 9
-    plants) 4 starts take 0.53-0.75x the CPU of 8 and end within 1 % of their kappa2 (at most
+    plants) 4 starts take 0.52-0.75x the CPU of 8 and end within 1 % of their kappa2 (at most
     +0.95 %, n = 16; 0 to +0.4 % at n = 20 and 24); at n = 30, p = 7 (3 plants) 2 starts take 9-11 s
     against 36-40 s for 8, within 0.4 % (61.67 vs 61.64 on the benchmark's plant, where the commit
     before issue 28 reached 386.7 in 150 s).  Pass ``starts`` for more.

@@ -73,10 +73,12 @@ def well_conditioned_observer(
         Trade-off bounds on the metrics that are not minimized (e.g. minimize eta subject to
         ``kappa2 <= kappa2_max``): minimizing eta alone can make kappa2 much worse.
     starts : int, optional
-        Number of multi-start runs; default 8, except fixed poles on the placement engine (no
-        bounds, no structural zeros): 6 up to n = 12, 2 up to 24, then 1
-        (:func:`~optdesign.engines.eigenstructure_fixed.default_starts`: measured enough for the
-        engine, whose starts run in lockstep).  Fixed poles: scipy YT, KNV0 (real poles) and random
+        Number of multi-start runs; default 8, except on the placement engine (no bounds, no
+        structural zeros): fixed poles 6 up to n = 12, 2 up to 24, then 1
+        (:func:`~optdesign.engines.eigenstructure_fixed.default_starts`), a region 8 up to n = 12, 4
+        up to 24, then 2, and 16 for eta
+        (:func:`~optdesign.design.well_conditioned.starts.default_region_starts`): measured enough
+        for the engine, whose starts run in lockstep.  Fixed poles: scipy YT, KNV0 (real poles) and random
         eigenvector coordinates, run in lockstep by the placement engine.  Region: start 0 is
         scipy YT at :func:`naive_poles` (the open-loop poles moved into the region), start 1 the
         Kalman gain for ``Q = I, R = I``, the others YT at poles sampled in the region
@@ -158,14 +160,17 @@ def well_conditioned_observer(
     so the design is never worse than scipy YT at :func:`naive_poles` (start 0).
 
     In a region (kappa2 / kappa_fro without bounds or structural zeros) the engine runs from eight
-    starts in lockstep, IPOPT only as the fallback when no engine design verifies (issue 28: on the
-    50 plants n <= 10 of ``benchmarks/results/region.md`` median CPU 0.75 s against 13.2 s for the
-    previous default -- IPOPT from every start, now ``WellConditionedProblem(route="multistart")``
-    -- better than it by more than 1e-3 on 14 plants, worse on two, by 0.9 % and 0.1 %).  ``result.route``
-    lists what ran and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`)
-    takes the constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``,
-    structural zeros in a region -- and is the fallback when no engine design verifies; for eta in a
-    region both run from every start (the engine alone was worse on some plants).  A kappa2 bound
+    starts in lockstep (fewer above n = 12:
+    :func:`~optdesign.design.well_conditioned.starts.default_region_starts`), IPOPT only as the
+    fallback when no engine design verifies (issue 28: on the 50 plants n <= 10 of
+    ``benchmarks/results/region.md`` median CPU under 1 s against 13.2 s for the previous default --
+    IPOPT from every start, now ``WellConditionedProblem(route="multistart")`` -- better than it by
+    more than 1e-3 on 14 plants, worse on two, by 0.9 % and 0.1 %).  ``result.route`` lists what ran
+    and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the
+    constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``, structural
+    zeros in a region -- and is the fallback when no engine design verifies; for eta in a region the
+    engine runs from 16 starts and IPOPT from the first two (the engine alone from 8 was worse on
+    some plants).  A kappa2 bound
     with another objective goes through its own continuation (the orders 64, 512, 4096 of the
     surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
     every order guarantees ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.
