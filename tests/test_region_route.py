@@ -278,7 +278,7 @@ def test_default_region_starts_by_size():
     assert [default_region_starts(n) for n in (1, 12, 13, 24, 25, 50)] == [8, 8, 4, 4, 2, 2]
     assert [default_region_starts(n, "kappa_fro") for n in (12, 13, 25)] == [8, 4, 2]
     assert [default_region_starts(n, "eta") for n in (12, 13, 25)] == [16, 16, 16]
-    with pytest.raises(ValidationError, match="n"):
+    with pytest.raises(ValidationError, match=r"n must be an integer >= 1; found 0"):
         default_region_starts(0)
 
 

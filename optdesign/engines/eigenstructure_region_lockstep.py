@@ -191,18 +191,31 @@ def _prepare_all(eng, region, starts, pinned, objective, rng, dl, interior, stop
         s["cpu"] += time.process_time() - ts
         if attained([s]):
             return states
-    sizes = sorted({s["fixed"].size for s in batch})
-    for size in sizes:  # one batch per coordinate length (a pole at an unobservable mode pads it)
-        group = [s for s in batch if s["fixed"].size == size]
-        ts = time.process_time()
-        outs = fixed_lockstep([s["fixed"] for s in group], np.stack([s["x0"] for s in group]), objective,
-                              dl, 400, REGION_FIXED_STAGES)
-        share = (time.process_time() - ts) / len(group)
-        for s, out in zip(group, outs, strict=True):
-            _finish(eng, region, objective, pinned, s, out)
-            s["cpu"] += share
+    outs, shares = _fixed_batches([(s["fixed"], s["x0"]) for s in batch], objective, dl, REGION_FIXED_STAGES)
+    for s, out, share in zip(batch, outs, shares, strict=True):
+        _finish(eng, region, objective, pinned, s, out)
+        s["cpu"] += share
     attained(batch)
     return states
+
+
+def _fixed_batches(jobs: list[tuple[FixedPoleModel, NDArray]], objective: str, dl,
+                   stages: tuple[int | None, ...]) -> tuple[list[tuple], list[float]]:
+    """:func:`~optdesign.engines.region_batch.fixed_lockstep` of every ``(fixed-pole model, start
+    coordinates)``, one batch per coordinate length (a pole at an unobservable mode pads it): per job
+    its ``(x, iterations, evaluations, reason)`` and its share of its batch's CPU time, in the
+    order of ``jobs``."""
+    outs: list[Any] = [None] * len(jobs)
+    shares = [0.0] * len(jobs)
+    for size in sorted({fm.size for fm, _ in jobs}):
+        idx = [j for j, (fm, _) in enumerate(jobs) if fm.size == size]
+        ts = time.process_time()
+        done = fixed_lockstep([jobs[j][0] for j in idx], np.stack([jobs[j][1] for j in idx]), objective,
+                              dl, 400, stages)
+        share = (time.process_time() - ts) / len(idx)
+        for j, o in zip(idx, done, strict=True):
+            outs[j], shares[j] = o, share
+    return outs, shares
 
 
 def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, rng, dl, stop_at=None,
@@ -244,18 +257,17 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
     res = _region_stages(batch, objective, stages, dl, stop_at) if batch else []
     share = (time.process_time() - t0) / max(1, len(live))
     jobs: list[tuple[dict, FixedPoleModel, NDArray]] = []
-    mine: dict[int, list[str]] = {}
     for s in states:
         if "done" in s:
             continue
-        mine[id(s)] = ["converged"]
+        s["reasons"] = ["converged"]
         for g, k0 in s.get("parts", []) if "skip" not in s else []:
             Xg, reasons, its, evs, tb = res[g]
             model, m = batch[g][0], s["members"].shape[0]
             s["its"] += int(its[k0 : k0 + m].sum())
             s["evs"] += int(evs[k0 : k0 + m].sum())
             s["timed_out"] |= tb
-            mine[id(s)] += reasons[k0 : k0 + m]
+            s["reasons"] += reasons[k0 : k0 + m]
             if "infeasible start" in reasons[k0 : k0 + m]:
                 continue
             for i in range(k0, k0 + m):
@@ -269,7 +281,7 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
         if "done" in s:
             out.append((s["done"], s["best"], False))
             continue
-        reasons = mine[id(s)][1:] or mine[id(s)]
+        reasons = s["reasons"][1:] or s["reasons"]
         best = s["best"]
         val = best[0] if best is not None else math.inf
         k2 = math.inf
@@ -291,20 +303,12 @@ def _polish(eng, region, objective, jobs: list[tuple[dict, FixedPoleModel, NDArr
     one (:func:`~optdesign.engines.eigenstructure_fixed.run_starts`: eta's fixed-pole objective is
     the gain form, not the region batch's)."""
     ts = time.process_time()
-    outs: list[Any] = [None] * len(jobs)
     if objective == "kappa2":
-        for size in sorted({fm.size for _, fm, _ in jobs}):
-            idx = [j for j, (_, fm, _) in enumerate(jobs) if fm.size == size]
-            done = fixed_lockstep([jobs[j][1] for j in idx], np.stack([jobs[j][2] for j in idx]), objective,
-                                  dl, 400, (None,))
-            for j, o in zip(idx, done, strict=True):
-                outs[j] = o
+        outs, _ = _fixed_batches([(fm, xc) for _, fm, xc in jobs], objective, dl, (None,))
     else:
         outs = [run_starts(fm, xc[None, :], objective, dl, 400, (None,))[0] for _, fm, xc in jobs]
     share = (time.process_time() - ts) / max(1, len(jobs))
-    for (s, fm, _), o in zip(jobs, outs, strict=True):
-        assert o is not None
-        xp, ip, ep, rp = o
+    for (s, fm, _), (xp, ip, ep, rp) in zip(jobs, outs, strict=True):
         s["its"], s["evs"], s["cpu"] = s["its"] + ip, s["evs"] + ep, s["cpu"] + share
         s["best"] = _consider(eng, region, objective, fm, xp, "free poles, polished", s["best"])
         s["timed_out"] |= rp == "time_limit"
