@@ -258,6 +258,31 @@ def test_bfgs_batch_members_are_independent_and_never_worse():
     assert len(H) == 3 and H[0].shape == (2, 2)
 
 
+def test_bfgs_batch_keep_prunes_only_what_is_worse_than_the_kept():
+    """keep=k: once k members have stopped, a running member whose value exceeds the k-th lowest of
+    theirs by more than the margin stops ("pruned"); the others run as without it, to the same end."""
+    X0 = np.array([[0.9, 0.81], [1.1, 1.2], [-1.2, 1.0], [-2.0, 3.0], [1.05, 1.1]])
+
+    def batch(X):
+        out = [rosenbrock(x) for x in X]
+        return np.array([o[0] for o in out]), np.stack([o[1] for o in out])
+
+    free, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10)
+    assert all(r.reason == "converged" for r in free)
+    order = np.argsort([r.iterations for r in free])
+    kept, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10, keep=2, keep_margin=1e-3)
+    pruned = [i for i, r in enumerate(kept) if r.reason == "pruned"]
+    assert pruned and set(pruned).isdisjoint(order[:2])  # the first two to stop are never pruned
+    bar = sorted(kept[i].f for i in order[:2])[1]
+    for i, (a, b) in enumerate(zip(kept, free, strict=True)):
+        if i in pruned:  # stopped early, above the bar, at a point its own run passed through
+            assert a.iterations < b.iterations and a.f > bar + 1e-3 * max(1.0, abs(bar))
+        else:
+            assert a.iterations == b.iterations and a.f == b.f
+    none, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10, keep=2, keep_margin=1e6)
+    assert [r.iterations for r in none] == [r.iterations for r in free]
+
+
 def test_bfgs_deadline_and_bad_start():
     dl = Deadline(1e-6)
     while not dl.expired:

@@ -17,9 +17,9 @@ from optdesign._deadline import Deadline
 from optdesign._validate import as_poles
 from optdesign.design.well_conditioned import suggested_region
 from optdesign.engines import region_batch
-from optdesign.engines.eigenstructure import EigenstructureEngine, FixedPoleModel
+from optdesign.engines.eigenstructure import KAPPA2_CONTINUATION, EigenstructureEngine, FixedPoleModel
 from optdesign.engines.eigenstructure_fixed import run_starts
-from optdesign.engines.eigenstructure_region import REGION_FIXED_STAGES, RegionModel
+from optdesign.engines.eigenstructure_region import RegionModel
 from optdesign.engines.region_batch import PatternBatch, fixed_lockstep
 from optdesign.model.plant import Plant
 from optdesign.regions import Disk, HalfPlane, Sector
@@ -138,9 +138,10 @@ def test_two_poles_at_one_point_in_a_merged_call_are_refused_alone():
 
 def test_fixed_lockstep_ends_where_each_start_ends_alone():
     """The kappa2 continuation of four starts at four pole sets (real and complex patterns) in one
-    batch reaches each start's own end (run_starts, one start at a time) to 1e-6 in kappa2: the batch
-    evaluates the same formulas in another arithmetic (complex with the pairs), so the paths part
-    at rounding level near the nonsmooth end (measured: values equal to 1e-8, iterations within 30 %)."""
+    batch reaches each start's own end (run_starts, one start at a time; the full continuation, to the
+    exact kappa2) to 1e-6 in kappa2: the batch evaluates the same formulas in another arithmetic
+    (complex with the pairs), so the paths part at rounding level near the nonsmooth end (measured:
+    values equal to 1e-8, iterations within 30 %)."""
     plant = problems.load("compleib_dis3").plant
     region = suggested_region(plant)
     eng = EigenstructureEngine(plant.A, plant.C)
@@ -150,9 +151,9 @@ def test_fixed_lockstep_ends_where_each_start_ends_alone():
         m = FixedPoleModel(eng, region.sample_poles(plant.n, rng, real_fraction=frac))
         models.append(m)
         X0.append(m.random_coords(rng))
-    together = fixed_lockstep(models, np.stack(X0), "kappa2", Deadline(None), 400, REGION_FIXED_STAGES)
+    together = fixed_lockstep(models, np.stack(X0), "kappa2", Deadline(None), 400, KAPPA2_CONTINUATION)
     for m, x0, (x, its, _, reason) in zip(models, X0, together, strict=True):
-        ((xa, _, _, _),) = run_starts(m, x0[None], "kappa2", Deadline(None), 400, REGION_FIXED_STAGES)
+        ((xa, _, _, _),) = run_starts(m, x0[None], "kappa2", Deadline(None), 400, KAPPA2_CONTINUATION)
         assert its > 0 and reason in ("converged", "line search", "max_iter")
         assert m.metric(x, "kappa2") == pytest.approx(m.metric(xa, "kappa2"), rel=1e-6)
 

@@ -401,6 +401,19 @@ def test_nonempty_intersections_construct():
         assert r.distance(x)[0] < 0
 
 
+def test_interior_point_is_kept_per_window_without_changing_the_region():
+    """A region is immutable, so its interior point is computed once per window (a region design asks
+    for it once per start); the cache is not part of equality, hashing or the dict form."""
+    r = HalfPlane(0.5) & Sector(0.5) & Disk(0.0, 5.0)
+    fresh = HalfPlane(0.5) & Sector(0.5) & Disk(0.0, 5.0)
+    x = r.interior_point()
+    assert r.interior_point() == x == fresh.interior_point() and r.distance(x)[0] < 0
+    wide = r.interior_point(window=50.0)
+    assert r.interior_point(window=50.0) == wide == fresh.interior_point(window=50.0)
+    assert r == fresh and hash(r) == hash(fresh) and r.to_dict() == fresh.to_dict()
+    assert pickle.loads(pickle.dumps(r)) == r
+
+
 def test_emptiness_decision_against_a_grid():
     """Random combinations: raise <=> no grid point has clearance in every member."""
     rng = np.random.default_rng(2024)

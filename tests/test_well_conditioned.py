@@ -315,6 +315,27 @@ def test_iter_region_starts_is_region_starts_without_the_kalman_start():
         np.testing.assert_array_equal(a[3], b[3])
 
 
+def test_region_start_zero_is_scipys_yt_and_for_ipopt_the_better_of_two():
+    """Start 0 of the engine's region starts (``sweeps`` given) is scipy's YT with scipy's defaults
+    (rtol 1e-3, 30 sweeps: the guarantee's reference); IPOPT's (no ``sweeps``) the better-conditioned
+    of it and place_observer's tolerances (rtol 1e-6, 100 sweeps)."""
+    from optdesign.analysis import metrics
+    from optdesign.design.well_conditioned.starts import iter_region_starts
+
+    plant = problems.load("compleib_ac2").plant
+    region = suggested_region(plant)
+    P0 = naive_poles(plant, region)
+    scipy_yt = place_observer(plant, P0, method="YT", rtol=1e-3, maxiter=30)
+    ours = place_observer(plant, P0, method="YT")
+    engine = next(iter_region_starts(plant, region, 1, np.random.default_rng(0), None, sweeps=1))
+    assert engine[0] == "naive poles + YT"
+    np.testing.assert_array_equal(engine[1], scipy_yt)
+    ipopt = next(iter_region_starts(plant, region, 1, np.random.default_rng(0), None))
+    k = [metrics.kappa2(plant.A - L @ plant.C) for L in (scipy_yt, ours)]
+    assert k[0] != k[1]  # the two runs differ on this plant
+    np.testing.assert_array_equal(ipopt[1], (scipy_yt, ours)[int(np.argmin(k))])
+
+
 def test_repeated_pole_with_one_output_is_placed_by_ackermann():
     """Issue 27: with rank(C) = 1 the poles fix L (Ackermann on the dual), as python-control's acker;
     A - LC is defective (kappa2 = inf, said so).  It was an infeasible result with an all-NaN gain."""

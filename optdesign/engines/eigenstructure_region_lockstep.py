@@ -43,7 +43,7 @@ from .eigenstructure_region import (
 from .quasi_newton import bfgs_minimize_batch
 from .region_batch import PatternBatch, fixed_lockstep
 from .region_eta import ETA_STAGES, ETA_WARM_STAGES
-from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL
+from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL, REGION_PRUNE_MARGIN
 
 __all__ = ["run_lockstep"]
 
@@ -52,11 +52,17 @@ _REGION_MAX_ITER = 300
 #: ... and per call in the first stage (k = 4) of a cold start, whose minimizers the next stage
 #: discards: it only brings the poles into a basin (issue 28, measured on 49 plants n <= 10 together
 #: with the exact stage left to the polish, below: 22 % less CPU in all; it ran 300 iterations on
-#: COMPleib DIS1, 35 % of the stages' CPU; no plant more than 1e-3 worse than the base commit)
-_FIRST_STAGE_MAX_ITER = 80
+#: COMPleib DIS1, 35 % of the stages' CPU; no plant more than 1e-3 worse than the base commit.  Round
+#: 9: 50 instead of 80, with the shorter fixed-pole continuation (REGION_FIXED_STAGES) and the pruning
+#: inside the second stage (below), 0.85x the CPU on the same plants, none more than 1e-3 worse)
+_FIRST_STAGE_MAX_ITER = 50
 #: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
-#: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members
+#: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members.
+#: Within that stage (kappa2) a member still running once :data:`_KEEP` others have stopped lower
+#: (by REGION_PRUNE_MARGIN) stops there (``bfgs_minimize_batch(keep=...)``): on random n = 6 one
+#: member ran 268 iterations, the others at most 41, to end fifth.  Not for eta: on the same plants
+#: it saved no CPU and lost 10 % on COMPleib TG1
 _PRUNE_AFTER = 1
 _KEEP = 4
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
@@ -366,7 +372,9 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
         its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
             else _REGION_MAX_ITER
-        for _ in range(_MAX_REANCHOR + 1):
+        # the stage after which only _KEEP members go on (kappa2's continuation: measured there)
+        prune = si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1
+        for again_round in range(_MAX_REANCHOR + 1):
             if not todo.size:
                 break
             f_before = evaluate(X[todo], todo, k, mu)[0]
@@ -374,12 +382,15 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
                 return evaluate(Z, _todo[idx], _k, _mu)
 
+            keep = _KEEP if prune and objective == "kappa2" and not again_round else 0
             res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
-                                          pass_index=True, H0=[H[i] for i in todo])
+                                          pass_index=True, H0=[H[i] for i in todo], keep=keep,
+                                          keep_margin=REGION_PRUNE_MARGIN)
             again = []
             for j, i in enumerate(todo):
                 r = res[j]
                 X[i], H[i], reasons[i] = r.x, Hs[j], r.reason
+                alive[i] = r.reason != "pruned"
                 its[i] += r.iterations
                 evs[i] += r.evaluations
                 if r.reason == "line search" and f_before[j] - r.f > ftol * max(1.0, abs(r.f)):
@@ -391,7 +402,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
         if stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at):
             break  # a global optimum: the later stages cannot improve it
-        if si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1:
+        if prune:
             _prune(X, alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
     out = []

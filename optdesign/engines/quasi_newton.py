@@ -185,6 +185,8 @@ def bfgs_minimize_batch(
     c2: float = WOLFE_C2,
     xtol: float = QN_XTOL,
     pass_index: bool = False,
+    keep: int = 0,
+    keep_margin: float = 0.0,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
     """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.
 
@@ -214,6 +216,12 @@ def bfgs_minimize_batch(
     pass_index : bool
         Call ``fun(X, index)`` with the rows of ``X0`` that ``X`` holds (objectives with state per
         start, such as the anchored bases of the region mode).
+    keep : int
+        A caller that goes on with only the ``keep`` starts of lowest value (0: all): once ``keep``
+        starts have stopped, a running start whose value exceeds the ``keep``-th lowest value of
+        the stopped ones by more than ``keep_margin`` (relative to ``max(1, |value|)``) stops,
+        ``"pruned"`` -- its value only decreases, but it is already worse than ``keep`` finished
+        starts (the stragglers that set a lockstep batch's rounds, region mode's second stage).
 
     Returns
     -------
@@ -274,6 +282,14 @@ def bfgs_minimize_batch(
                 m.reason = "converged"
             else:
                 still.append(m)
+        if keep and still:
+            stopped = sorted(m.f for m in mem if m.reason)
+            if len(stopped) >= keep:
+                bar = stopped[keep - 1] + keep_margin * max(1.0, abs(stopped[keep - 1]))
+                for m in still:
+                    if m.f > bar:
+                        m.reason = "pruned"
+                still = [m for m in still if not m.reason]
         running = still
     return [QNResult(m.x, m.f, m.g, m.it, m.nev, m.reason, _decrease(m.hist, m.f, window)) for m in mem], \
         [m.H for m in mem]

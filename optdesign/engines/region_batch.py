@@ -135,6 +135,7 @@ class PatternBatch:
 
     def refresh_anchors(self) -> None:
         """Stack the models' current anchors (after their ``set_anchor``) per free-pole entry."""
+        self._selected: dict[bytes, tuple[dict[str, Any], dict[str, Any] | None]] = {}
         E = self._free
         if not E["mem"].size:
             return
@@ -151,9 +152,7 @@ class PatternBatch:
         s, size = Z.shape
         Zx = np.zeros((s, size + 1))  # the zero column of the real entries' "imaginary" parts
         Zx[:, :size] = Z
-        where = np.full(self.total, -1)
-        where[rows] = np.arange(s)
-        E = self._select(self._free, where)
+        E, Ep = self._tables(rows)
         pm, slot, nre = E["pm"], E["slot"], int(E["nre"])
         f, Gx = np.full(s, math.inf), np.zeros_like(Zx)
         # the free poles through the map, then every pole in its slot
@@ -171,7 +170,6 @@ class PatternBatch:
         bar, cbar, ok = self._barrier(P, rows, mu)
         if not ok.any():
             return f, Gx[:, :size]
-        Ep = self._select(self._pinned, where) if self._pinned["mem"].size else None
         cplx = bool(nre < pm.size or (Ep is not None and Ep["nre"] < Ep["pm"].size))
         # at sizes where arithmetic, not calls, is the cost: real arithmetic for the real poles and
         # for the all-real patterns' members, as their own models compute them
@@ -242,6 +240,20 @@ class PatternBatch:
         if split and 0 < nre < ne:
             return [slice(0, nre), slice(nre, ne)]
         return [slice(0, ne)]
+
+    def _tables(self, rows: NDArray) -> tuple[dict[str, Any], dict[str, Any] | None]:
+        """The free and pinned tables of the members ``rows`` (:meth:`_select`), kept until the next
+        :meth:`refresh_anchors`: a BFGS batch evaluates the same running members round after round
+        (issue 28: the selection was 4 % of a small plant's design)."""
+        key = np.asarray(rows, dtype=np.intp).tobytes()
+        hit = self._selected.get(key)
+        if hit is None:
+            where = np.full(self.total, -1)
+            where[rows] = np.arange(rows.size)
+            hit = (self._select(self._free, where),
+                   self._select(self._pinned, where) if self._pinned["mem"].size else None)
+            self._selected[key] = hit
+        return hit
 
     @staticmethod
     def _select(T: dict[str, Any], where: NDArray) -> dict[str, Any]:

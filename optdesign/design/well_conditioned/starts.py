@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,20 +40,16 @@ __all__ = [
 RegionStartSpec = tuple[str, NDArray, PoleStructure, NDArray]
 
 
-def better_yt(plant: Plant, poles: NDArray, L0: NDArray, region: Region) -> NDArray:
-    """The better-conditioned of two YT runs (place_observer's tolerances and scipy's defaults).
+def better_yt(plant: Plant, poles: NDArray, L0: NDArray | None, region: Region) -> NDArray | None:
+    """The better-conditioned of ``L0`` and scipy's YT with scipy's defaults (rtol 1e-3, 30 sweeps).
 
     YT's iterations do not decrease kappa2 monotonically: on COMPleib TG1 at the naive poles scipy's
-    defaults (rtol 1e-3, 30 sweeps) give kappa2 9.8e5, ``rtol=1e-6, maxiter=100`` 5.2e6.
+    defaults (rtol 1e-3, 30 sweeps) give kappa2 9.8e5, ``rtol=1e-6, maxiter=100`` 5.2e6.  ``L0``
+    None: scipy's YT alone (None when it fails too).
     """
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            L1 = place_observer(plant, poles, method="YT", rtol=1e-3, maxiter=30)
-    except (ValueError, np.linalg.LinAlgError):
-        return L0
-    if not np.all(np.isfinite(L1)):
-        return L0
+    L1 = placement_start(plant, poles, "YT", rtol=1e-3, maxiter=30)
+    if L1 is None or L0 is None:
+        return L0 if L1 is None else L1
 
     def key(L):  # inside the region first, then kappa2
         X = plant.A - L @ plant.C
@@ -61,14 +58,15 @@ def better_yt(plant: Plant, poles: NDArray, L0: NDArray, region: Region) -> NDAr
     return L1 if key(L1) < key(L0) else L0
 
 
-def placement_start(plant: Plant, poles: NDArray, method: str, maxiter: int | None = None) -> NDArray | None:
-    """scipy's robust placement (``method`` "YT" or "KNV0"; ``maxiter`` sweeps, default
+def placement_start(plant: Plant, poles: NDArray, method: str, maxiter: int | None = None,
+                    rtol: float | None = None) -> NDArray | None:
+    """scipy's robust placement (``method`` "YT" or "KNV0"; ``maxiter`` sweeps and ``rtol``, default
     :func:`~optdesign.classical.placement.place_observer`'s) as a start gain; None when it fails."""
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            sweeps = {} if maxiter is None else {"maxiter": maxiter}
-            L = place_observer(plant, poles, method=method, **sweeps)
+            opts: dict[str, Any] = {k: v for k, v in (("maxiter", maxiter), ("rtol", rtol)) if v is not None}
+            L = place_observer(plant, poles, method=method, **opts)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not np.all(np.isfinite(L)):
@@ -344,8 +342,12 @@ def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random
     ``kalman=False``: no Kalman start 1 -- start 1 and after sample poles in the region (the
     Kalman gain is still the fallback of a start whose placement fails).  The samples drawn from
     ``rng`` are those of :func:`region_starts` (its Kalman start draws nothing).  ``sweeps``: scipy
-    YT's sweeps at the sampled poles (default scipy's; start 0 always gets the default, as the
-    guarantee "never worse than YT at the naive poles" is stated against it).
+    YT's sweeps at the sampled poles (default :func:`~optdesign.classical.placement.place_observer`'s).
+    Start 0 is scipy's YT with scipy's defaults (rtol 1e-3, 30 sweeps: the reference of the guarantee
+    "never worse than scipy YT at the naive poles"); without ``sweeps`` (IPOPT's starts) the better
+    of it and place_observer's (rtol 1e-6, 100 sweeps), :func:`better_yt`.  The engine's starts give
+    ``sweeps``: place_observer's run was 5-10 % of a small plant's region design (issue 28, COMPleib
+    AC2: 56 ms of 0.6 s).
     """
     n = plant.n
     observable = plant.is_observable()
@@ -368,9 +370,11 @@ def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random
                 n_sampled += 1
                 origin = "region sample + YT"
             st = PoleStructure.of(P0)
-            L0 = placement_start(plant, P0, "YT", None if k == 0 else sweeps) if observable else None
-            if k == 0 and L0 is not None:
-                L0 = better_yt(plant, P0, L0, region)
+            if k == 0:  # scipy's YT; for IPOPT's starts the better of it and place_observer's
+                L0 = (better_yt(plant, P0, None if sweeps is not None else placement_start(plant, P0, "YT"),
+                                region) if observable else None)
+            else:
+                L0 = placement_start(plant, P0, "YT", sweeps) if observable else None
             if L0 is None and observable:
                 try:
                     L0 = random_gain_for_poles(plant, P0, rng)
