@@ -36,10 +36,10 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the previous stop's final engine: every pole pattern of a
-#: round in one evaluation, 8 starts at every size), made as the base: ``git archive d6d1ee7``
-PREV_COMMIT = "d6d1ee7"
-PREV_DIR = "/tmp/region-prev-d6d1ee7"
+#: the commit before this round's change (the previous stop's final engine: 8 starts up to n = 12,
+#: 4 up to 24, then 2; eta's route from 16 engine starts), made as the base: ``git archive 3ecccc4``
+PREV_COMMIT = "3ecccc4"
+PREV_DIR = "/tmp/region-prev-3ecccc4"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
@@ -130,10 +130,10 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              "(new)", "",
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
-             f"{PREV_COMMIT} (the previous stop: the lockstep region engine, every pattern of a round in one "
-             "evaluation, 8 starts at every size).  New: this checkout's default (the same engine and "
-             "path; 8 starts up to n = 12, 4 up to 24, then 2: `default_region_starts`; IPOPT only as "
-             "the fallback).  CPU seconds "
+             f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
+             "to 24, then 2).  New: this checkout's default (the same engine, starts and path; the "
+             "second stage prunes its stragglers as it runs, a shorter first stage and fixed-pole "
+             "preparation, start 0 scipy's YT alone; IPOPT only as the fallback).  CPU seconds "
              "per design (`time.process_time`, single-threaded BLAS), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]
     _, b = _rows(base)
