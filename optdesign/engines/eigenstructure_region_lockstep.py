@@ -58,7 +58,8 @@ _REGION_MAX_ITER = 300
 _FIRST_STAGE_MAX_ITER = 50
 #: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
-#: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members.
+#: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members -- not
+#: always: COMPleib TG1's is the 4th lowest there, and keeping 3 lost 4 % on it (round 9).
 #: Within that stage (kappa2) a member still running once :data:`_KEEP` others have stopped lower
 #: (by REGION_PRUNE_MARGIN) stops there (``bfgs_minimize_batch(keep=...)``): on random n = 6 one
 #: member ran 268 iterations, the others at most 41, to end fifth.  Not for eta: on the same plants
