@@ -93,10 +93,12 @@ __all__ = [
 ]
 
 #: continuation of the fixed-pole optimization at a start's poles (before its poles are freed): its
-#: optimum is a candidate and a member of the free-pole stages, which start again from k = 4, so
-#: it stops at k = 1024 (issue 28, round 9: with the shorter first free-pole stage and the pruning
-#: inside the second, 0.85x the CPU on 49 plants n <= 10, none more than 1e-3 worse)
-REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION[:3]
+#: minimizer is a candidate and a member of the free-pole stages, which start again from k = 4, so
+#: only the first stage runs (issue 28, round 9, 49 plants n <= 10: against the exact kappa2, ending
+#: at k = 1024 took 0.91x the CPU with no plant worse by more than 2e-3; ending at k = 4 another 0.90x,
+#: HE5, PSM and random n = 6 s0 0.3-0.4 % worse -- the values of the previous stop -- and random n = 9
+#: s0 0.25 % better; n = 20 and 30 0.89x and 0.83x, kappa2 -0.1 % and 0.0 %)
+REGION_FIXED_STAGES: tuple[int | None, ...] = KAPPA2_CONTINUATION[:1]
 #: the stages of a warm start (RegionStart.warm): the last two of REGION_STAGES
 REGION_WARM_STAGES: tuple[tuple[int | None, float], ...] = REGION_STAGES[-2:]
 #: smallest singular value of ``N(lambda)^H N_anchor`` accepted (cos 60 degrees)

@@ -53,8 +53,8 @@ _REGION_MAX_ITER = 300
 #: discards: it only brings the poles into a basin (issue 28, measured on 49 plants n <= 10 together
 #: with the exact stage left to the polish, below: 22 % less CPU in all; it ran 300 iterations on
 #: COMPleib DIS1, 35 % of the stages' CPU; no plant more than 1e-3 worse than the base commit.  Round
-#: 9: 50 instead of 80, with the shorter fixed-pole continuation (REGION_FIXED_STAGES) and the pruning
-#: inside the second stage (below), 0.85x the CPU on the same plants, none more than 1e-3 worse)
+#: 9: 50 instead of 80, with the fixed-pole continuation ending at k = 1024 and the pruning inside the
+#: second stage (below), 0.85x the CPU on the same plants, none more than 1e-3 worse)
 _FIRST_STAGE_MAX_ITER = 50
 #: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member

@@ -163,9 +163,9 @@ def well_conditioned_observer(
     starts in lockstep (fewer above n = 12:
     :func:`~optdesign.design.well_conditioned.starts.default_region_starts`), IPOPT only as the
     fallback when no engine design verifies (issue 28: on the 50 plants n <= 10 of
-    ``benchmarks/results/region.md`` median CPU under 1 s against 13.2 s for the previous default --
+    ``benchmarks/results/region.md`` median CPU 0.54 s against 13.2 s for the previous default --
     IPOPT from every start, now ``WellConditionedProblem(route="multistart")`` -- better than it by
-    more than 1e-3 on 14 plants, worse on two, by 0.9 % and 0.1 %).  ``result.route`` lists what ran
+    more than 1e-3 on 17 plants, worse on one, by 0.9 %).  ``result.route`` lists what ran
     and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the
     constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``, structural
     zeros in a region -- and is the fallback when no engine design verifies; for eta in a region the
