@@ -281,6 +281,8 @@ def test_bfgs_batch_keep_prunes_only_what_is_worse_than_the_kept():
             assert a.iterations == b.iterations and a.f == b.f
     none, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10, keep=2, keep_margin=1e6)
     assert [r.iterations for r in none] == [r.iterations for r in free]
+    with pytest.raises(ValueError, match=r"keep must be >= 0 \(0: keep every start\); found -1"):
+        bfgs_minimize_batch(batch, X0, keep=-1)
 
 
 def test_bfgs_deadline_and_bad_start():

@@ -373,7 +373,8 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
         its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
             else _REGION_MAX_ITER
-        # the stage after which only _KEEP members go on (kappa2's continuation: measured there)
+        # the stage after which only _KEEP members go on (any cold continuation; its stragglers are
+        # stopped inside it for kappa2 only, below)
         prune = si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1
         for again_round in range(_MAX_REANCHOR + 1):
             if not todo.size:

@@ -234,8 +234,10 @@ def bfgs_minimize_batch(
     Raises
     ------
     ValueError
-        A start without a finite value (a caller bug: starts are checked before).
+        A start without a finite value (a caller bug: starts are checked before); ``keep`` negative.
     """
+    if keep < 0:
+        raise ValueError(f"bfgs_minimize_batch: keep must be >= 0 (0: keep every start); found {keep}")
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
     f0, G0 = fun(X0, np.arange(X0.shape[0])) if pass_index else fun(X0)
     if not np.all(np.isfinite(f0)):

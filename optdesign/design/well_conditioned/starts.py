@@ -370,9 +370,9 @@ def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random
                 n_sampled += 1
                 origin = "region sample + YT"
             st = PoleStructure.of(P0)
-            if k == 0:  # scipy's YT; for IPOPT's starts the better of it and place_observer's
-                L0 = (better_yt(plant, P0, None if sweeps is not None else placement_start(plant, P0, "YT"),
-                                region) if observable else None)
+            if k == 0:  # scipy's YT; for IPOPT's starts (no sweeps) the better of it and place_observer's
+                ours = placement_start(plant, P0, "YT") if sweeps is None and observable else None
+                L0 = better_yt(plant, P0, ours, region) if observable else None
             else:
                 L0 = placement_start(plant, P0, "YT", sweeps) if observable else None
             if L0 is None and observable:
