@@ -283,6 +283,28 @@ def test_bfgs_batch_keep_prunes_only_what_is_worse_than_the_kept():
     assert [r.iterations for r in none] == [r.iterations for r in free]
     with pytest.raises(ValueError, match=r"keep must be >= 0 \(0: keep every start\); found -1"):
         bfgs_minimize_batch(batch, X0, keep=-1)
+    with pytest.raises(ValueError, match=r"keep_horizon must be >= 0 \(0: the value alone\); found -1"):
+        bfgs_minimize_batch(batch, X0, keep=2, keep_horizon=-1.0)
+
+
+def test_bfgs_batch_keep_horizon_spares_a_start_still_descending():
+    """keep_horizon=h: a start above the bar still runs while ``h`` more windows at its current rate
+    of decrease would bring it below; the value alone (h = 0) prunes it.  Two starts stop at once on
+    a quadratic, a third descends Rosenbrock's valley (f from 24 down, by more than 1 per window)."""
+    X0 = np.array([[1.0, 1.0], [1.0 + 1e-9, 1.0], [-1.2, 1.0]])
+
+    def batch(X):
+        out = [rosenbrock(x) for x in X]
+        return np.array([o[0] for o in out]), np.stack([o[1] for o in out])
+
+    free, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10)
+    assert free[2].reason == "converged" and free[2].iterations > 10
+    by_value, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10, keep=2)
+    assert by_value[2].reason == "pruned" and by_value[2].f > 1.0
+    spared, _ = bfgs_minimize_batch(batch, X0, ftol=1e-16, gtol=1e-10, keep=2, keep_horizon=1e6)
+    assert spared[2].iterations > by_value[2].iterations and spared[2].f < 1e-6  # at the valley's end
+    for a, b in zip(spared[:2], free[:2], strict=True):  # the first two run as without keep
+        assert a.iterations == b.iterations and a.f == b.f
 
 
 def test_bfgs_deadline_and_bad_start():

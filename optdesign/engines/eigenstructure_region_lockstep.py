@@ -43,7 +43,8 @@ from .eigenstructure_region import (
 from .quasi_newton import bfgs_minimize_batch
 from .region_batch import PatternBatch, fixed_lockstep
 from .region_eta import ETA_STAGES, ETA_WARM_STAGES
-from .tolerances import DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL, REGION_PRUNE_MARGIN
+from .tolerances import (DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL, REGION_PRUNE_FTOL,
+                         REGION_PRUNE_HORIZON, REGION_PRUNE_MARGIN)
 
 __all__ = ["run_lockstep"]
 
@@ -62,8 +63,9 @@ _FIRST_STAGE_MAX_ITER = 50
 #: always: COMPleib TG1's is the 4th lowest there, and keeping 3 lost 4 % on it (round 9).
 #: Within that stage (kappa2) a member still running once :data:`_KEEP` others have stopped lower
 #: (by REGION_PRUNE_MARGIN) stops there (``bfgs_minimize_batch(keep=...)``): on random n = 6 one
-#: member ran 268 iterations, the others at most 41, to end fifth.  Not for eta: on the same plants
-#: it saved no CPU and lost 10 % on COMPleib TG1
+#: member ran 268 iterations, the others at most 41, to end fifth; round 10: unless it is still
+#: descending fast (REGION_PRUNE_HORIZON), with that stage's looser stopping test (REGION_PRUNE_FTOL).
+#: Not for eta: on the same plants it saved no CPU and lost 10 % on COMPleib TG1
 _PRUNE_AFTER = 1
 _KEEP = 4
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
@@ -376,6 +378,8 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         # the stage after which only _KEEP members go on (any cold continuation; its stragglers are
         # stopped inside it for kappa2 only, below)
         prune = si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1
+        if prune and objective == "kappa2":
+            ftol = REGION_PRUNE_FTOL
         for again_round in range(_MAX_REANCHOR + 1):
             if not todo.size:
                 break
@@ -387,7 +391,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             keep = _KEEP if prune and objective == "kappa2" and not again_round else 0
             res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
                                           pass_index=True, H0=[H[i] for i in todo], keep=keep,
-                                          keep_margin=REGION_PRUNE_MARGIN)
+                                          keep_margin=REGION_PRUNE_MARGIN, keep_horizon=REGION_PRUNE_HORIZON)
             again = []
             for j, i in enumerate(todo):
                 r = res[j]

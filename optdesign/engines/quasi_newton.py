@@ -187,6 +187,7 @@ def bfgs_minimize_batch(
     pass_index: bool = False,
     keep: int = 0,
     keep_margin: float = 0.0,
+    keep_horizon: float = 0.0,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
     """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.
 
@@ -222,6 +223,10 @@ def bfgs_minimize_batch(
         the stopped ones by more than ``keep_margin`` (relative to ``max(1, |value|)``) stops,
         ``"pruned"`` -- its value only decreases, but it is already worse than ``keep`` finished
         starts (the stragglers that set a lockstep batch's rounds, region mode's second stage).
+    keep_horizon : float
+        With ``keep``: a running start is pruned only when it would still be above that bar after
+        ``keep_horizon`` more windows at its current rate (its decrease over the last ``window``
+        iterations); 0: its value alone decides.  A start still descending fast goes on.
 
     Returns
     -------
@@ -238,6 +243,9 @@ def bfgs_minimize_batch(
     """
     if keep < 0:
         raise ValueError(f"bfgs_minimize_batch: keep must be >= 0 (0: keep every start); found {keep}")
+    if not keep_horizon >= 0:
+        raise ValueError("bfgs_minimize_batch: keep_horizon must be >= 0 (0: the value alone); "
+                         f"found {keep_horizon}")
     X0 = np.atleast_2d(np.asarray(X0, dtype=float))
     f0, G0 = fun(X0, np.arange(X0.shape[0])) if pass_index else fun(X0)
     if not np.all(np.isfinite(f0)):
@@ -289,7 +297,7 @@ def bfgs_minimize_batch(
             if len(stopped) >= keep:
                 bar = stopped[keep - 1] + keep_margin * max(1.0, abs(stopped[keep - 1]))
                 for m in still:
-                    if m.f > bar:
+                    if m.f - keep_horizon * _decrease_abs(m.hist, m.f, window) > bar:
                         m.reason = "pruned"
                 still = [m for m in still if not m.reason]
         running = still
@@ -297,12 +305,14 @@ def bfgs_minimize_batch(
         [m.H for m in mem]
 
 
+def _decrease_abs(hist: list[float], f: float, window: int) -> float:
+    """Decrease of ``f`` over the last ``window`` accepted iterations (or all of them)."""
+    return float(hist[-1 - min(window, len(hist) - 1)] - f) if len(hist) > 1 else 0.0
+
+
 def _decrease(hist: list[float], f: float, window: int) -> float:
     """Relative decrease of ``f`` over the last ``window`` accepted iterations (or all of them)."""
-    if len(hist) < 2:
-        return 0.0
-    ref = hist[-1 - min(window, len(hist) - 1)]
-    return float((ref - f) / max(1.0, abs(f)))
+    return _decrease_abs(hist, f, window) / max(1.0, abs(f))
 
 
 def bfgs_minimize(

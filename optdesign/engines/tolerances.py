@@ -57,7 +57,9 @@ __all__ = [
     "IK_KKT_TOL", "CLARABEL_MARGIN_FACTOR", "INVERSE_KALMAN_POLE_TOL", "FIRST_TRY_TOL", "RICCATI_RESIDUAL_TOL",
     "FORWARD_ERROR_TOL", "POLE_FLOOR_CAP", "pole_tolerance", "NOMINAL_EIG_FLOOR",
     # region mode
-    "REGION_STAGES", "REGION_FTOL", "REGION_PRUNE_MARGIN", "MARGIN_RTOL", "DUP_FTOL", "DUP_PTOL",
+    "REGION_STAGES", "REGION_FTOL", "REGION_PRUNE_FTOL", "REGION_PRUNE_MARGIN",
+    "REGION_PRUNE_HORIZON",
+    "MARGIN_RTOL", "DUP_FTOL", "DUP_PTOL",
     "STENCIL_MIN_SCALE",
     "QUADRATIC_MISFIT_TOL", "CLEARANCE_FLOOR", "INSIDE_FRACTION", "MAP_SERIES", "MAP_INVERSE_CLIP",
     "HOMOTOPY_MIN_STEP", "HOMOTOPY_ROUNDING",
@@ -323,10 +325,20 @@ REGION_STAGES: tuple[tuple[int | None, float], ...] = (
 #: stages as in the fixed-pole engine (their minimizers are discarded by the next stage), the exact
 #: function to the accuracy the fixed-pole polish works at
 REGION_FTOL: dict[int | None, float] = {4: 1e-7, 64: 1e-7, 1024: 1e-7, 16384: 1e-7, None: 1e-9}
+#: ... but kappa2's second stage (k = 64, after which only 4 members go on, its stragglers pruned):
+#: measured on 49 plants n <= 10 (issue 28, round 10, with REGION_PRUNE_HORIZON) 0.96x the CPU and none
+#: worse than with 1e-7 by more than 1e-4; 3e-6 lost 5 % on COMPleib UWV.  Not for eta: COMPleib AC7
+#: +4 % and random n = 10 s2 0.2 % worse than IPOPT alone
+REGION_PRUNE_FTOL = 1e-6
 #: a member of region mode's second stage still running once as many members as go on have stopped
 #: lower stops when its value (log kappa2 bound plus barrier) exceeds theirs by more than this (relative):
 #: measured on 49 plants n <= 10 (issue 28), a margin of 0 lost 0.18 % on COMPleib PSM, 0.02 none
 REGION_PRUNE_MARGIN = 2e-2
+#: ... and only when it would still be above them after this many more BFGS windows at its current
+#: rate of decrease (``bfgs_minimize_batch(keep_horizon=...)``): with the second stage's looser
+#: REGION_FTOL the members stop sooner, and a member still descending fast was pruned that would have
+#: ended best (COMPleib PSM +0.18 % with 0 or 4 windows; 6 and 10 windows none, at the same CPU)
+REGION_PRUNE_HORIZON = 10.0
 #: a candidate's poles count as inside when ``region.margin`` is at most this times their modulus (the
 #: rounding of eigvals of a matrix whose eigenvalues sit on the boundary, with a margin for kappa2 ~ 1e8)
 MARGIN_RTOL = 1e-7
