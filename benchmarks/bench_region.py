@@ -15,11 +15,12 @@ with ``PYTHONPATH`` set to a checkout of the commit before issue 28 (``BASE_COMM
 (as ``bench_sweep_grid.py`` measures its baseline).  Each design is one call of
 ``well_conditioned_observer(plant, region=..., objective=..., time_limit=TIME_LIMIT)``; CPU is
 ``time.process_time`` around it, single-threaded BLAS (``_common``), after one untimed design of the
-first case (the process's one-time imports; its CPU is kept as ``warmup`` in the JSON).  Cases: every continuous COMPleib
-plant with n <= 10 (``suggested_region``), random plants n = 3..10 (two per size plus four more; ``p =
-max(1, n // 3)``, A ~ N(0, 1/n)) and n = 20 (p = 5), n = 30 (p = 7) with the region of the issue's random
-example, ``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``.  ``--set subset``: REA2, DIS1, HE5,
-AC6 and five random plants.  Numbers, not pass/fail.  Time every run under ``flock /tmp/bench.lock``.
+first case (the process's one-time imports; its CPU is kept as ``warmup`` in the JSON).  Cases: every
+continuous COMPleib plant with n <= 10 (``suggested_region``), random plants n = 3..10 (two per size plus
+four more; ``p = max(1, n // 3)``, A ~ N(0, 1/n)) and n = 20 (p = 5), n = 30 (p = 7) with the region of
+the issue's random example, ``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``.  ``--set
+subset``: REA2, DIS1, HE5, AC6 and five random plants.  Numbers, not pass/fail.  Time every run under
+``flock /tmp/bench.lock``.
 """
 
 from __future__ import annotations
@@ -140,10 +141,9 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
              f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
-             "to 24, then 2).  New: this checkout's default (the same engine, starts and path; the "
-             "second stage prunes its stragglers as it runs, a shorter first stage and fixed-pole "
-             "preparation, start 0 scipy's YT alone; round 10: the second stage's looser stopping test, "
-             "its stragglers pruned only when not still descending fast; IPOPT only as the fallback).  "
+             "to 24, then 2).  New: this checkout's default (the same engine, starts and path; kappa2's "
+             "second stage stops on a looser test and prunes a straggler only when it is not still "
+             "descending fast; IPOPT only as the fallback).  "
              "CPU seconds per design (`time.process_time`, single-threaded BLAS; from round 10 after "
              "one untimed design of the first case per process, the one-time imports), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]

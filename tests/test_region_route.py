@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from optdesign import Plant, metrics, well_conditioned_observer
+from optdesign.design.verification import kappa2_agreement_tol
 from optdesign.design.well_conditioned import WellConditionedProblem
 from optdesign.design.well_conditioned.evaluation import Candidate, evaluate_candidate
 from optdesign.regions import Disk, HalfPlane, Sector
@@ -116,18 +117,22 @@ _REGION = HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 5.0)
 def test_fast_route_never_worse_than_ipopt_from_the_same_starts(seed, n):
     """Property (seeded): route 'fast' runs the engine from its starts, IPOPT from the first two of
     them (light polish) and the engine from IPOPT's best -- so it is never worse than IPOPT alone from
-    those two starts, and its answer is verified in the region."""
+    those two starts, and its answer is verified in the region.  When the engine attains kappa2's lower
+    bound 1 (a global optimum, to the accuracy of a computed kappa2: ``attains``) IPOPT does not run, and
+    "never worse" holds to that accuracy (seed 4: the engine's 1 + 3e-8 against IPOPT's 1 + 5e-12)."""
     plant = _random_plant(seed, n, 2)
     auto = WellConditionedProblem(plant, route="fast").solve(region=_REGION)
     nlp = WellConditionedProblem(plant, starts=2, route="nlp", region_polish="last").solve(region=_REGION)
     assert auto.success and nlp.success, (auto.message, nlp.message)
-    assert auto.kappa2 <= nlp.kappa2 * (1 + 1e-9)
-    assert _REGION.contains(auto.poles, tol=1e-7 * max(1.0, float(np.max(np.abs(auto.poles)))))
-    assert auto.kappa2 == pytest.approx(metrics.kappa2(plant.A - auto.L @ plant.C), rel=1e-6)
     names = auto.route.names
     assert names[0] == "eigenstructure_engine/region"
-    # IPOPT runs unless the engine attained kappa2's lower bound 1 (a global optimum)
-    assert "ipopt" in names or auto.kappa2 <= 1 + 1e-6
+    if "ipopt" in names:
+        assert auto.kappa2 <= nlp.kappa2 * (1 + 1e-9)
+    else:  # the engine attained the bound: a global optimum, IPOPT skipped
+        assert auto.kappa2 <= 1 + kappa2_agreement_tol(1.0)
+        assert nlp.kappa2 >= 1.0
+    assert _REGION.contains(auto.poles, tol=1e-7 * max(1.0, float(np.max(np.abs(auto.poles)))))
+    assert auto.kappa2 == pytest.approx(metrics.kappa2(plant.A - auto.L @ plant.C), rel=1e-6)
     assert auto.route.answered is not None
 
 

@@ -43,8 +43,16 @@ from .eigenstructure_region import (
 from .quasi_newton import bfgs_minimize_batch
 from .region_batch import PatternBatch, fixed_lockstep
 from .region_eta import ETA_STAGES, ETA_WARM_STAGES
-from .tolerances import (DUP_FTOL, DUP_PTOL, INSIDE_FRACTION, MARGIN_RTOL, REGION_FTOL, REGION_PRUNE_FTOL,
-                         REGION_PRUNE_HORIZON, REGION_PRUNE_MARGIN)
+from .tolerances import (
+    DUP_FTOL,
+    DUP_PTOL,
+    INSIDE_FRACTION,
+    MARGIN_RTOL,
+    REGION_FTOL,
+    REGION_PRUNE_FTOL,
+    REGION_PRUNE_HORIZON,
+    REGION_PRUNE_MARGIN,
+)
 
 __all__ = ["run_lockstep"]
 
