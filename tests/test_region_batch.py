@@ -183,3 +183,26 @@ def test_models_of_different_layouts_are_refused():
     (b, *_), _ = _models("compleib_he2")
     with pytest.raises(ValueError, match="do not share one variable layout and region"):
         PatternBatch([a, b], [1, 1])
+
+
+def test_kappa2_charts_are_wider_than_eta_s():
+    """A member whose pole moves away from its anchor leaves its chart (the aligned basis's overlap with
+    the anchor below ``RegionModel.overlap_floor``: f = inf, the line search stops there and the member
+    is re-anchored): kappa2's chart (overlap 0.25) contains eta's (0.5) and reaches further."""
+    assert RegionModel.overlap_floor("kappa2") < RegionModel.overlap_floor("eta")
+    models, Xs = _models("compleib_ac6", members=1)
+    g = next(i for i, m in enumerate(models) if m.nrf)
+    model = models[g]
+    batch = PatternBatch([model], [1])
+    finite = {"kappa2": [], "eta": []}
+    for t in np.linspace(-3.0, 3.0, 121) * max(1.0, model.rho):
+        Z = Xs[g][:1].copy()
+        Z[0, model.ncoord] += t
+        for objective in finite:
+            finite[objective].append(bool(np.isfinite(batch.evaluate(Z, np.array([0]), objective, 1024,
+                                                                     1e-3)[0][0])))
+    k2, eta = np.array(finite["kappa2"]), np.array(finite["eta"])
+    assert eta[60] and k2[60]  # at the member itself
+    assert not np.any(eta & ~k2)  # eta's chart inside kappa2's
+    assert np.any(k2 & ~eta)  # where only kappa2's reaches
+    assert not np.all(k2)  # and kappa2's has an edge too

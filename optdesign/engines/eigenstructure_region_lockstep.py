@@ -339,8 +339,8 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
     member's inverse-Hessian approximation is carried from stage to stage (as in the fixed-pole
     engine's :func:`~optdesign.engines.eigenstructure_fixed.run_starts`).  A member whose line search
     fails at the edge of its chart (a trial step that would rotate a subspace past
-    ``RegionModel.min_overlap`` from its anchor) is re-anchored at its current point and continues the stage
-    (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.  A member
+    ``RegionModel.overlap_floor`` from its anchor) is re-anchored at its current point and continues
+    the stage (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.  A member
     without a finite value at a stage's start (two poles at one point: the separation barrier) stops
     there (``"infeasible start"``).  After a stage where a member's exact objective attains
     ``stop_at`` (its lower bound: a global optimum) the stages end there, with only those members.

@@ -188,7 +188,7 @@ class PatternBatch:
             N, ov, Q1, R1, e, Ev = (np.concatenate([x[:, 0] if x.ndim > 1 else x for x in xs])
                                     if len(kinds) > 1 else (xs[0][:, 0] if xs[0].ndim > 1 else xs[0])
                                     for xs in zip(*al, strict=True))
-            ok[pm[~(ov > RegionModel.min_overlap)]] = False
+            ok[pm[~(ov > RegionModel.overlap_floor(objective))]] = False
             c = self._put(W, Zx, E, N, cplx)
         if Ep is not None:
             self._put(W, Zx, Ep, Ep["B"] if cplx else Ep["B"].real, cplx)
