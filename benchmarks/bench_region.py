@@ -141,9 +141,9 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
              f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
-             "to 24, then 2).  New: this checkout's default (the same engine, starts and path; kappa2's "
-             "second stage stops on a looser test and prunes a straggler only when it is not still "
-             "descending fast; IPOPT only as the fallback).  "
+             "to 24, then 2).  New: this checkout's default (the same engine, starts and path; for "
+             "kappa2 the second stage stops on a looser test and prunes a straggler only when it is not "
+             "still descending fast, and the charts are wider; IPOPT only as the fallback).  "
              "CPU seconds per design (`time.process_time`, single-threaded BLAS; from round 10 after "
              "one untimed design of the first case per process, the one-time imports), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]

@@ -258,7 +258,7 @@ class WellConditionedProblem:
         (``benchmarks/results/region_eta.md``: the engine alone from 8 was more than 1e-3 worse than
         IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, from 16 with IPOPT from 2 beside it on none).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
-        more than 1e-3 better on 17, worse on 1 (random n = 6 +0.9 %); median 0.47 s vs 13.2 s.
+        more than 1e-3 better on 17, worse on 1 (random n = 6 +0.9 %); median 0.41 s vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
         start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
         every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish

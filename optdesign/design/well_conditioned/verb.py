@@ -163,7 +163,7 @@ def well_conditioned_observer(
     starts in lockstep (fewer above n = 12:
     :func:`~optdesign.design.well_conditioned.starts.default_region_starts`), IPOPT only as the
     fallback when no engine design verifies (issue 28: on the 50 plants n <= 10 of
-    ``benchmarks/results/region.md`` median CPU 0.47 s against 13.2 s for the previous default --
+    ``benchmarks/results/region.md`` median CPU 0.41 s against 13.2 s for the previous default --
     IPOPT from every start, now ``WellConditionedProblem(route="multistart")`` -- better than it by
     more than 1e-3 on 17 plants, worse on one, by 0.9 %).  ``result.route`` lists what ran
     and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the
