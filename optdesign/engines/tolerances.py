@@ -336,7 +336,7 @@ REGION_PRUNE_FTOL = 1e-6
 REGION_PRUNE_MARGIN = 2e-2
 #: ... and only when it would still be above them after this many more BFGS windows at its current
 #: rate of decrease (``bfgs_minimize_batch(keep_horizon=...)``): with the second stage's looser
-#: REGION_FTOL the members stop sooner, and a member still descending fast was pruned that would have
+#: REGION_PRUNE_FTOL the members stop sooner, and a member still descending fast was pruned that would have
 #: ended best (COMPleib PSM +0.18 % with 0 or 4 windows; 6 and 10 windows none, at the same CPU)
 REGION_PRUNE_HORIZON = 10.0
 #: a candidate's poles count as inside when ``region.margin`` is at most this times their modulus (the
