@@ -383,10 +383,11 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
         its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
             else _REGION_MAX_ITER
-        # the stage after which only _KEEP members go on (any cold continuation; its stragglers are
-        # stopped inside it for kappa2 only, below)
+        # the stage after which only _KEEP members go on (any cold continuation); for kappa2 its
+        # stragglers are stopped inside it and its stopping test is looser (prune_inside)
         prune = si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1
-        if prune and objective == "kappa2":
+        prune_inside = prune and objective == "kappa2"
+        if prune_inside:
             ftol = REGION_PRUNE_FTOL
         for again_round in range(_MAX_REANCHOR + 1):
             if not todo.size:
@@ -396,7 +397,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
                 return evaluate(Z, _todo[idx], _k, _mu)
 
-            keep = _KEEP if prune and objective == "kappa2" and not again_round else 0
+            keep = _KEEP if prune_inside and not again_round else 0
             res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
                                           pass_index=True, H0=[H[i] for i in todo], keep=keep,
                                           keep_margin=REGION_PRUNE_MARGIN, keep_horizon=REGION_PRUNE_HORIZON)

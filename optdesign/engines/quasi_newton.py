@@ -239,7 +239,8 @@ def bfgs_minimize_batch(
     Raises
     ------
     ValueError
-        A start without a finite value (a caller bug: starts are checked before); ``keep`` negative.
+        A start without a finite value (a caller bug: starts are checked before); ``keep`` or
+        ``keep_horizon`` negative.
     """
     if keep < 0:
         raise ValueError(f"bfgs_minimize_batch: keep must be >= 0 (0: keep every start); found {keep}")
