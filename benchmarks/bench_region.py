@@ -39,9 +39,10 @@ import numpy as np
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
 #: the commit before this round's change (the previous stop's final engine: 8 starts up to n = 12,
-#: 4 up to 24, then 2; eta's route from 16 engine starts), made as the base: ``git archive 5b52554``
-PREV_COMMIT = "5b52554"
-PREV_DIR = "/tmp/region-prev-5b52554"
+#: 4 up to 24, then 2; eta's route from 16 engine starts, each freed from its start point and from its
+#: fixed-pole optimum), made as the base: ``git archive 77ef9b0``
+PREV_COMMIT = "77ef9b0"
+PREV_DIR = "/tmp/region-prev-77ef9b0"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
@@ -141,9 +142,10 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
              f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
-             "to 24, then 2).  New: this checkout's default (the same engine, starts and path; for "
-             "kappa2 the second stage stops on a looser test and prunes a straggler only when it is not "
-             "still descending fast, and the charts are wider; IPOPT only as the fallback).  "
+             "to 24, then 2; for eta 16 engine starts and IPOPT from two).  New: this checkout's "
+             "default (kappa2: the same engine, starts and path, IPOPT only as the fallback; eta: each "
+             "engine start freed from its start point alone, the polish in one batch, and a design "
+             "whose eta is 0 to 1e-6 ends the route).  "
              "CPU seconds per design (`time.process_time`, single-threaded BLAS; from round 10 after "
              "one untimed design of the first case per process, the one-time imports), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]

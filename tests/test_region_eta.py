@@ -246,3 +246,88 @@ def test_fixed_pole_eta_of_coincident_poles_is_inf_without_warning():
         warnings.simplefilter("error")
         assert model.evaluate(x, "eta")[0] == math.inf
         assert model.metric(x, "eta") == math.inf
+
+
+# --------------------------------------------------------------------------- eta's lower bound 0
+
+
+def test_bound_level_of_each_objective():
+    """The value that attains a lower bound: relative for kappa2 (1) and kappa_fro (n), absolute for
+    eta (0), all to the accuracy of a computed kappa2."""
+    from optdesign.design.verification import kappa2_agreement_tol
+    from optdesign.design.well_conditioned.evaluation import bound_level, objective_lower_bound
+
+    assert objective_lower_bound("eta", 5) == 0.0
+    assert bound_level(1.0) == 1.0 * (1.0 + kappa2_agreement_tol(1.0))
+    assert bound_level(4.0) == pytest.approx(4.0 * (1.0 + kappa2_agreement_tol(4.0)), rel=1e-15)
+    assert bound_level(0.0) == kappa2_agreement_tol(1.0)
+    assert 1e-7 < bound_level(0.0) < 1e-5
+
+
+@pytest.mark.parametrize("route", ["auto", "engine"])
+def test_eta_at_its_lower_bound_ends_the_design(route):
+    """eta >= 0, and 0 only for a normal ``A - LC``.  C = I: every normal matrix with its poles in the
+    region is an ``A - L``; the engine reaches eta <= ``bound_level(0)`` (a global optimum, to the
+    accuracy with which kappa2 = 1 is attained) and the design ends there -- route "auto" runs no
+    IPOPT start (it runs two when eta is above the bound) and the message says why."""
+    from optdesign.design.well_conditioned.evaluation import bound_level
+
+    rng = np.random.default_rng(7)
+    plant = Plant(rng.standard_normal((4, 4)), np.eye(4))
+    d = WellConditionedProblem(plant, objective="eta", route=route).solve(region=_REGION)
+    _check_design(plant, _REGION, d)
+    assert d.eta <= bound_level(0.0)
+    assert d.route.names == ("eigenstructure_engine/region",)
+    assert "eta = 0 is its lower bound (a global optimum)" in d.message
+
+
+def test_eta_above_its_lower_bound_runs_ipopt_too():
+    """The other side of the test above: a plant whose eta stays above 0 (one output, n = 4: no
+    normal closed loop) -- the default eta route runs IPOPT's two starts beside the engine."""
+    from optdesign.design.well_conditioned.evaluation import bound_level
+
+    plant = _random_plant(4, 4, 1)
+    d = WellConditionedProblem(plant, objective="eta").solve(region=_REGION)
+    _check_design(plant, _REGION, d)
+    assert d.eta > 100 * bound_level(0.0)
+    assert d.route.names[:2] == ("eigenstructure_engine/region", "ipopt")
+    assert "lower bound" not in d.message
+
+
+def test_candidate_attains_recomputes_eta():
+    """A start's candidate claims eta 0 (the model's value subtracts two nearly equal numbers and can
+    round below the bound): it attains the bound only when eta of ``A - LC`` (Schur form) does."""
+    from optdesign.engines.eigenstructure import EigenstructureEngine
+    from optdesign.engines.eigenstructure_region import candidate_attains
+
+    plant = _random_plant(3, 4, 2)
+    eng = EigenstructureEngine(plant.A, plant.C)
+    L = np.linalg.lstsq(plant.C.T, (plant.A + np.eye(4)).T, rcond=None)[0].T  # some gain
+    assert metrics.eta(plant.A - L @ plant.C) > 1e-3
+    cand = (0.0, L, None, None, "start")
+    assert not candidate_attains(eng, "eta", cand, 1e-6)
+    assert candidate_attains(eng, "kappa2", (1.0, L, None, None, "start"), 1.0 + 1e-6)  # kappa2: its value
+    assert not candidate_attains(eng, "eta", cand, None) and not candidate_attains(eng, "eta", None, 1e-6)
+    # C = I: L = A - F for a normal F attains it
+    eye = EigenstructureEngine(plant.A, np.eye(4))
+    Q = np.linalg.qr(np.random.default_rng(1).standard_normal((4, 4)))[0]
+    F = Q @ np.diag([-1.0, -2.0, -3.0, -4.0]) @ Q.T
+    assert candidate_attains(eye, "eta", (0.0, plant.A - F, None, None, "start"), 1e-6)
+
+
+def test_exact_eta_of_region_members():
+    """The stages' stop test for eta: eta of ``W^-1 diag(P) W`` from its Schur form equals
+    :func:`metrics.eta` of that matrix where the model's own value is near the threshold, inf elsewhere."""
+    from optdesign.engines.eigenstructure_region_lockstep import _exact_eta
+
+    rng = np.random.default_rng(5)
+    P = np.array([-1.0, -2.0, -1.5 + 1j, -1.5 - 1j])
+    Q = np.linalg.qr(rng.standard_normal((4, 4)))[0]
+    Wn = np.array([Q[:, 0], Q[:, 1], (Q[:, 2] + 1j * Q[:, 3]) / np.sqrt(2), (Q[:, 2] - 1j * Q[:, 3]) / np.sqrt(2)])
+    Wf = Wn + 0.3 * rng.standard_normal((4, 4))  # far from normal
+    Wf[3] = Wf[2].conj()
+    W = np.stack([Wn, Wf])
+    out = _exact_eta(W, np.stack([P, P]), 1e-6)
+    Fn = np.linalg.solve(Wn, P[:, None] * Wn)
+    assert out[0] == metrics.eta(Fn.real) and out[0] <= 1e-12
+    assert out[1] == math.inf

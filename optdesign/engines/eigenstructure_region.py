@@ -58,6 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .._deadline import Deadline
 from .._validate import as_int, as_poles
+from ..analysis import metrics
 from ..errors import DimensionError, ValidationError
 from ..model.regions import Region
 from ..results import Status
@@ -86,6 +87,7 @@ __all__ = [
     "RegionStart",
     "QuadraticConstraints",
     "place_region",
+    "candidate_attains",
     "REGION_STAGES",
     "REGION_FIXED_STAGES",
     "REGION_WARM_STAGES",
@@ -521,6 +523,18 @@ def interior_of(region: Region) -> tuple[float, float]:
     return x0, max(-float(region.distance([x0])[0]), CLEARANCE_FLOOR)
 
 
+def candidate_attains(eng: EigenstructureEngine, objective: str, cand: tuple | None, stop_at: float | None
+                      ) -> bool:
+    """A start's candidate ``(value, L, V, poles, stage)`` at or below ``stop_at``, the objective's
+    lower bound to the caller's accuracy.  For eta the test is on its value recomputed from ``A - L
+    C`` (its Schur form, :func:`~optdesign.analysis.metrics.eta`): the model's value subtracts two
+    nearly equal numbers near a normal matrix (``||A - LC||_F^2 - sum |lambda|^2``), rounding that can
+    put it below the bound."""
+    if stop_at is None or cand is None or not cand[0] <= stop_at:
+        return False
+    return objective != "eta" or metrics.eta(eng.A - cand[1] @ eng.C) <= stop_at
+
+
 def place_region(
     A: ArrayLike,
     C: ArrayLike,
@@ -567,8 +581,11 @@ def place_region(
         that ``X``.
     stop_at : float, optional
         The objective's lower bound with the caller's accuracy (kappa2: 1 to the accuracy of a
-        computed kappa2): a start whose candidate attains it before the free-pole stages is a global
-        optimum -- the later starts are not prepared and no free-pole stage runs.
+        computed kappa2; eta: 0 to that accuracy): a start whose candidate attains it before the
+        free-pole stages is a global optimum -- the later starts are not prepared and no free-pole
+        stage runs; a member that attains it after a BFGS round of the stages ends them (the others
+        ``"pruned"``).  eta's test is on eta recomputed from the Schur form of the design
+        (:func:`candidate_attains`).
 
     Returns
     -------
@@ -621,7 +638,7 @@ def place_region(
     from .eigenstructure_region_lockstep import run_lockstep  # it builds on this module's model
 
     done = run_lockstep(eng, region, warm, pinned, objective, rng, dl, stop_at, measure) if warm else []
-    if cold and not any(b is not None and stop_at is not None and b[0] <= stop_at for _, b, _ in done):
+    if cold and not any(candidate_attains(eng, objective, b, stop_at) for _, b, _ in done):
         done += run_lockstep(eng, region, cold, pinned, objective, rng, dl, stop_at, measure)
     timed_out = dl.expired and len(done) < len(all_starts)
     for rec, best, to in done:

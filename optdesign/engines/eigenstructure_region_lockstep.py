@@ -28,6 +28,7 @@ from numpy.typing import NDArray
 
 from .._deadline import Deadline
 from .._validate import as_poles
+from ..analysis import metrics
 from ..errors import ValidationError
 from ..model.regions import Region
 from .eigenstructure import DefectivePolesError, FixedPoleModel, spectral_objective
@@ -38,11 +39,12 @@ from .eigenstructure_region import (
     REGION_WARM_STAGES,
     RegionModel,
     RegionStart,
+    candidate_attains,
     interior_of,
 )
 from .quasi_newton import bfgs_minimize_batch
 from .region_batch import PatternBatch, fixed_lockstep
-from .region_eta import ETA_STAGES, ETA_WARM_STAGES
+from .region_eta import ETA_STAGES, ETA_WARM_STAGES, eta_terms
 from .tolerances import (
     DUP_FTOL,
     DUP_PTOL,
@@ -64,7 +66,7 @@ _REGION_MAX_ITER = 300
 #: COMPleib DIS1, 35 % of the stages' CPU; no plant more than 1e-3 worse than the base commit.  Round
 #: 9: 50 instead of 80, with the fixed-pole continuation ending at k = 1024 and the pruning inside the
 #: second stage (below), 0.85x the CPU on the same plants, none more than 1e-3 worse)
-_FIRST_STAGE_MAX_ITER = 50
+_FIRST_STAGE_MAX_ITER = {"kappa2": 50}
 #: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members -- not
@@ -127,8 +129,8 @@ def _consider(eng, region, objective, model, x, stage, best):
 def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior, measure="right") -> dict:
     """One start up to its fixed-pole continuation: its gain and its start in the fixed-pole model
     at its (moved inside) poles as candidates.  A dict of the start's state (``"fixed"``, ``"x0"``,
-    ``"fstages"``: the continuation :func:`_finish` completes); ``"done"`` holds a final record when
-    the start cannot go on."""
+    ``"fstages"``: the continuation :func:`_finish` completes; empty for eta's cold start, freed
+    from ``"x0"`` alone); ``"done"`` holds a final record when the start cannot go on."""
     ts = time.process_time()
     state: dict = {"st": st, "best": None, "its": 0, "evs": 0, "timed_out": False, "cpu": 0.0}
     try:
@@ -158,7 +160,18 @@ def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior,
         state["done"] = StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 1, "singular start", 0.0)
         return state
     state["best"] = _consider(eng, region, objective, fixed, x0, "start", state["best"])
-    fstages = REGION_FIXED_STAGES if objective == "kappa2" and not st.warm else (None,)
+    # the fixed-pole stages before the poles are freed: kappa2's continuation; a warm start's exact
+    # stage; none for eta's cold start, freed from its start point alone (issue 28, round 11: the
+    # fixed-pole optimum at the start's poles as a second member doubled the members and its
+    # preparation ran up to 400 iterations per start; without both, 0.82x the CPU on 49 plants
+    # n <= 10, none more than 1e-3 worse than IPOPT alone; COMPleib AC8 +6.9 %, DIS1 +0.26 %, random
+    # n = 10 s1 +0.37 %, TG1 -7.1 %, the others within 1e-4)
+    if st.warm:
+        fstages: tuple[int | None, ...] = (None,)
+    elif objective == "kappa2":
+        fstages = REGION_FIXED_STAGES
+    else:
+        fstages = () if objective == "eta" else (None,)
     state.update(fixed=fixed, x0=x0, fstages=fstages, cpu=time.process_time() - ts)
     return state
 
@@ -180,13 +193,15 @@ def _prepare_all(eng, region, starts, pinned, objective, rng, dl, interior, stop
     """Every start prepared (:func:`_prepare`, :func:`_finish`).  The cold kappa2 starts' fixed-pole
     continuations run in lockstep (:func:`~optdesign.engines.region_batch.fixed_lockstep`, one
     evaluation per round for all; the first alone when ``stop_at`` is given: a start that attains it
-    ends the run before the others are prepared); the others one by one.  A start whose candidate
-    attains ``stop_at`` marks every state ``"skip"``."""
+    ends the run before the others are prepared); eta's cold starts have none (their one member is
+    the start point); the others one by one.  A start whose candidate attains ``stop_at``
+    (:func:`~optdesign.engines.eigenstructure_region.candidate_attains`) marks every state
+    ``"skip"``."""
     states: list[dict] = []
     batch: list[dict] = []
 
     def attained(group) -> bool:
-        if stop_at is None or not any(s["best"] is not None and s["best"][0] <= stop_at for s in group):
+        if not any(candidate_attains(eng, objective, s["best"], stop_at) for s in group):
             return False
         for s in states:  # a global optimum: no free-pole stage is needed
             s["skip"] = True
@@ -198,6 +213,11 @@ def _prepare_all(eng, region, starts, pinned, objective, rng, dl, interior, stop
         s = _prepare(eng, region, st, pinned, objective, rng, dl, interior, measure)
         states.append(s)
         if "done" in s:
+            continue
+        if not s["fstages"]:  # eta's cold start: freed from its start point alone (_prepare)
+            s.update(members=s["x0"][None, :], key=_structure(s["fixed"].poles, pinned))
+            if attained([s]):
+                return states
             continue
         if s["fstages"] is REGION_FIXED_STAGES and (stop_at is None or len(states) > 1):
             batch.append(s)
@@ -315,12 +335,11 @@ def run_lockstep(eng, region, starts: Sequence[RegionStart], pinned, objective, 
 
 def _polish(eng, region, objective, jobs: list[tuple[dict, FixedPoleModel, NDArray]], dl) -> None:
     """Every free-pole design ``(start state, fixed-pole model at its final poles, coordinates)``
-    polished at its poles, a candidate of its start: for kappa2 all in one BFGS batch
-    (:func:`~optdesign.engines.region_batch.fixed_lockstep`, per coordinate length), otherwise one by
-    one (:func:`~optdesign.engines.eigenstructure_fixed.run_starts`: eta's fixed-pole objective is
-    the gain form, not the region batch's)."""
+    polished at its poles, a candidate of its start: for kappa2 and eta all in one BFGS batch
+    (:func:`~optdesign.engines.region_batch.fixed_lockstep`, per coordinate length), kappa_fro one by
+    one (:func:`~optdesign.engines.eigenstructure_fixed.run_starts`)."""
     ts = time.process_time()
-    if objective == "kappa2":
+    if objective in ("kappa2", "eta"):
         outs, _ = _fixed_batches([(fm, xc) for _, fm, xc in jobs], objective, dl, (None,))
     else:
         outs = [run_starts(fm, xc[None, :], objective, dl, 400, (None,))[0] for _, fm, xc in jobs]
@@ -381,7 +400,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         todo = todo[~bad]
         ftol = REGION_FTOL.get(k, REGION_FTOL[None])
         # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
-        its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
+        its_cap = _FIRST_STAGE_MAX_ITER.get(objective, _REGION_MAX_ITER) if si == 0 and len(stages) > 2 \
             else _REGION_MAX_ITER
         # the stage after which only _KEEP members go on (any cold continuation); for kappa2 its
         # stragglers are stopped inside it and its stopping test is looser (prune_inside)
@@ -389,6 +408,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         prune_inside = prune and objective == "kappa2"
         if prune_inside:
             ftol = REGION_PRUNE_FTOL
+        attained = False
         for again_round in range(_MAX_REANCHOR + 1):
             if not todo.size:
                 break
@@ -410,13 +430,15 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
                 evs[i] += r.evaluations
                 if r.reason == "line search" and f_before[j] - r.f > ftol * max(1.0, abs(r.f)):
                     again.append(i)
-            if not again or dl.expired:
+            # a global optimum: neither this stage's next rounds nor the later stages can improve it
+            attained = stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at)
+            if attained or not again or dl.expired:
                 break
             todo = np.asarray(again)
             anchor()
+        if attained:
+            break
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
-        if stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at):
-            break  # a global optimum: the later stages cannot improve it
         if prune:
             _prune(X, alive, reasons, evaluate, k, mu)
     timed_out |= dl.expired
@@ -428,9 +450,9 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
 
 
 def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> bool:
-    """When a running member's exact objective (kappa2 or kappa_fro of its eigenvectors) is at most
-    ``stop_at`` (its lower bound: a global optimum), the others are ``"pruned"`` and the stages end
-    (True)."""
+    """When a running member's exact objective (kappa2 or kappa_fro of its eigenvectors; eta of its
+    closed loop, :func:`_exact_eta`) is at most ``stop_at`` (its lower bound: a global optimum), the
+    others are ``"pruned"`` and the stages end (True)."""
     exact = np.full(X.shape[0], math.inf)
     for g, model in enumerate(models):
         mine = np.flatnonzero(owner == g)
@@ -438,7 +460,11 @@ def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> bo
         if not sel.size:
             continue
         try:
-            f = spectral_objective(model._members(X[mine])["W"][sel], objective, None, gradient=False)[0]
+            W = model._members(X[mine])["W"][sel]
+            if objective == "eta":
+                exact[mine[sel]] = _exact_eta(W, model.all_poles(*model.split(X[mine[sel]])[1:]), stop_at)
+                continue
+            f = spectral_objective(W, objective, None, gradient=False)[0]
         except np.linalg.LinAlgError:
             continue
         exact[mine[sel]] = np.exp(f)
@@ -447,6 +473,19 @@ def _attained(models, owner, X, alive, reasons, objective, stop_at: float) -> bo
     for i in np.flatnonzero(alive & (exact > stop_at)):
         reasons[i], alive[i] = "pruned", False
     return True
+
+
+def _exact_eta(W: NDArray, P: NDArray, stop_at: float) -> NDArray[np.float64]:
+    """eta of each member's closed loop ``W^-1 diag(P) W`` (``W`` (s, n, n), ``P`` (s, n) its poles in
+    row order) from its Schur form (:func:`~optdesign.analysis.metrics.eta`) where the model's own
+    value (:func:`~optdesign.engines.region_eta.eta_terms`, which subtracts two nearly equal numbers
+    near a normal matrix) is within 10 ``stop_at``; inf elsewhere (those members do not attain it)."""
+    f = eta_terms(P, W, None)[0]
+    out = np.full(W.shape[0], math.inf)
+    for i in np.flatnonzero(np.exp(0.5 * f) <= 10.0 * stop_at):
+        F = np.linalg.solve(W[i], P[i][:, None] * W[i])
+        out[i] = metrics.eta(F.real)
+    return out
 
 
 def _prune(X, alive, reasons, evaluate, k, mu) -> None:

@@ -361,7 +361,9 @@ def fixed_lockstep(models: list[FixedPoleModel], X0: NDArray, objective: str, de
     own poles, ``X0`` (s, size) their coordinates), all in one BFGS batch per stage: one evaluation
     per round for all (:class:`PatternBatch`) instead of one per start.  Each member's iterates are
     those of its own ``run_starts`` (a BFGS member does not see the others; one start per model has
-    no duplicates to drop).  Per model ``(normalized x, iterations, evaluations, reason)``."""
+    no duplicates to drop).  eta's value is ``eta^2`` itself, the fixed-pole model's (the batch's own
+    is ``log eta^2``, the region stages'), so that each start follows its own ``run_starts`` path to
+    rounding.  Per model ``(normalized x, iterations, evaluations, reason)``."""
     batch = PatternBatch([_Pinned(m) for m in models], [1] * len(models))
     X = np.array(X0, dtype=float)
     s = X.shape[0]
@@ -374,7 +376,11 @@ def fixed_lockstep(models: list[FixedPoleModel], X0: NDArray, objective: str, de
             break
 
         def fun(Z, idx, _k=k):
-            return batch.evaluate(Z, rows[idx], objective, _k, 0.0)
+            f, G = batch.evaluate(Z, rows[idx], objective, _k, 0.0)
+            if objective == "eta":  # eta^2 itself, as run_starts' fixed-pole model (not its log)
+                e = np.exp(f)
+                return e, G * np.where(np.isfinite(e), e, 0.0)[:, None]
+            return f, G
 
         res, Hs = bfgs_minimize_batch(fun, X, max_iter=max_iter, ftol=STAGE_FTOL.get(k, STAGE_FTOL_DEFAULT),
                                       gtol=0.0 if k is None else STAGE_GTOL, deadline=deadline, H0=H,

@@ -67,9 +67,8 @@ from numpy.typing import NDArray
 
 from .._deadline import Deadline, as_time_limit
 from .._validate import as_bool, as_int, as_options, as_poles, as_positive_float
-from ..design.verification import kappa2_agreement_tol
 from ..design.well_conditioned import ObserverDesign, WellConditionedProblem, check_region_stable
-from ..design.well_conditioned.evaluation import objective_lower_bound
+from ..design.well_conditioned.evaluation import bound_level, objective_lower_bound
 from ..design.well_conditioned.normal_probe import normal_closed_loop, normal_freedom
 from ..design.well_conditioned.problem import Objective
 from ..errors import ValidationError
@@ -505,7 +504,7 @@ class _RegionSession:
             return None
         plant = d._plant()
         bound = objective_lower_bound(d.objective, plant.n)
-        if bound is None or (pool and pool[0][0] <= bound * (1.0 + kappa2_agreement_tol(bound))):
+        if bound is None or (pool and pool[0][0] <= bound_level(bound)):
             return None
         if normal_freedom(plant.n, plant.p) < 0:
             return None

@@ -23,7 +23,7 @@ from ...engines.eigenstructure_region import RegionStart, place_region
 from ...errors import ValidationError
 from ...model.regions import Region
 from ...results import Status
-from .evaluation import Candidate, Evaluated, kappa2_agreement_tol, metric_of, start_record
+from .evaluation import Candidate, Evaluated, bound_level, metric_of, start_record
 from .results import StartRecord
 
 __all__ = ["ENGINE", "engine_fixed", "engine_region", "engine_status"]
@@ -111,7 +111,7 @@ def engine_region(eng: EigenstructureEngine, region: Region, objective: str,
     gain, poles, warm)`` (the warm ones first), run in lockstep; each start's design is a candidate
     verified by ``evaluate``.  A start that attains ``lower_bound`` (to the accuracy of a computed
     kappa2) before the free-pole stages ends the run: a global optimum."""
-    stop_at = None if lower_bound is None else lower_bound * (1.0 + kappa2_agreement_tol(lower_bound))
+    stop_at = None if lower_bound is None else bound_level(lower_bound)
     records: list[StartRecord] = []
     evaluated: list[Evaluated] = []
     if not specs:

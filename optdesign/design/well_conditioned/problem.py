@@ -254,7 +254,8 @@ class WellConditionedProblem:
         kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
         (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
-        every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts
+        every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts (no IPOPT when
+        the engine attains eta's lower bound 0: a normal ``A - LC``)
         (``benchmarks/results/region_eta.md``: the engine alone from 8 was more than 1e-3 worse than
         IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, from 16 with IPOPT from 2 beside it on none).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):

@@ -86,7 +86,8 @@ def well_conditioned_observer(
         (the ``j``-th sampled start takes ``start_real_count(n, j)``); Kalman gains replace
         placements when the plant is unobservable.  No further start is run once a solved,
         verified design attains the objective's lower bound (kappa2 = 1, kappa_fro = n, to the
-        accuracy of a computed kappa2): a global optimum.
+        accuracy of a computed kappa2; eta = 0, a normal ``A - LC``, to that absolute accuracy,
+        1e-6): a global optimum.
     seed : int, default 0
         Seed of every random choice (reproducible).
     nlp_solver : {"ipopt"}
