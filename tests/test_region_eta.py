@@ -323,7 +323,8 @@ def test_exact_eta_of_region_members():
     rng = np.random.default_rng(5)
     P = np.array([-1.0, -2.0, -1.5 + 1j, -1.5 - 1j])
     Q = np.linalg.qr(rng.standard_normal((4, 4)))[0]
-    Wn = np.array([Q[:, 0], Q[:, 1], (Q[:, 2] + 1j * Q[:, 3]) / np.sqrt(2), (Q[:, 2] - 1j * Q[:, 3]) / np.sqrt(2)])
+    u = (Q[:, 2] + 1j * Q[:, 3]) / np.sqrt(2)
+    Wn = np.array([Q[:, 0], Q[:, 1], u, u.conj()])
     Wf = Wn + 0.3 * rng.standard_normal((4, 4))  # far from normal
     Wf[3] = Wf[2].conj()
     W = np.stack([Wn, Wf])
