@@ -283,7 +283,7 @@ def test_eta_at_its_lower_bound_ends_the_design(route):
 
 def test_eta_above_its_lower_bound_runs_ipopt_too():
     """The other side of the test above: a plant whose eta stays above 0 (one output, n = 4: no
-    normal closed loop) -- the default eta route runs IPOPT's two starts beside the engine."""
+    normal closed loop) -- the default eta route runs IPOPT from its first start beside the engine."""
     from optdesign.design.well_conditioned.evaluation import bound_level
 
     plant = _random_plant(4, 4, 1)

@@ -188,13 +188,15 @@ def test_region_route_discrete_region(route, rtol):
 
 def test_route_eta_in_a_region_engine_and_ipopt():
     """eta in a region (issue 28): the default route runs the engine from every start and IPOPT from
-    the first two (the engine alone from 8 starts was worse than IPOPT on 7 of 50 benchmark plants);
+    the first (the engine alone from 8 starts was worse than IPOPT on 7 of 50 benchmark plants);
     ``route="engine"`` the engine alone; ``route="nlp"`` IPOPT alone, and the route says it was
     asked."""
     plant = _random_plant(3, 3, 2)
     d = WellConditionedProblem(plant, objective="eta", starts=4).solve(region=_REGION)
     assert d.success and d.route.names[:2] == ("eigenstructure_engine/region", "ipopt")
-    assert d.route[1].detail == "2 starts, beside the engine's"
+    assert d.route[1].detail == "1 start, beside the engine's"
+    d = WellConditionedProblem(plant, objective="eta", starts=4, route="fast").solve(region=_REGION)
+    assert d.route[1].detail == "2 starts, beside the engine's"  # route "fast": AUTO_NLP_STARTS
     assert sum(s.message.startswith("placement engine") for s in d.starts) >= 4
     d = WellConditionedProblem(plant, objective="eta", starts=2, route="engine").solve(region=_REGION)
     assert d.success and d.route.names == ("eigenstructure_engine/region",)

@@ -66,7 +66,7 @@ _REGION_MAX_ITER = 300
 #: COMPleib DIS1, 35 % of the stages' CPU; no plant more than 1e-3 worse than the base commit.  Round
 #: 9: 50 instead of 80, with the fixed-pole continuation ending at k = 1024 and the pruning inside the
 #: second stage (below), 0.85x the CPU on the same plants, none more than 1e-3 worse)
-_FIRST_STAGE_MAX_ITER = {"kappa2": 50}
+_FIRST_STAGE_MAX_ITER = 50
 #: after this stage (0-based) of the full continuation only the :data:`_KEEP` members of lowest
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members -- not
@@ -163,9 +163,9 @@ def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior,
     # the fixed-pole stages before the poles are freed: kappa2's continuation; a warm start's exact
     # stage; none for eta's cold start, freed from its start point alone (issue 28, round 11: the
     # fixed-pole optimum at the start's poles as a second member doubled the members and its
-    # preparation ran up to 400 iterations per start; without both, 0.82x the CPU on 49 plants
+    # preparation ran up to 400 iterations per start; without both, 0.83x the CPU on 49 plants
     # n <= 10, none more than 1e-3 worse than IPOPT alone; COMPleib AC8 +6.9 %, DIS1 +0.26 %, random
-    # n = 10 s1 +0.37 %, TG1 -7.1 %, the others within 1e-4)
+    # n = 10 s1 +0.37 %, TG1 -7.1 %, the others within 1e-3)
     if st.warm:
         fstages: tuple[int | None, ...] = (None,)
     elif objective == "kappa2":
@@ -400,7 +400,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         todo = todo[~bad]
         ftol = REGION_FTOL.get(k, REGION_FTOL[None])
         # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
-        its_cap = _FIRST_STAGE_MAX_ITER.get(objective, _REGION_MAX_ITER) if si == 0 and len(stages) > 2 \
+        its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
             else _REGION_MAX_ITER
         # the stage after which only _KEEP members go on (any cold continuation); for kappa2 its
         # stragglers are stopped inside it and its stopping test is looser (prune_inside)
@@ -483,8 +483,9 @@ def _exact_eta(W: NDArray, P: NDArray, stop_at: float) -> NDArray[np.float64]:
     f = eta_terms(P, W, None)[0]
     out = np.full(W.shape[0], math.inf)
     for i in np.flatnonzero(np.exp(0.5 * f) <= 10.0 * stop_at):
-        F = np.linalg.solve(W[i], P[i][:, None] * W[i])
-        out[i] = metrics.eta(F.real)
+        F = np.linalg.solve(W[i], P[i][:, None] * W[i]).real
+        if np.all(np.isfinite(F)):
+            out[i] = metrics.eta(F)
     return out
 
 
