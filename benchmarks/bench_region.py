@@ -144,8 +144,8 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
              "to 24, then 2; for eta 16 engine starts and IPOPT from two).  New: this checkout's "
              "default (kappa2: the same engine, starts and path, IPOPT only as the fallback; eta: each "
-             "engine start freed from its start point alone, the polish in one batch, and a design "
-             "whose eta is 0 to 1e-6 ends the route).  "
+             "engine start freed from its start point alone, the polish in one batch, a design whose "
+             "eta is 0 to 1e-6 ends the route, IPOPT from one start).  "
              "CPU seconds per design (`time.process_time`, single-threaded BLAS; from round 10 after "
              "one untimed design of the first case per process, the one-time imports), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]

@@ -136,13 +136,10 @@ def test_two_poles_at_one_point_in_a_merged_call_are_refused_alone():
     np.testing.assert_allclose(G[others], G0[others], rtol=1e-9, atol=1e-12)
 
 
-def test_fixed_lockstep_ends_where_each_start_ends_alone():
-    """The kappa2 continuation of four starts at four pole sets (real and complex patterns) in one
-    batch reaches each start's own end (run_starts, one start at a time; the full continuation, to the
-    exact kappa2) to 1e-6 in kappa2: the batch evaluates the same formulas in another arithmetic
-    (complex with the pairs), so the paths part at rounding level near the nonsmooth end (measured:
-    values equal to 1e-8, iterations within 30 %)."""
-    plant = problems.load("compleib_dis3").plant
+def _fixed_starts(name: str) -> tuple[list[FixedPoleModel], list[np.ndarray]]:
+    """Four fixed-pole models at poles sampled in the plant's suggested region (real and complex
+    patterns), each with random start coordinates."""
+    plant = problems.load(name).plant
     region = suggested_region(plant)
     eng = EigenstructureEngine(plant.A, plant.C)
     rng = np.random.default_rng(2)
@@ -151,6 +148,16 @@ def test_fixed_lockstep_ends_where_each_start_ends_alone():
         m = FixedPoleModel(eng, region.sample_poles(plant.n, rng, real_fraction=frac))
         models.append(m)
         X0.append(m.random_coords(rng))
+    return models, X0
+
+
+def test_fixed_lockstep_ends_where_each_start_ends_alone():
+    """The kappa2 continuation of four starts at four pole sets (real and complex patterns) in one
+    batch reaches each start's own end (run_starts, one start at a time; the full continuation, to the
+    exact kappa2) to 1e-6 in kappa2: the batch evaluates the same formulas in another arithmetic
+    (complex with the pairs), so the paths part at rounding level near the nonsmooth end (measured:
+    values equal to 1e-8, iterations within 30 %)."""
+    models, X0 = _fixed_starts("compleib_dis3")
     together = fixed_lockstep(models, np.stack(X0), "kappa2", Deadline(None), 400, KAPPA2_CONTINUATION)
     for m, x0, (x, its, _, reason) in zip(models, X0, together, strict=True):
         ((xa, _, _, _),) = run_starts(m, x0[None], "kappa2", Deadline(None), 400, KAPPA2_CONTINUATION)
@@ -165,15 +172,7 @@ def test_fixed_lockstep_eta_ends_where_each_start_ends_alone():
     within 5 % (measured: 80.42255 against 80.42267, the others equal to 1e-15; on other plants a
     path can part at rounding level and end in another local minimum: REA2's first start 93.4
     against 73.5)."""
-    plant = problems.load("compleib_ac15").plant
-    region = suggested_region(plant)
-    eng = EigenstructureEngine(plant.A, plant.C)
-    rng = np.random.default_rng(2)
-    models, X0 = [], []
-    for frac in (1.0, 0.5, 0.0, 0.5):
-        m = FixedPoleModel(eng, region.sample_poles(plant.n, rng, real_fraction=frac))
-        models.append(m)
-        X0.append(m.random_coords(rng))
+    models, X0 = _fixed_starts("compleib_ac15")
     together = fixed_lockstep(models, np.stack(X0), "eta", Deadline(None), 2000, (None,))
     for m, x0, (x, its, _, reason) in zip(models, X0, together, strict=True):
         ((xa, ia, _, _),) = run_starts(m, x0[None], "eta", Deadline(None), 2000, (None,))

@@ -65,10 +65,7 @@ DEFAULT_STARTS = 8
 #: 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches 1.46204
 #: where IPOPT's first two starts stop at 1.481)
 AUTO_NLP_STARTS = 2
-#: ... and for eta on route "auto": IPOPT from the first start alone (issue 28, round 11: with each
-#: engine start freed from its start point, IPOPT's second start changed no eta by more than 1e-4 on
-#: 49 plants n <= 10 and none was more than 1e-3 worse than IPOPT alone; 0.84x the CPU, median
-#: 1.18 s against 1.35 s in one session)
+#: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md)
 ETA_NLP_STARTS = 1
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)
@@ -259,9 +256,8 @@ class WellConditionedProblem:
         kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
         (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
-        every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from the
-        first one only (``ETA_NLP_STARTS``; none when the engine attains eta's lower bound 0: a normal
-        ``A - LC``)
+        every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from one
+        (``ETA_NLP_STARTS``; none when the engine attains eta's lower bound 0: a normal ``A - LC``)
         (``benchmarks/results/region_eta.md``: the engine alone from 8 was more than 1e-3 worse than
         IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, from 16 with IPOPT from 2 beside it on none).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
@@ -694,9 +690,9 @@ class WellConditionedProblem:
 
         ``"auto"`` / ``"engine"`` (no bounds or structural zeros): the engine from every start (IPOPT as
         the fallback).  ``"fast"``, and eta on ``"auto"``: the engine from every start, IPOPT (light
-        polish, ``"last"``) from the first ``AUTO_NLP_STARTS`` (eta on ``"auto"``: ``ETA_NLP_STARTS``),
-        then the engine from IPOPT's best when it beats the engine's.  ``"multistart"``: IPOPT from every start, then the engine from the
-        best.  ``"nlp"``, or a question the engine does not take: IPOPT only."""
+        polish, ``"last"``) from the first ``AUTO_NLP_STARTS`` (eta on "auto": ``ETA_NLP_STARTS``), then
+        the engine from IPOPT's best when it beats the engine's.  ``"multistart"``: IPOPT from every start,
+        then the engine from the best.  ``"nlp"``, or a question the engine does not take: IPOPT only."""
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
