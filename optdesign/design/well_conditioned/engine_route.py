@@ -109,8 +109,8 @@ def engine_region(eng: EigenstructureEngine, region: Region, objective: str,
                   ) -> tuple[list[StartRecord], list[Evaluated]]:
     """Poles free in ``region`` on the engine: one :func:`place_region` with every start ``(origin,
     gain, poles, warm)`` (the warm ones first), run in lockstep; each start's design is a candidate
-    verified by ``evaluate``.  A start that attains ``lower_bound`` (to the accuracy of a computed
-    kappa2) before the free-pole stages ends the run: a global optimum."""
+    verified by ``evaluate``.  A start that attains ``lower_bound`` (:func:`~.evaluation.bound_level`)
+    before or during the free-pole stages ends the run: a global optimum."""
     stop_at = None if lower_bound is None else bound_level(lower_bound)
     records: list[StartRecord] = []
     evaluated: list[Evaluated] = []
