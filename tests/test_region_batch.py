@@ -180,3 +180,53 @@ def test_fixed_lockstep_eta_ends_where_each_start_ends_alone():
         assert abs(its - ia) <= 0.05 * ia
         assert m.metric(x, "eta") == pytest.approx(m.metric(xa, "eta"), rel=1e-5)
         assert m.metric(x, "eta") < 0.5 * m.metric(x0, "eta")
+
+
+def test_a_model_evaluates_with_its_current_anchors():
+    """RegionModel.evaluate_batch keeps its batch only while the anchors stay: after set_anchor at
+    a moved point, the value off the anchor is that of a model anchored there from the start."""
+    models, Xs = _models("compleib_ac6", members=1, seed=4)
+    g = next(i for i, m in enumerate(models) if m.nrf and m.npf)
+    model, X = models[g], Xs[g]
+    Z = X.copy()
+    Z[:, model.ncoord :] += 0.01 * model.rho
+    before = model.evaluate_batch(Z, "kappa2", 64, 1e-3)[0][0]
+    model.set_anchor(X)  # the aligned bases at X (moved off the first anchors above)
+    after, G = model.evaluate_batch(Z, "kappa2", 64, 1e-3)
+    fresh = PatternBatch([model], [1])  # built from the current anchors
+    f_fresh, G_fresh = fresh.evaluate(Z, np.arange(1), "kappa2", 64, 1e-3)
+    assert after[0] == pytest.approx(f_fresh[0], rel=1e-12)
+    np.testing.assert_allclose(G, G_fresh, rtol=1e-12, atol=1e-14)
+    assert np.isfinite(before) and np.isfinite(after[0])
+
+
+def test_models_of_different_layouts_are_refused():
+    """Members of one batch must share the variable layout and the region (one engine, the same
+    pinned poles and interior point): two plants' models are refused with a message saying so."""
+    (a, *_), _ = _models("compleib_ac6")
+    (b, *_), _ = _models("compleib_he2")
+    with pytest.raises(ValueError, match="do not share one variable layout and region"):
+        PatternBatch([a, b], [1, 1])
+
+
+def test_kappa2_charts_are_wider_than_eta_s():
+    """A member whose pole moves away from its anchor leaves its chart (the aligned basis's overlap with
+    the anchor below ``RegionModel.overlap_floor``: f = inf, the line search stops there and the member
+    is re-anchored): kappa2's chart (overlap 0.25) contains eta's (0.5) and reaches further."""
+    assert RegionModel.overlap_floor("kappa2") < RegionModel.overlap_floor("eta")
+    models, Xs = _models("compleib_ac6", members=1)
+    g = next(i for i, m in enumerate(models) if m.nrf)
+    model = models[g]
+    batch = PatternBatch([model], [1])
+    finite = {"kappa2": [], "eta": []}
+    for t in np.linspace(-3.0, 3.0, 121) * max(1.0, model.rho):
+        Z = Xs[g][:1].copy()
+        Z[0, model.ncoord] += t
+        for objective in finite:
+            finite[objective].append(bool(np.isfinite(batch.evaluate(Z, np.array([0]), objective, 1024,
+                                                                     1e-3)[0][0])))
+    k2, eta = np.array(finite["kappa2"]), np.array(finite["eta"])
+    assert eta[60] and k2[60]  # at the member itself
+    assert not np.any(eta & ~k2)  # eta's chart inside kappa2's
+    assert np.any(k2 & ~eta)  # where only kappa2's reaches
+    assert not np.all(k2)  # and kappa2's has an edge too

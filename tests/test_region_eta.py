@@ -269,7 +269,7 @@ def test_eta_at_its_lower_bound_ends_the_design(route):
     """eta >= 0, and 0 only for a normal ``A - LC``.  C = I: every normal matrix with its poles in the
     region is an ``A - L``; the engine reaches eta <= ``bound_level(0)`` (a global optimum, to the
     accuracy with which kappa2 = 1 is attained) and the design ends there -- route "auto" runs no
-    IPOPT start (it runs two when eta is above the bound) and the message says why."""
+    IPOPT start (it runs one when eta is above the bound) and the message says why."""
     from optdesign.design.well_conditioned.evaluation import bound_level
 
     rng = np.random.default_rng(7)
