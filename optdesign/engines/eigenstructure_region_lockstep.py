@@ -166,12 +166,8 @@ def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior,
     # preparation ran up to 400 iterations per start; without both, 0.83x the CPU on 49 plants
     # n <= 10, none more than 1e-3 worse than IPOPT alone; COMPleib AC8 +6.9 %, DIS1 +0.26 %, random
     # n = 10 s1 +0.37 %, TG1 -7.1 %, the others within 1e-3)
-    if st.warm:
-        fstages: tuple[int | None, ...] = (None,)
-    elif objective == "kappa2":
-        fstages = REGION_FIXED_STAGES
-    else:
-        fstages = () if objective == "eta" else (None,)
+    cold: dict[str, tuple[int | None, ...]] = {"kappa2": REGION_FIXED_STAGES, "eta": ()}
+    fstages = (None,) if st.warm else cold.get(objective, (None,))
     state.update(fixed=fixed, x0=x0, fstages=fstages, cpu=time.process_time() - ts)
     return state
 
