@@ -205,6 +205,18 @@ def test_route_eta_in_a_region_engine_and_ipopt():
     assert d.route[0].detail == "asked (route='nlp')"
 
 
+def test_route_eta_above_n10_is_the_engine_alone():
+    """Above n = 10 (``ETA_NLP_MAX_N``) eta's default route runs no IPOPT start beside the engine (round
+    12: at n = 12-30, 8 plants, IPOPT's start never beat the engine and took 4-150 s); at n = 10 it
+    does, and route "fast" keeps it at every size."""
+    d = WellConditionedProblem(_random_plant(5, 11, 3), objective="eta", starts=2).solve(region=_REGION)
+    assert d.success and d.route.names == ("eigenstructure_engine/region",)
+    plan = WellConditionedProblem(_random_plant(5, 10, 3), objective="eta")._region_plan(True, 16)
+    assert plan[2:4] == (True, 1)
+    plan = WellConditionedProblem(_random_plant(5, 11, 3), objective="eta", route="fast")._region_plan(True, 16)
+    assert plan[2:4] == (True, 2)
+
+
 def test_default_region_route_trace():
     """The verb's default in a region (issue 28): the placement engine from every start in lockstep,
     no IPOPT when an engine design verifies; the route says so."""

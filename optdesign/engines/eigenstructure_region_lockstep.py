@@ -78,6 +78,12 @@ _FIRST_STAGE_MAX_ITER = 50
 #: Not for eta: on the same plants it saved no CPU and lost 10 % on COMPleib TG1
 _PRUNE_AFTER = 1
 _KEEP = 4
+#: ... but for eta above this order, after the first stage (k = 4): on 9 random plants n = 12-30
+#: (``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``) the member that ends best had the lowest
+#: value after it on 5 of 6 checked, the 3rd lowest on the sixth; 5 eta unchanged, n = 20 +0.10 %,
+#: n = 25 and 30 0.1-0.2 % lower, at 0.72-0.89x the engine's CPU (n = 30: 24 s, was 30 s); at n <= 10
+#: (49 plants) it lost 19 % on COMPleib HE5, 4.5 % on HE3, 1.7 % on TG1 (issue 28, round 12)
+_ETA_PRUNE_FIRST_N = 10
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
 _MAX_REANCHOR = 3
 
@@ -381,6 +387,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             model.set_anchor(X[owner == g])
         merged.refresh_anchors()
 
+    prune_after = 0 if objective == "eta" and models[0].engine.n > _ETA_PRUNE_FIRST_N else _PRUNE_AFTER
     timed_out = False
     for si, (k, mu) in enumerate(stages):
         if dl.expired:
@@ -400,7 +407,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             else _REGION_MAX_ITER
         # the stage after which only _KEEP members go on (any cold continuation); for kappa2 its
         # stragglers are stopped inside it and its stopping test is looser (prune_inside)
-        prune = si == _PRUNE_AFTER and len(stages) > _PRUNE_AFTER + 1
+        prune = si == prune_after and len(stages) > 2
         prune_inside = prune and objective == "kappa2"
         if prune_inside:
             ftol = REGION_PRUNE_FTOL

@@ -61,12 +61,12 @@ Objective = Literal["kappa2", "kappa_fro", "eta"]
 DEFAULT_STARTS = 8
 
 #: route "fast" in a region (and eta's "auto"): of the engine's starts (``default_region_starts``), how
-#: many IPOPT runs from too (issue 28: measured on COMPleib DIS1, IPOPT from the Kalman start reaches kappa2
-#: 1.13392 where the engine stops at 1.13878; on REA2 the engine from a region sample reaches 1.46204
-#: where IPOPT's first two starts stop at 1.481)
+#: many IPOPT runs from too (issue 28: on COMPleib DIS1, IPOPT from the Kalman start reaches kappa2 1.13392
+#: where the engine stops at 1.13878; on REA2 the engine reaches 1.46204, IPOPT's first two 1.481)
 AUTO_NLP_STARTS = 2
-#: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md)
-ETA_NLP_STARTS = 1
+#: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md),
+#: up to this order (round 12: at n = 12-30, 8 plants, IPOPT's start never beat the engine, 4-150 s)
+ETA_NLP_STARTS, ETA_NLP_MAX_N = 1, 10
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)
 ROUTES = ("auto", "engine", "fast", "multistart", "nlp")
@@ -257,9 +257,8 @@ class WellConditionedProblem:
         (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
         every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from one
-        (``ETA_NLP_STARTS``; none when the engine attains eta's lower bound 0: a normal ``A - LC``)
-        (``benchmarks/results/region_eta.md``: the engine alone from 8 was more than 1e-3 worse than
-        IPOPT on 7 of 50 plants, DIS2 0.0606 vs 0.0338, from 16 with IPOPT from 2 beside it on none).
+        (``ETA_NLP_STARTS``; none above n = 10 or when the engine attains eta's lower bound 0;
+        ``benchmarks/results/region_eta.md``: without it, DIS2 0.0606 vs 0.0338).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
         more than 1e-3 better on 17, worse on 1 (random n = 6 +0.9 %); median 0.41 s vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
@@ -688,15 +687,16 @@ class WellConditionedProblem:
         """``(engine?, engine starts, IPOPT?, IPOPT starts, IPOPT polish, engine polish)`` of a region
         solve (the warm starts run in every phase that runs).
 
-        ``"auto"`` / ``"engine"`` (no bounds or structural zeros): the engine from every start (IPOPT as
-        the fallback).  ``"fast"``, and eta on ``"auto"``: the engine from every start, IPOPT (light
-        polish, ``"last"``) from the first ``AUTO_NLP_STARTS`` (eta on "auto": ``ETA_NLP_STARTS``), then
-        the engine from IPOPT's best when it beats the engine's.  ``"multistart"``: IPOPT from every start,
-        then the engine from the best.  ``"nlp"``, or a question the engine does not take: IPOPT only."""
+        ``"auto"`` / ``"engine"`` (no bounds or structural zeros; eta above n = ``ETA_NLP_MAX_N``): the
+        engine from every start (IPOPT as the fallback).  ``"fast"``, and eta on ``"auto"``: the engine
+        from every start, IPOPT (light polish, ``"last"``) from the first ``AUTO_NLP_STARTS`` (eta on
+        "auto": ``ETA_NLP_STARTS``), then the engine from IPOPT's best when it beats the engine's.
+        ``"multistart"``: IPOPT from every start, then the engine from the best.  ``"nlp"``, or a question
+        the engine does not take: IPOPT only."""
         mode = self.route
         if not engine_ok or mode == "nlp":
             return False, 0, True, n_starts, self.region_polish, False
-        if mode == "engine" or (mode == "auto" and self.objective != "eta"):
+        if mode == "engine" or mode == "auto" and (self.objective != "eta" or self.plant.n > ETA_NLP_MAX_N):
             return True, n_starts, False, 0, self.region_polish, False
         if mode == "multistart":
             return False, 0, True, n_starts, self.region_polish, True
