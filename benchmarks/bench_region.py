@@ -19,7 +19,8 @@ first case (the process's one-time imports; its CPU is kept as ``warmup`` in the
 continuous COMPleib plant with n <= 10 (``suggested_region``), random plants n = 3..10 (two per size plus
 four more; ``p = max(1, n // 3)``, A ~ N(0, 1/n)) and n = 20 (p = 5), n = 30 (p = 7) with the region of
 the issue's random example, ``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``.  ``--set
-subset``: REA2, DIS1, HE5, AC6 and five random plants.  Numbers, not pass/fail.  Time every run under
+subset``: REA2, DIS1, HE5, AC6 and five random plants; ``--set large``: random plants n = 12-30 (``LARGE``).
+Numbers, not pass/fail.  Time every run under
 ``flock /tmp/bench.lock``.
 """
 
@@ -38,11 +39,11 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the previous stop's final engine: 8 starts up to n = 12,
-#: 4 up to 24, then 2; eta's route from 16 engine starts, each freed from its start point and from its
-#: fixed-pole optimum), made as the base: ``git archive 77ef9b0``
-PREV_COMMIT = "77ef9b0"
-PREV_DIR = "/tmp/region-prev-77ef9b0"
+#: the commit before this round's change (the previous stop's final engine: eta from 16 starts at every
+#: size, IPOPT's first start beside it, the cold continuation pruned after its second stage), made as the
+#: base: ``git archive 52d9788``
+PREV_COMMIT = "52d9788"
+PREV_DIR = "/tmp/region-prev-52d9788"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
@@ -64,6 +65,10 @@ def random_cases(full: bool) -> list[tuple[str, int, int, int]]:
     return out
 
 
+#: ``--set large``: random plants above n = 10 ``(n, p, how many)`` (round 12: eta's route there)
+LARGE = ((12, 3, 2), (16, 4, 2), (20, 5, 2), (25, 6, 1), (30, 7, 2))
+
+
 def cases(which: str):
     from _common import random_observable_plant
 
@@ -71,6 +76,12 @@ def cases(which: str):
     from optdesign.design.well_conditioned import suggested_region
     from optdesign.regions import Disk, HalfPlane, Sector
 
+    if which == "large":
+        for n, p, count in LARGE:
+            for k in range(count):
+                plant = random_observable_plant(np.random.default_rng(1000 * n + k), n, p)
+                yield f"random_n{n}_p{p}_s{k}", plant, HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)
+        return
     names = (SUBSET_COMPLEIB if which == "subset" else
              [n for n in problems.names() if n.startswith("compleib")])
     for name in names:
@@ -211,7 +222,7 @@ def main() -> None:
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run")
     r.add_argument("code", choices=("new", "base", "prev"))
-    r.add_argument("--set", default="subset", choices=("subset", "full"))
+    r.add_argument("--set", default="subset", choices=("subset", "full", "large"))
     r.add_argument("--objective", default="kappa2", choices=("kappa2", "eta"))
     r.add_argument("--only", default=None)
     r.add_argument("--json", required=True)

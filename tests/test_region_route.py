@@ -207,7 +207,7 @@ def test_route_eta_in_a_region_engine_and_ipopt():
 
 def test_route_eta_above_n10_is_the_engine_alone():
     """Above n = 10 (``ETA_NLP_MAX_N``) eta's default route runs no IPOPT start beside the engine (round
-    12: at n = 12-30, 8 plants, IPOPT's start never beat the engine and took 4-150 s); at n = 10 it
+    12: at n = 12-30, 6 plants, IPOPT's start never beat the engine and took 4-150 s); at n = 10 it
     does, and route "fast" keeps it at every size."""
     d = WellConditionedProblem(_random_plant(5, 11, 3), objective="eta", starts=2).solve(region=_REGION)
     assert d.success and d.route.names == ("eigenstructure_engine/region",)

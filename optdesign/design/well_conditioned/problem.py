@@ -65,7 +65,7 @@ DEFAULT_STARTS = 8
 #: where the engine stops at 1.13878; on REA2 the engine reaches 1.46204, IPOPT's first two 1.481)
 AUTO_NLP_STARTS = 2
 #: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md),
-#: up to this order (round 12: at n = 12-30, 8 plants, IPOPT's start never beat the engine, 4-150 s)
+#: up to this order (round 12: at n = 12-30, 6 plants, IPOPT's start never beat the engine, 4-150 s)
 ETA_NLP_STARTS, ETA_NLP_MAX_N = 1, 10
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)

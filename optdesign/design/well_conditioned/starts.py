@@ -306,8 +306,8 @@ def default_region_starts(n: int, objective: str = "kappa2") -> int:
     against 36-40 s for 8, within 0.4 % (61.67 vs 61.64 on the benchmark's plant, where the commit
     before issue 28 reached 386.7 in 150 s).  Pass ``starts`` for more.
 
-    eta (the engine from every start, IPOPT from the first -- from round 11; the first two before --,
-    :meth:`WellConditionedProblem.solve`):
+    eta (the engine from every start, IPOPT from the first up to n = 10 -- from round 11; the first two
+    before --, :meth:`WellConditionedProblem.solve`):
     on the 50 plants n <= 10 of ``benchmarks/bench_region.py`` the engine from 16 starts matched or beat
     IPOPT from 8 on every plant where the engine from 8 did not (COMPleib DIS2 0.0338 from its 15th
     start, HE3, random n = 4, 9), and with IPOPT from two starts beside it was never more than 1e-3 worse
@@ -315,7 +315,8 @@ def default_region_starts(n: int, objective: str = "kappa2") -> int:
     n = 20 and 30 (p = 5, 7; both stopped by a 150 s limit) 16 starts ended at 57.0 and 96.3 against
     60.9 and 110.5 with 8; with 4 starts at n = 20, 65.1.  Round 11 (each start freed from its start
     point alone, 16 members): 24 starts took 1.07x the CPU of 16 on 49 plants n <= 10 (median 1.63 s
-    against 1.46 s), DIS3 -4.9 % but TG1 +8.8 %.
+    against 1.46 s), DIS3 -4.9 % but TG1 +8.8 %.  Above n = 10 the 16 members are pruned to 4 after the
+    first free-pole stage (round 12), so the starts past the 4th cost one stage each.
     """
     n = as_int("n", n, 1)
     if objective == "eta":
