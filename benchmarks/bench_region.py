@@ -20,8 +20,7 @@ continuous COMPleib plant with n <= 10 (``suggested_region``), random plants n =
 four more; ``p = max(1, n // 3)``, A ~ N(0, 1/n)) and n = 20 (p = 5), n = 30 (p = 7) with the region of
 the issue's random example, ``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``.  ``--set
 subset``: REA2, DIS1, HE5, AC6 and five random plants; ``--set large``: random plants n = 12-30 (``LARGE``).
-Numbers, not pass/fail.  Time every run under
-``flock /tmp/bench.lock``.
+Numbers, not pass/fail.  Time every run under ``flock /tmp/bench.lock``.
 """
 
 from __future__ import annotations
