@@ -649,3 +649,18 @@ def test_dask_client_is_accepted_and_failures_come_back(dask_client):
     t = sweep(DESIGNER, pts, executor=dask_client, chunksize=1, timeout=600)
     assert t[0]["success"] is True
     assert t[1]["success"] is False and "zeta (damping ratio)" in t[1]["error"]
+
+
+def test_eta_sweep_runs_the_placement_engine_and_route_nlp_keeps_ipopt():
+    """eta in a sweep (issue 28, round 12): the designer's problem takes the placement engine's route
+    by default (COMPleib AC6, alpha 0.5, zeta 0.5, radius 50: eta 0.565 against IPOPT's 14.8);
+    ``route="nlp"`` keeps IPOPT, kappa2's default stays IPOPT, and a bad route is refused."""
+    plant = problems.load("compleib_ac6").plant
+    eng = RegionSweepDesigner(plant=plant, objective="eta", zeta=0.5, radius=50.0)(alpha=0.5)
+    nlp = RegionSweepDesigner(plant=plant, objective="eta", zeta=0.5, radius=50.0, route="nlp")(alpha=0.5)
+    assert eng.success and nlp.success
+    assert eng.route.names[0] == "eigenstructure_engine/region" and nlp.route.names == ("ipopt",)
+    assert eng.eta < 0.1 * nlp.eta
+    assert RegionSweepDesigner(plant=plant, zeta=0.5, radius=50.0).design_problem().route == "nlp"
+    with pytest.raises(ValidationError, match="route must be one of"):
+        RegionSweepDesigner(plant=plant, objective="eta", radius=50.0, route="ipopt")

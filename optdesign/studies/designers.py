@@ -28,9 +28,11 @@ fixes the NLP scaling, ``pole_scale``, so that its points share the NLPs):
   region (complex-pair patterns first; ``kalman_start=False`` of the problem), each with a robust
   placement (scipy YT) for the initial gain, the free-pole NLP's full continuation and the last stage
   of the fixed-pole polishes at its answer's poles (``region_polish="last"`` of the problem) -- so a
-  point never depends on a warm start alone.  The problem runs IPOPT for every point
-  (``route="nlp"``): on DIS2 the placement engine's region route found worse local optima from these
-  starts (kappa2 1.12 against 1.05 at ``alpha = 3, zeta = 0.55``, even with 8 starts).
+  point never depends on a warm start alone.  For kappa2 and kappa_fro the problem runs IPOPT for every
+  point (``route="nlp"``): on DIS2 the placement engine's region route found worse local optima from
+  these starts (kappa2 1.12 against 1.05 at ``alpha = 3, zeta = 0.55``, even with 8 starts); for eta
+  the placement engine (``route="auto"``; IPOPT's eta was 6-350x higher at most points of 4 of 13
+  plants: ``RegionSweepDesigner.route``).
 
 Every candidate is verified independently of the solver, by the problem's checks (stability and the
 signed distance of the poles of ``A - L C`` to the point's region, with numpy; the solver's
@@ -261,6 +263,18 @@ class RegionSweepDesigner:
         Seconds of wall time per point (None: no limit).  IPOPT gets the time left; no start
         after the point's first begins once it is spent; the point then has status
         ``time_limit`` (``success`` False) with the best verified design found so far.
+    route : {"auto", "engine", "fast", "multistart", "nlp"}, optional
+        The problem's region route (:class:`~optdesign.design.well_conditioned.WellConditionedProblem`).
+        Default ``"nlp"`` (IPOPT, above) for kappa2 and kappa_fro; ``"auto"`` for eta: the placement
+        engine from every start and warm start, IPOPT's first start beside it up to n = 10.  Measured
+        (issue 28, round 12: 13 plants n = 4-12, a chunk of 4 points ``alpha = 0.5 .. 0.8``, ``zeta =
+        0.5``, against ``"nlp"``): eta the same on 4 plants; lower on 7 (at every point on 6: COMPleib
+        AC6 0.565 against 14.8, DIS1 0.235 against 2.17, random n = 7 48 against 17,328); on random
+        n = 6 lower at the first point (10.1 against 14.1), higher at the other three (11.5 against
+        10.4, +10-15 %); on random n = 12 lower at two points, higher at two (+0.1-0.4 %): 29 of the 52
+        points more than 1e-3 lower, 4 higher.  CPU 1.0-2.6x per plant at n <= 10 (AC6 0.73x), 0.1x
+        at n = 12 (5 s against 48 s), 0.71x in all (``benchmarks/bench_sweep_eta.py``,
+        ``benchmarks/results/sweep_eta.md``).
 
     Raises
     ------
@@ -293,6 +307,7 @@ class RegionSweepDesigner:
     options: Mapping[str, Any] | None = None
     initial_gain: Any = field(default=None, compare=False)
     time_limit: float | None = None
+    route: str | None = None
 
     #: point keys understood (sweepable parameters) -> NLP parameter names
     AXES: ClassVar[dict[str, str]] = {"alpha": "decay", "zeta": "damping", "radius": "radius",
@@ -433,16 +448,19 @@ class RegionSweepDesigner:
         omega = self._omega(plant)
         opts = {**SWEEP_IPOPT_OPTIONS, **(self.options or {})}
 
+        eta = isinstance(self.objective, str) and self.objective == "eta"
+        route: Any = self.route or ("auto" if eta else "nlp")
+
         def build() -> WellConditionedProblem:
-            objective: Any = self.objective  # (validated by the constructor)
+            objective: Any = self.objective  # (validated by the constructor, as the route)
             return WellConditionedProblem(plant, objective=objective, starts=self.starts, seed=self.seed,
-                                          options=opts, pole_scale=omega, route="nlp", kalman_start=False,
+                                          options=opts, pole_scale=omega, route=route, kalman_start=False,
                                           region_polish="last")
 
         if not self.reuse:
             return build()
         # (repr: the key is formed before the constructor has validated the objective)
-        key = (_plant_key(plant), repr(self.objective), omega, self.starts, self.seed,
+        key = (_plant_key(plant), repr(self.objective), omega, self.starts, self.seed, repr(route),
                tuple(sorted((k, repr(v)) for k, v in opts.items())))
         cache = _cache()
         prob = cache.get(key)
