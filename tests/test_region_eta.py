@@ -262,6 +262,11 @@ def test_bound_level_of_each_objective():
     assert bound_level(4.0) == pytest.approx(4.0 * (1.0 + kappa2_agreement_tol(4.0)), rel=1e-15)
     assert bound_level(0.0) == kappa2_agreement_tol(1.0)
     assert 1e-7 < bound_level(0.0) < 1e-5
+    # the two levels agree (seed 001 eq. (19), n = 2, poles 1 apart: kappa2 = eta + sqrt(1 + eta^2)):
+    # a closed loop with eta at eta's level has kappa2 at kappa2's level
+    F = np.array([[-1.0, bound_level(0.0)], [0.0, -2.0]])
+    assert metrics.eta(F) == pytest.approx(bound_level(0.0), rel=1e-12)
+    assert metrics.kappa2(F) == pytest.approx(bound_level(1.0), rel=1e-12)
 
 
 @pytest.mark.parametrize("route", ["auto", "engine"])

@@ -662,5 +662,6 @@ def test_eta_sweep_runs_the_placement_engine_and_route_nlp_keeps_ipopt():
     assert eng.route.names[0] == "eigenstructure_engine/region" and nlp.route.names == ("ipopt",)
     assert eng.eta < 0.1 * nlp.eta
     assert RegionSweepDesigner(plant=plant, zeta=0.5, radius=50.0).design_problem().route == "nlp"
-    with pytest.raises(ValidationError, match="route must be one of"):
-        RegionSweepDesigner(plant=plant, objective="eta", radius=50.0, route="ipopt")
+    for bad in ("ipopt", ""):  # "" is not "the default"
+        with pytest.raises(ValidationError, match="route must be one of"):
+            RegionSweepDesigner(plant=plant, objective="eta", radius=50.0, route=bad)

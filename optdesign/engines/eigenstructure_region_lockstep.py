@@ -86,6 +86,13 @@ _KEEP = 4
 _ETA_PRUNE_FIRST_N = 10
 #: re-anchorings per stage of a member whose line search stopped at the edge of its chart
 _MAX_REANCHOR = 3
+#: a cold start's fixed-pole stages before its poles are freed (:func:`_prepare`; a warm start's: the
+#: exact stage; any other objective's: the exact stage): kappa2's continuation; none for eta, freed from
+#: its start point alone (issue 28, round 11: the fixed-pole optimum at the start's poles as a second
+#: member doubled the members and its preparation ran up to 400 iterations per start; without both,
+#: 0.83x the CPU on 49 plants n <= 10, none more than 1e-3 worse than IPOPT alone; COMPleib AC8
+#: +6.9 %, DIS1 +0.26 %, random n = 10 s1 +0.37 %, TG1 -7.1 %, the others within 1e-3)
+_COLD_FIXED_STAGES: dict[str, tuple[int | None, ...]] = {"kappa2": REGION_FIXED_STAGES, "eta": ()}
 
 
 def _inside(
@@ -166,14 +173,7 @@ def _prepare(eng, region, st: RegionStart, pinned, objective, rng, dl, interior,
         state["done"] = StartRecord(st.origin, math.inf, math.inf, math.inf, 0, 1, "singular start", 0.0)
         return state
     state["best"] = _consider(eng, region, objective, fixed, x0, "start", state["best"])
-    # the fixed-pole stages before the poles are freed: kappa2's continuation; a warm start's exact
-    # stage; none for eta's cold start, freed from its start point alone (issue 28, round 11: the
-    # fixed-pole optimum at the start's poles as a second member doubled the members and its
-    # preparation ran up to 400 iterations per start; without both, 0.83x the CPU on 49 plants
-    # n <= 10, none more than 1e-3 worse than IPOPT alone; COMPleib AC8 +6.9 %, DIS1 +0.26 %, random
-    # n = 10 s1 +0.37 %, TG1 -7.1 %, the others within 1e-3)
-    cold: dict[str, tuple[int | None, ...]] = {"kappa2": REGION_FIXED_STAGES, "eta": ()}
-    fstages = (None,) if st.warm else cold.get(objective, (None,))
+    fstages = (None,) if st.warm else _COLD_FIXED_STAGES.get(objective, (None,))
     state.update(fixed=fixed, x0=x0, fstages=fstages, cpu=time.process_time() - ts)
     return state
 

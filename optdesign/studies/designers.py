@@ -449,7 +449,7 @@ class RegionSweepDesigner:
         opts = {**SWEEP_IPOPT_OPTIONS, **(self.options or {})}
 
         eta = isinstance(self.objective, str) and self.objective == "eta"
-        route: Any = self.route or ("auto" if eta else "nlp")
+        route: Any = self.route if self.route is not None else ("auto" if eta else "nlp")
 
         def build() -> WellConditionedProblem:
             objective: Any = self.objective  # (validated by the constructor, as the route)
