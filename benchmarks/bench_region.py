@@ -38,11 +38,11 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the previous stop's final engine: eta from 16 starts at every
-#: size, IPOPT's first start beside it, the cold continuation pruned after its second stage), made as the
-#: base: ``git archive 52d9788``
-PREV_COMMIT = "52d9788"
-PREV_DIR = "/tmp/region-prev-52d9788"
+#: the commit before this round's change (the previous stop's final engine: kappa2's cold continuation
+#: pruned to 4 members after its second stage; eta above n = 10 the engine alone), made as the base:
+#: ``git archive fbd742b``
+PREV_COMMIT = "fbd742b"
+PREV_DIR = "/tmp/region-prev-fbd742b"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
@@ -152,10 +152,10 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
              f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
-             "to 24, then 2; for eta 16 engine starts and IPOPT from two).  New: this checkout's "
-             "default (kappa2: the same engine, starts and path, IPOPT only as the fallback; eta: each "
-             "engine start freed from its start point alone, the polish in one batch, a design whose "
-             "eta is 0 to 1e-6 ends the route, IPOPT from one start).  "
+             "to 24, then 2, pruned to 4 members after the second stage; for eta 16 engine starts and "
+             "IPOPT from one up to n = 10).  New: this checkout's default (kappa2: the same engine, "
+             "starts and path, 5 members kept after the second stage, IPOPT only as the fallback; eta: "
+             "unchanged).  "
              "CPU seconds per design (`time.process_time`, single-threaded BLAS; from round 10 after "
              "one untimed design of the first case per process, the one-time imports), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]

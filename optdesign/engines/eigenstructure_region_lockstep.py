@@ -71,13 +71,19 @@ _FIRST_STAGE_MAX_ITER = 50
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members -- not
 #: always: COMPleib TG1's is the 4th lowest there, and keeping 3 lost 4 % on it (round 9).
+#: kappa2 keeps 5 (round 13): the ranking among near-equal values there depends on the CPU's rounding
+#: (on an AMD EPYC, COMPleib UWV's best member was 5th: kappa2 958.4 with 4 kept, 1.3 % worse than the
+#: base commit, against 921.7 on the Intel machine of rounds 1-12; 919.1 with 5 kept; TG1 142.2 ->
+#: 136.0).  The 5 kept are a superset of the 4 (BFGS members do not see each other), so keeping 5 is
+#: never worse; measured on 49 plants n <= 10, 1.02x the median CPU.  eta keeps 4: 5 changed only
+#: COMPleib AC7 (-0.24 %) there, and above n = 10 every member kept runs the later stages
 #: Within that stage (kappa2) a member still running once :data:`_KEEP` others have stopped lower
 #: (by REGION_PRUNE_MARGIN) stops there (``bfgs_minimize_batch(keep=...)``): on random n = 6 one
 #: member ran 268 iterations, the others at most 41, to end fifth; round 10: unless it is still
 #: descending fast (REGION_PRUNE_HORIZON), with that stage's looser stopping test (REGION_PRUNE_FTOL).
 #: Not for eta: on the same plants it saved no CPU and lost 10 % on COMPleib TG1
 _PRUNE_AFTER = 1
-_KEEP = 4
+_KEEP: dict[str, int] = {"kappa2": 5, "eta": 4}
 #: ... but for eta above this order, after the first stage (k = 4): on 9 random plants n = 12-30
 #: (``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``) the member that ends best had the lowest
 #: value after it on 5 of 6 checked, the 3rd lowest on the sixth; 5 eta unchanged, n = 20 +0.10 %,
@@ -420,7 +426,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
                 return evaluate(Z, _todo[idx], _k, _mu)
 
-            keep = _KEEP if prune_inside and not again_round else 0
+            keep = _KEEP[objective] if prune_inside and not again_round else 0
             res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
                                           pass_index=True, H0=[H[i] for i in todo], keep=keep,
                                           keep_margin=REGION_PRUNE_MARGIN, keep_horizon=REGION_PRUNE_HORIZON)
@@ -443,7 +449,7 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             break
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
         if prune:
-            _prune(X, alive, reasons, evaluate, k, mu)
+            _prune(X, alive, reasons, evaluate, k, mu, _KEEP[objective])
     timed_out |= dl.expired
     out = []
     for g in range(len(batch)):
@@ -492,14 +498,14 @@ def _exact_eta(W: NDArray, P: NDArray, stop_at: float) -> NDArray[np.float64]:
     return out
 
 
-def _prune(X, alive, reasons, evaluate, k, mu) -> None:
-    """Of the running members, keep the :data:`_KEEP` of lowest value running (the others
-    ``"pruned"``)."""
+def _prune(X, alive, reasons, evaluate, k, mu, keep: int) -> None:
+    """Of the running members, keep the ``keep`` of lowest value running (the others ``"pruned"``;
+    :data:`_KEEP`)."""
     idx = np.flatnonzero(alive)
-    if idx.size <= _KEEP:
+    if idx.size <= keep:
         return
     f = evaluate(X[idx], idx, k, mu)[0]
-    for j in np.argsort(f)[_KEEP:]:
+    for j in np.argsort(f)[keep:]:
         reasons[idx[j]], alive[idx[j]] = "pruned", False
 
 
