@@ -207,12 +207,11 @@ def kappa2_accuracy_check(X: NDArray, poles: NDArray, kappa2: float) -> Check:
     amplifies: ``10 eps kappa2 ||X||_F / gap`` bounds the relative error of a computed kappa2
     (:func:`~optdesign.design.verification.kappa2_agreement_tol`).  When that bound exceeds
     :data:`KAPPA2_ACCURACY_TOL` (about three digits) -- two poles close together -- the kappa2 is
-    recomputed for ``X + E``, ``E`` a rounding-size perturbation (``10 eps ||X||_F`` in each of
-    :data:`_ACCURACY_DIRECTIONS` fixed random directions), and the largest relative change is the
-    value checked: a pair of nearly coincident
-    poles whose eigenvectors stay apart (a nearly semisimple double pole, possible when
-    ``rank C >= 2``) keeps its kappa2 (measured: 4e-5 for a random n = 8 design with two poles
-    2e-8 apart), a nearly defective pair does not (the regression case of
+    recomputed for ``X + E``, ``E`` a rounding-size perturbation (``10 eps ||X||_F`` in each of 4
+    fixed random directions, ``_ACCURACY_DIRECTIONS``), and the largest relative change is the value
+    checked: a pair of nearly coincident poles whose eigenvectors stay apart (a nearly semisimple
+    double pole, possible when ``rank C >= 2``) keeps its kappa2 (measured: 4e-5 for a random n = 8
+    design with two poles 2e-8 apart), a nearly defective pair does not (the regression case of
     ``tests/data/region_design_near_defective_n8_p2.npz``, two poles 3e-8 apart on a region's edge:
     ``metrics.kappa2`` is inf, numpy's eigenbasis gives 40,802, perturbed 49,000-50,000).  An
     infinite ``kappa2`` (numerically coincident poles) fails: no such design is a verified optimum.
