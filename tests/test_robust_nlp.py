@@ -245,8 +245,8 @@ def test_h2_objective_and_hinf_bound():
 def test_soft_region_pulls_the_poles_in():
     """A soft region pulls the poles toward it; the design is verified on the vertices and on 50 random
     interior plants.  (With ``dense_points=0`` its success rested on the common-Lyapunov certificate
-    of the refined gain, whose analysis SDP found one on an Intel machine and reported it infeasible on
-    an AMD EPYC, round 13: the same gain, worst-case kappa2 366.299, region margin -8e-5.)"""
+    of the refined gain, which the analysis SDP found on an Intel machine and reported infeasible on an
+    AMD EPYC, round 13: there worst-case kappa2 366.299, region margin -8e-5.)"""
     ms = aircraft_set(0.1)
     soft = HalfPlane(2.0)
     loose = robust_observer(ms, region=REGION, per_model_starts=False, starts=0, dense_points=0, options=FAST)

@@ -75,7 +75,7 @@ _FIRST_STAGE_MAX_ITER = 50
 #: (on an AMD EPYC, COMPleib UWV's best member was 5th: kappa2 958.4 with 4 kept, 1.3 % worse than the
 #: base commit, against 921.7 on the Intel machine of rounds 1-12; 919.1 with 5 kept; TG1 142.2 ->
 #: 136.0).  The 5 kept are a superset of the 4 (BFGS members do not see each other), so keeping 5 is
-#: never worse; measured on 49 plants n <= 10, 1.02x the median CPU.  eta keeps 4: 5 changed only
+#: never worse; 1.03x the median CPU on 50 plants n <= 10 (results/region.md).  eta keeps 4: 5 changed only
 #: COMPleib AC7 (-0.24 %) there, and above n = 10 every member kept runs the later stages
 #: Within that stage (kappa2) a member still running once :data:`_KEEP` others have stopped lower
 #: (by REGION_PRUNE_MARGIN) stops there (``bfgs_minimize_batch(keep=...)``): on random n = 6 one
