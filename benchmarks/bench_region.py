@@ -75,11 +75,12 @@ def cases(which: str):
     from optdesign.design.well_conditioned import suggested_region
     from optdesign.regions import Disk, HalfPlane, Sector
 
+    random_region = HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 5.0)  # the random example
     if which == "large":
         for n, p, count in LARGE:
             for k in range(count):
                 plant = random_observable_plant(np.random.default_rng(1000 * n + k), n, p)
-                yield f"random_n{n}_p{p}_s{k}", plant, HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)
+                yield f"random_n{n}_p{p}_s{k}", plant, random_region
         return
     names = (SUBSET_COMPLEIB if which == "subset" else
              [n for n in problems.names() if n.startswith("compleib")])
@@ -89,7 +90,7 @@ def cases(which: str):
             yield name, plant, suggested_region(plant)
     for name, n, p, seed in random_cases(which == "full"):
         plant = random_observable_plant(np.random.default_rng(seed), n, p)
-        yield name, plant, HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0.0, 5.0)
+        yield name, plant, random_region
 
 
 def run(which: str, objective: str, out: str, only: str | None, route: str | None, code: str = "new") -> None:

@@ -291,6 +291,19 @@ def test_accuracy_check_nearly_semisimple_pair_passes_nearly_defective_fails():
     assert not bad.passed
 
 
+def test_accuracy_check_counts_an_uncomputable_perturbed_kappa2_as_inf(monkeypatch):
+    """A perturbed kappa2 that is NaN (not computable) makes the check fail, wherever it comes among
+    the 4 perturbations (``max`` of a list skips a NaN after a number)."""
+    import optdesign.design.well_conditioned.evaluation as evaluation
+
+    X = np.array([[-0.5, 1.0], [0.0, -0.5 - 1e-9]])
+    k2 = metrics.kappa2(X)
+    values = iter([k2, float("nan"), k2, k2])
+    monkeypatch.setattr(evaluation.metrics, "kappa2", lambda Z: next(values))
+    check = evaluation.kappa2_accuracy_check(X, np.linalg.eigvals(X), k2)
+    assert check.value == np.inf and not check.passed
+
+
 def test_default_region_starts_by_size():
     """8 starts up to n = 12, 4 up to 24, then 2 (measured in default_region_starts' docstring); eta
     16 at every size; the count is validated."""

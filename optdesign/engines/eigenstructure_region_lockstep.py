@@ -71,19 +71,19 @@ _FIRST_STAGE_MAX_ITER = 50
 #: value go on: measured (issue 28) on COMPleib DIS1, AC6 and random n = 6, 10 plants, the member
 #: that ends best already has the lowest value after the second stage (k = 64) of 8-16 members -- not
 #: always: COMPleib TG1's is the 4th lowest there, and keeping 3 lost 4 % on it (round 9).
-#: kappa2 keeps 5 (round 13): the ranking among near-equal values there depends on the CPU's rounding
-#: (on an AMD EPYC, COMPleib UWV ended at 958.4 with 4 kept, 1.3 % worse than the base commit, against
-#: 921.7 on the Intel machine of rounds 1-12; 919.1 with 5 kept; TG1 142.2 -> 136.0; 1.03x the median
-#: CPU on 50 plants n <= 10, results/region.md).  Not a strict superset of 4: the straggler rule below
-#: stops members against the same count, so a member's end of this stage can differ, and a later
-#: duplicate may be dropped for a new twin (under the Prescott kernel UWV 952.75 -> 952.72, TG1
-#: 133.407 -> 133.424, +1.3e-4).  eta keeps 4: 5 changed only COMPleib AC7 (-0.24 %) at n <= 10, and
-#: above n = 10 every member kept runs the later stages
 #: Within that stage (kappa2) a member still running once :data:`_KEEP` others have stopped lower
 #: (by REGION_PRUNE_MARGIN) stops there (``bfgs_minimize_batch(keep=...)``): on random n = 6 one
 #: member ran 268 iterations, the others at most 41, to end fifth; round 10: unless it is still
 #: descending fast (REGION_PRUNE_HORIZON), with that stage's looser stopping test (REGION_PRUNE_FTOL).
 #: Not for eta: on the same plants it saved no CPU and lost 10 % on COMPleib TG1
+#: kappa2 keeps 5 (round 13): the ranking among near-equal values there depends on the CPU's rounding
+#: (on an AMD EPYC, COMPleib UWV ended at 958.4 with 4 kept, 1.3 % worse than the base commit, against
+#: 921.7 on the Intel machine of rounds 1-12; 919.1 with 5 kept; TG1 142.2 -> 136.0; 1.03x the median
+#: CPU on 50 plants n <= 10, results/region.md).  Not a strict superset of 4: the straggler rule above
+#: stops members against the same count, so a member's end of this stage can differ, and a later
+#: duplicate may be dropped for a new twin (under the Prescott kernel UWV 952.75 -> 952.72, TG1
+#: 133.407 -> 133.424, +1.3e-4).  eta keeps 4: 5 changed only COMPleib AC7 (-0.24 %) at n <= 10, and
+#: above n = 10 every member kept runs the later stages
 _PRUNE_AFTER = 1
 _KEEP: dict[str, int] = {"kappa2": 5, "eta": 4}
 #: ... but for eta above this order, after the first stage (k = 4): on 9 random plants n = 12-30

@@ -260,7 +260,7 @@ class WellConditionedProblem:
         (``ETA_NLP_STARTS``; none above n = 10 or when the engine attains eta's lower bound 0;
         ``benchmarks/results/region_eta.md``: without it, DIS2 0.0606 vs 0.0338).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
-        more than 1e-3 better on 17, worse on 1 (random n = 6 +0.9 %); median 0.41 s vs 13.2 s.
+        more than 1e-3 better on 15, worse on 1 (random n = 6 +0.9 %); median 0.41 s (Intel) vs 13.2 s.
         ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
         start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
         every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish
