@@ -1134,3 +1134,54 @@ def test_best_unverified_takes_the_smallest_violation_then_the_objective():
     only_poles = dataclasses.replace(res, verification=Verification.of(
         [c for c in res.verification.checks if c.name in ("pole_error", "riccati_residual")]))
     assert design_violation(hard, only_poles) == 0.0
+
+
+# ------------------------------------------------- the closest-poles search's fast DARE (doubling)
+@pytest.mark.parametrize("seed", range(6))
+def test_doubling_dare_is_the_stabilizing_solution_scipy_finds(seed):
+    """``filter_dare_doubling`` (the closest-poles search's first DARE solver) returns the
+    stabilizing solution when (A, Q) is detectable: the same P as scipy's QZ solver (to the
+    larger of the two residuals) and a smaller DARE residual than scipy's."""
+    from scipy.linalg import solve_discrete_are
+
+    from optdesign.design.inverse_kalman.nlp_solves import filter_dare_doubling
+
+    rng = np.random.default_rng(seed)
+    n, p = 2 + seed % 4, 1 + seed % 2
+    A = rng.standard_normal((n, n))
+    A = 1.2 * A / np.max(np.abs(np.linalg.eigvals(A)))
+    C = rng.standard_normal((p, n))
+    F = rng.standard_normal((n, n))
+    Q, R = F @ F.T, np.eye(p)
+
+    def residual(P):
+        res = A @ P @ A.T - A @ P @ C.T @ np.linalg.solve(C @ P @ C.T + R, C @ P @ A.T) + Q - P
+        return float(np.abs(res).max() / np.abs(P).max())
+
+    Pd = filter_dare_doubling(A, C, Q, R)
+    Ps = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
+    assert Pd is not None
+    tol = 1e3 * n * np.finfo(float).eps * max(1.0, np.linalg.cond(Ps))
+    assert residual(Pd) <= max(residual(Ps), tol)
+    np.testing.assert_allclose(Pd, Ps, rtol=0, atol=tol * np.abs(Ps).max())
+
+
+def test_doubling_dare_hands_an_undetectable_noise_over_to_scipy():
+    """Q = 0 on an unstable mode: the doubling converges to P = 0, which is not stabilizing
+    (A - LC = A).  ``fast_pole_error`` then uses scipy's stabilizing solution, so the pole error
+    is the Kalman filter's, not inf."""
+    from scipy.linalg import solve_discrete_are
+
+    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error, filter_dare_doubling
+
+    A, C, R = np.diag([1.5, 0.4]), np.array([[1.0, 1.0]]), np.eye(1)
+    Q = np.zeros((2, 2))
+    Pd = filter_dare_doubling(A, C, Q, R)
+    assert Pd is not None and np.allclose(Pd, 0.0)
+    Ps = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
+    L = A @ Ps @ C.T @ np.linalg.inv(C @ Ps @ C.T + R)
+    poles = np.linalg.eigvals(A - L @ C)
+    assert np.all(np.abs(poles) < 1.0)
+    plant = Plant(A, C, R=R, dt=0.1)
+    target = np.sort_complex(poles)
+    assert fast_pole_error(plant, target, "full", Q) == pytest.approx(pole_error(poles, target), abs=1e-12)

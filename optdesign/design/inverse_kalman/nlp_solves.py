@@ -252,9 +252,16 @@ def fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArray
     Q, _ = noise_of(structure, plant.G, Wdec)
     try:
         with np.errstate(all="ignore"):
+            poles = None
             if plant.is_discrete:
-                P = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
-                L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+                for solver in (filter_dare_doubling, None):  # doubling first (fast), QZ when it fails
+                    P = (solve_discrete_are(A.T, C.T, Q, R, balanced=False) if solver is None
+                         else solver(A, C, Q, R))
+                    if P is not None:
+                        L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+                        poles = np.linalg.eigvals(A - L @ C)
+                        if np.all(stable_poles(poles, True)):
+                            break
             else:  # the stable invariant subspace of the Hamiltonian (ordered real Schur form)
                 Rinv = np.linalg.inv(R)
                 H = np.block([[A.T, -C.T @ Rinv @ C], [-Q, -A]])
@@ -262,11 +269,46 @@ def fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArray
                 if sdim != n:
                     return float("inf")
                 P = np.linalg.solve(Z[:n, :n].T, Z[n:, :n].T).T
-                L = P @ C.T @ Rinv
-            poles = np.linalg.eigvals(A - L @ C)
+                poles = np.linalg.eigvals(A - P @ C.T @ Rinv @ C)
     except (np.linalg.LinAlgError, ValueError):
         return float("inf")
     if not np.all(np.isfinite(poles)) or not np.all(stable_poles(poles, plant.is_discrete)):
         return float("inf")
     return pole_error(poles, target)
 
+
+def filter_dare_doubling(A: NDArray, C: NDArray, Q: NDArray, R: NDArray, maxit: int = 60) -> NDArray | None:
+    """Stabilizing solution P (n x n) of the filter DARE ``P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q``
+    by the structure-preserving doubling algorithm (Chu, Fan & Lin, *Linear Algebra Appl.* 396
+    (2005) 55-80), or None when it does not converge in ``maxit`` doublings (no stabilizing
+    solution, eigenvalues on the unit circle: the caller falls back to scipy's QZ solver).
+    Without detectability of (A, Q) it can converge to a PSD solution that is not the stabilizing
+    one: the caller checks the filter's poles and falls back then too.
+
+    A (n x n), C (p x n), Q (n x n) PSD, R (p x p) positive definite.  ``I + G H`` stays
+    invertible (G, H PSD), so every step is defined; convergence is quadratic when a stabilizing
+    solution exists.  Used by the closest-poles search's inner loop: 1.8-3.9x less CPU than
+    ``scipy.linalg.solve_discrete_are(balanced=False)`` at n = 2-10, p = 1-2, with DARE residuals
+    1e-11-1e-8 where scipy's are 1e-10-1e-2 (``benchmarks/bench_dare_doubling.py``,
+    ``benchmarks/results/dare_doubling.md``, AMD EPYC).
+    """
+    n = A.shape[0]
+    Ak, Gk, Hk = A.T, C.T @ np.linalg.solve(R, C), Q
+    eye = np.eye(n)
+    tol = 8.0 * n * np.finfo(float).eps
+    for _ in range(maxit):
+        try:
+            Winv = np.linalg.inv(eye + Gk @ Hk)
+        except np.linalg.LinAlgError:  # Q not PSD to working precision
+            return None
+        WA = Winv @ Ak
+        Hn = Hk + Ak.T @ Hk @ WA
+        Gk = Gk + Ak @ Winv @ Gk @ Ak.T
+        Ak = Ak @ WA
+        change, size = np.abs(Hn - Hk).sum(), np.abs(Hn).sum()
+        Hk = Hn
+        if not np.isfinite(size):
+            return None
+        if change <= tol * size:
+            return 0.5 * (Hk + Hk.T)
+    return None
