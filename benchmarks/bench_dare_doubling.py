@@ -18,18 +18,17 @@ Writes benchmarks/results/dare_doubling.md.
 
 from __future__ import annotations
 
+import argparse
+import platform
+import statistics
+import time
+from pathlib import Path
+
 import _common  # noqa: F401  (single-threaded BLAS before numpy)
+import numpy as np
+from scipy.linalg import solve_discrete_are
 
-import argparse  # noqa: E402
-import platform  # noqa: E402
-import statistics  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
-from scipy.linalg import solve_discrete_are  # noqa: E402
-
-from optdesign.design.inverse_kalman.nlp_solves import filter_dare_doubling  # noqa: E402
+from optdesign.design.inverse_kalman.nlp_solves import filter_dare_doubling
 
 RESULTS = Path(__file__).resolve().parent / "results" / "dare_doubling.md"
 
