@@ -252,16 +252,15 @@ def fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArray
     Q, _ = noise_of(structure, plant.G, Wdec)
     try:
         with np.errstate(all="ignore"):
-            poles = None
             if plant.is_discrete:
-                for solver in (filter_dare_doubling, None):  # doubling first (fast), QZ when it fails
-                    P = (solve_discrete_are(A.T, C.T, Q, R, balanced=False) if solver is None
-                         else solver(A, C, Q, R))
-                    if P is not None:
-                        L = A @ P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
-                        poles = np.linalg.eigvals(A - L @ C)
-                        if np.all(stable_poles(poles, True)):
-                            break
+
+                def filter_poles(P: NDArray) -> NDArray:
+                    return np.linalg.eigvals(A - A @ P @ C.T @ np.linalg.solve(C @ P @ C.T + R, C))
+
+                Pd = filter_dare_doubling(A, C, Q, R)  # fast; scipy's QZ solver where it fails
+                poles = None if Pd is None else filter_poles(Pd)
+                if poles is None or not np.all(stable_poles(poles, True)):
+                    poles = filter_poles(solve_discrete_are(A.T, C.T, Q, R, balanced=False))
             else:  # the stable invariant subspace of the Hamiltonian (ordered real Schur form)
                 Rinv = np.linalg.inv(R)
                 H = np.block([[A.T, -C.T @ Rinv @ C], [-Q, -A]])
