@@ -1,7 +1,7 @@
 """Benchmark: the doubling DARE solver of the closest-poles search against scipy's QZ solver.
 
 ``optdesign.design.inverse_kalman.nlp_solves.filter_dare_doubling`` (structure-preserving doubling,
-Chu, Fan & Lin 2005) is the first solver tried in ``fast_pole_error``, the inner loop of the
+Chu, Fan, Lin & Wang 2004) is the first solver tried in ``fast_pole_error``, the inner loop of the
 Nelder-Mead closest-poles search (thousands of filter DAREs per infeasible discrete target);
 ``scipy.linalg.solve_discrete_are(balanced=False)`` decides when it does not converge or ends at a
 solution that is not stabilizing.  This script keeps that choice honest:

@@ -278,8 +278,9 @@ def fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArray
 
 def filter_dare_doubling(A: NDArray, C: NDArray, Q: NDArray, R: NDArray, maxit: int = 60) -> NDArray | None:
     """Stabilizing solution P (n x n) of the filter DARE ``P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q``
-    by the structure-preserving doubling algorithm (Chu, Fan & Lin, *Linear Algebra Appl.* 396
-    (2005) 55-80), or None when it does not converge in ``maxit`` doublings (no stabilizing
+    by the structure-preserving doubling algorithm (E. K.-W. Chu, H.-Y. Fan, W.-W. Lin and C.-S. Wang,
+    *Int. J. Control* 77 (2004); the iteration as in F. Poloni's review of doubling algorithms,
+    arXiv:2005.08903), or None when it does not converge in ``maxit`` doublings (no stabilizing
     solution, eigenvalues on the unit circle: the caller falls back to scipy's QZ solver).
     Without detectability of (A, Q) it can converge to a PSD solution that is not the stabilizing
     one: the caller checks the filter's poles and falls back then too.
