@@ -1140,8 +1140,8 @@ def test_best_unverified_takes_the_smallest_violation_then_the_objective():
 @pytest.mark.parametrize("seed", range(6))
 def test_doubling_dare_is_the_stabilizing_solution_scipy_finds(seed):
     """``filter_dare_doubling`` (the closest-poles search's first DARE solver) returns the
-    stabilizing solution when (A, Q) is detectable: the same P as scipy's QZ solver (to the
-    larger of the two residuals) and a smaller DARE residual than scipy's."""
+    stabilizing solution when (A, Q) is detectable: scipy's QZ solver's P to ``1e3 n eps cond(P)``,
+    with a DARE residual no larger than scipy's (or than that level)."""
     from scipy.linalg import solve_discrete_are
 
     from optdesign.design.inverse_kalman.nlp_solves import filter_dare_doubling
@@ -1184,18 +1184,20 @@ def test_doubling_dare_hands_an_undetectable_noise_over_to_scipy():
     assert np.all(np.abs(poles) < 1.0)
     plant = Plant(A, C, R=R, dt=0.1)
     target = np.sort_complex(poles)
-    assert fast_pole_error(plant, target, "full", Q) == pytest.approx(pole_error(poles, target), abs=1e-12)
+    # target = the filter's poles: the error is rounding (eigvals of two roundings of one matrix)
+    assert fast_pole_error(plant, target, "full", Q) <= 1e3 * np.finfo(float).eps
 
 
 def test_fast_pole_error_with_the_doubling_equals_scipys_on_random_discrete_plants():
     """The closest-poles search's pole error, doubling first, against the same error through scipy's
     QZ solver alone, on 40 seeded discrete plants n = 2..5 with Q over ten decades and singular
-    diagonal Q (where the doubling can end at a non-stabilizing solution and hands over)."""
+    diagonal Q (where the doubling can end at a non-stabilizing solution and hands over: seed 36)."""
     from scipy.linalg import solve_discrete_are
 
-    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error
+    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error, filter_dare_doubling
 
     rng = np.random.default_rng(20261207)
+    compared, handed = 0, 0
     for s in range(40):
         n, p = 2 + s % 4, 1 + s % 2
         A = rng.standard_normal((n, n))
@@ -1222,3 +1224,8 @@ def test_fast_pole_error_with_the_doubling_equals_scipys_on_random_discrete_plan
         level = float(np.abs(res).max()) / max(1.0, float(np.abs(P).max())) + n * np.finfo(float).eps
         tol = 10.0 * level * np.linalg.cond(V)
         assert fast_pole_error(plant, target, "full", Q) == pytest.approx(ref, abs=tol), s
+        compared += 1
+        Pd = filter_dare_doubling(A, C, Q, np.eye(p))
+        handed += Pd is None or not np.all(np.abs(np.linalg.eigvals(
+            A - A @ Pd @ C.T @ np.linalg.solve(C @ Pd @ C.T + np.eye(p), C))) < 1.0)
+    assert compared == 40 and handed >= 1, (compared, handed)  # both paths ran
