@@ -28,7 +28,7 @@ from optdesign import (
 )
 from optdesign.classical import solheim
 from optdesign.classical.placement import place_observer, pole_error
-from optdesign.classical.riccati import filter_are, filter_are_residual
+from optdesign.classical.riccati import filter_are, filter_are_residual, filter_gain
 from optdesign.design.inverse_kalman.sdp_stage import sdp_fixed_gain as _sdp_fixed_gain
 from optdesign.design.verification import pole_tolerance as _pole_tolerance
 from optdesign.engines.polish import face_polish as _face_polish
@@ -1137,14 +1137,20 @@ def test_best_unverified_takes_the_smallest_violation_then_the_objective():
 
 
 # ------------------------------------------------- the closest-poles search's fast DARE (doubling)
+def _dare_poles(A, C, R, P):
+    """The discrete filter's poles ``eig(A - L C)`` and eigenvectors for the ARE solution P."""
+    return np.linalg.eig(A - filter_gain(A, C, R, P, True) @ C)
+
+
 @pytest.mark.parametrize("seed", range(6))
 def test_doubling_dare_is_the_stabilizing_solution_scipy_finds(seed):
     """``filter_dare_doubling`` (the closest-poles search's first DARE solver) returns the
     stabilizing solution when (A, Q) is detectable: scipy's QZ solver's P to ``1e3 n eps cond(P)``,
-    with a DARE residual no larger than scipy's (or than that level)."""
+    with a relative DARE residual (:func:`filter_are_residual`) no larger than scipy's (or than
+    that level)."""
     from scipy.linalg import solve_discrete_are
 
-    from optdesign.design.inverse_kalman.nlp_solves import filter_dare_doubling
+    from optdesign.classical.riccati import filter_dare_doubling
 
     rng = np.random.default_rng(seed)
     n, p = 2 + seed % 4, 1 + seed % 2
@@ -1153,16 +1159,12 @@ def test_doubling_dare_is_the_stabilizing_solution_scipy_finds(seed):
     C = rng.standard_normal((p, n))
     F = rng.standard_normal((n, n))
     Q, R = F @ F.T, np.eye(p)
-
-    def residual(P):
-        res = A @ P @ A.T - A @ P @ C.T @ np.linalg.solve(C @ P @ C.T + R, C @ P @ A.T) + Q - P
-        return float(np.abs(res).max() / np.abs(P).max())
-
+    plant = Plant(A, C, R=R, dt=0.1)
     Pd = filter_dare_doubling(A, C, Q, R)
     Ps = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
     assert Pd is not None
     tol = 1e3 * n * np.finfo(float).eps * max(1.0, np.linalg.cond(Ps))
-    assert residual(Pd) <= max(residual(Ps), tol)
+    assert filter_are_residual(plant, Pd, Qs=Q) <= max(filter_are_residual(plant, Ps, Qs=Q), tol)
     np.testing.assert_allclose(Pd, Ps, rtol=0, atol=tol * np.abs(Ps).max())
 
 
@@ -1172,20 +1174,18 @@ def test_doubling_dare_hands_an_undetectable_noise_over_to_scipy():
     is the Kalman filter's, not inf."""
     from scipy.linalg import solve_discrete_are
 
-    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error, filter_dare_doubling
+    from optdesign.classical.riccati import filter_dare_doubling
+    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error
 
     A, C, R = np.diag([1.5, 0.4]), np.array([[1.0, 1.0]]), np.eye(1)
     Q = np.zeros((2, 2))
     Pd = filter_dare_doubling(A, C, Q, R)
     assert Pd is not None and np.allclose(Pd, 0.0)
-    Ps = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
-    L = A @ Ps @ C.T @ np.linalg.inv(C @ Ps @ C.T + R)
-    poles = np.linalg.eigvals(A - L @ C)
+    poles, _ = _dare_poles(A, C, R, solve_discrete_are(A.T, C.T, Q, R, balanced=False))
     assert np.all(np.abs(poles) < 1.0)
     plant = Plant(A, C, R=R, dt=0.1)
-    target = np.sort_complex(poles)
     # target = the filter's poles: the error is rounding (eigvals of two roundings of one matrix)
-    assert fast_pole_error(plant, target, "full", Q) <= 1e3 * np.finfo(float).eps
+    assert fast_pole_error(plant, np.sort_complex(poles), "full", Q) <= 1e3 * np.finfo(float).eps
 
 
 def test_fast_pole_error_with_the_doubling_equals_scipys_on_random_discrete_plants():
@@ -1194,7 +1194,8 @@ def test_fast_pole_error_with_the_doubling_equals_scipys_on_random_discrete_plan
     diagonal Q (where the doubling can end at a non-stabilizing solution and hands over: seed 36)."""
     from scipy.linalg import solve_discrete_are
 
-    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error, filter_dare_doubling
+    from optdesign.classical.riccati import filter_dare_doubling
+    from optdesign.design.inverse_kalman.nlp_solves import fast_pole_error
 
     rng = np.random.default_rng(20261207)
     compared, handed = 0, 0
@@ -1202,30 +1203,24 @@ def test_fast_pole_error_with_the_doubling_equals_scipys_on_random_discrete_plan
         n, p = 2 + s % 4, 1 + s % 2
         A = rng.standard_normal((n, n))
         A = rng.uniform(0.5, 1.4) * A / np.max(np.abs(np.linalg.eigvals(A)))
-        C = rng.standard_normal((p, n))
+        C, R = rng.standard_normal((p, n)), np.eye(p)
         if s % 3:
             F = rng.standard_normal((n, n)) * np.exp(rng.uniform(-5.0, 5.0))
             Q = F @ F.T
         else:
             Q = np.diag(rng.uniform(0.0, 1.0, n) * (rng.uniform(size=n) > 0.5))
-        plant = Plant(A, C, R=np.eye(p), dt=0.1)
+        plant = Plant(A, C, R=R, dt=0.1)
         target = np.sort_complex(rng.uniform(-0.9, 0.9, n).astype(complex))
-        try:
-            P = solve_discrete_are(A.T, C.T, Q, np.eye(p), balanced=False)
-        except (np.linalg.LinAlgError, ValueError):
-            continue
-        poles, V = np.linalg.eig(A - A @ P @ C.T @ np.linalg.solve(C @ P @ C.T + np.eye(p), C))
-        if not np.all(np.abs(poles) < 1.0):
-            continue
-        ref = pole_error(poles, target)
+        P = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
+        poles, V = _dare_poles(A, C, R, P)
+        assert np.all(np.abs(poles) < 1.0), s  # every case is compared (none skipped)
         # scipy's P is accurate to its relative DARE residual; the poles move by that times their
-        # condition (cond V): measured here at most 0.7 of it
-        res = A @ P @ A.T - A @ P @ C.T @ np.linalg.solve(C @ P @ C.T + np.eye(p), C @ P @ A.T) + Q - P
-        level = float(np.abs(res).max()) / max(1.0, float(np.abs(P).max())) + n * np.finfo(float).eps
+        # condition (cond V): measured here at most 1.5 of it
+        level = filter_are_residual(plant, P, Qs=Q) + n * np.finfo(float).eps
         tol = 10.0 * level * np.linalg.cond(V)
+        ref = pole_error(poles, target)
         assert fast_pole_error(plant, target, "full", Q) == pytest.approx(ref, abs=tol), s
         compared += 1
-        Pd = filter_dare_doubling(A, C, Q, np.eye(p))
-        handed += Pd is None or not np.all(np.abs(np.linalg.eigvals(
-            A - A @ Pd @ C.T @ np.linalg.solve(C @ Pd @ C.T + np.eye(p), C))) < 1.0)
+        Pd = filter_dare_doubling(A, C, Q, R)
+        handed += Pd is None or not np.all(np.abs(_dare_poles(A, C, R, Pd)[0]) < 1.0)
     assert compared == 40 and handed >= 1, (compared, handed)  # both paths ran

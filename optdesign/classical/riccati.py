@@ -57,6 +57,7 @@ __all__ = [
     "filter_are_residual",
     "filter_are_terms",
     "filter_gain",
+    "filter_dare_doubling",
     "relative_residual",
     "are_error_of_terms",
     "are_correction_of_terms",
@@ -407,6 +408,46 @@ def sort_poles(p: NDArray) -> NDArray[np.complex128]:
     """
     p = np.asarray(p, dtype=complex)
     return p[np.lexsort((p.imag, p.real))]
+
+
+def filter_dare_doubling(A: NDArray, C: NDArray, Q: NDArray, R: NDArray, maxit: int = 60) -> NDArray | None:
+    """Stabilizing solution P (n x n) of the filter DARE ``P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q``
+    by the structure-preserving doubling algorithm (E. K.-W. Chu, H.-Y. Fan, W.-W. Lin and C.-S. Wang,
+    *Int. J. Control* 77 (2004); the iteration as in F. Poloni's review of doubling algorithms,
+    arXiv:2005.08903), or None when it does not converge in ``maxit`` doublings (no stabilizing
+    solution, eigenvalues on the unit circle: the caller falls back to scipy's QZ solver).
+    Without detectability of (A, Q) it can converge to a PSD solution that is not the stabilizing
+    one: the caller checks the filter's poles and falls back then too.
+
+    A (n x n), C (p x n), Q (n x n) PSD, R (p x p) positive definite.  ``I + G H`` stays
+    invertible (G, H PSD), so every step is defined; convergence is quadratic when a stabilizing
+    solution exists.  The first solver of the closest-poles search's inner loop
+    (``fast_pole_error`` of ``optdesign.design.inverse_kalman``): 2.0-5.1x less CPU than
+    ``scipy.linalg.solve_discrete_are(balanced=False)`` at n = 2-10, p = 1-2 (1.3-3.9x in two earlier
+    runs of the same plants), the largest relative residual (:func:`filter_are_residual`) per size
+    1e-14 to 9e-9 where scipy's is 3e-11 to 5e-3 (``benchmarks/bench_dare_doubling.py``,
+    ``benchmarks/results/dare_doubling.md``, AMD EPYC).
+    """
+    n = A.shape[0]
+    Ak, Gk, Hk = A.T, C.T @ np.linalg.solve(R, C), Q
+    eye = np.eye(n)
+    tol = 8.0 * n * np.finfo(float).eps
+    for _ in range(maxit):
+        try:
+            Winv = np.linalg.inv(eye + Gk @ Hk)
+        except np.linalg.LinAlgError:  # Q not PSD to working precision
+            return None
+        WA = Winv @ Ak
+        Hn = Hk + Ak.T @ Hk @ WA
+        Gk = Gk + Ak @ Winv @ Gk @ Ak.T
+        Ak = Ak @ WA
+        change, size = np.abs(Hn - Hk).sum(), np.abs(Hn).sum()
+        Hk = Hn
+        if not np.isfinite(size):
+            return None
+        if change <= tol * size:
+            return 0.5 * (Hk + Hk.T)
+    return None
 
 
 def filter_are(

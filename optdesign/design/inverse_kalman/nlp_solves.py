@@ -8,7 +8,7 @@ from numpy.typing import NDArray
 
 from ...backends.casadi_backend import solve_nlpsol, solve_opti
 from ...classical.placement import pole_error
-from ...classical.riccati import filter_are
+from ...classical.riccati import filter_are, filter_dare_doubling, filter_gain
 from ...classical.solheim import solheim
 from ...errors import OptDesignError, RiccatiError, ValidationError
 from ...formulate.inverse_kalman import (
@@ -253,14 +253,11 @@ def fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArray
     try:
         with np.errstate(all="ignore"):
             if plant.is_discrete:
-
-                def filter_poles(P: NDArray) -> NDArray:
-                    return np.linalg.eigvals(A - A @ P @ C.T @ np.linalg.solve(C @ P @ C.T + R, C))
-
                 Pd = filter_dare_doubling(A, C, Q, R)  # fast; scipy's QZ solver where it fails
-                poles = None if Pd is None else filter_poles(Pd)
+                poles = None if Pd is None else np.linalg.eigvals(A - filter_gain(A, C, R, Pd, True) @ C)
                 if poles is None or not np.all(stable_poles(poles, True)):
-                    poles = filter_poles(solve_discrete_are(A.T, C.T, Q, R, balanced=False))
+                    Ps = solve_discrete_are(A.T, C.T, Q, R, balanced=False)
+                    poles = np.linalg.eigvals(A - filter_gain(A, C, R, Ps, True) @ C)
             else:  # the stable invariant subspace of the Hamiltonian (ordered real Schur form)
                 Rinv = np.linalg.inv(R)
                 H = np.block([[A.T, -C.T @ Rinv @ C], [-Q, -A]])
@@ -275,40 +272,3 @@ def fast_pole_error(plant: Plant, target: NDArray, structure: str, Wdec: NDArray
         return float("inf")
     return pole_error(poles, target)
 
-
-def filter_dare_doubling(A: NDArray, C: NDArray, Q: NDArray, R: NDArray, maxit: int = 60) -> NDArray | None:
-    """Stabilizing solution P (n x n) of the filter DARE ``P = A P A' - A P C' (C P C' + R)^-1 C P A' + Q``
-    by the structure-preserving doubling algorithm (E. K.-W. Chu, H.-Y. Fan, W.-W. Lin and C.-S. Wang,
-    *Int. J. Control* 77 (2004); the iteration as in F. Poloni's review of doubling algorithms,
-    arXiv:2005.08903), or None when it does not converge in ``maxit`` doublings (no stabilizing
-    solution, eigenvalues on the unit circle: the caller falls back to scipy's QZ solver).
-    Without detectability of (A, Q) it can converge to a PSD solution that is not the stabilizing
-    one: the caller checks the filter's poles and falls back then too.
-
-    A (n x n), C (p x n), Q (n x n) PSD, R (p x p) positive definite.  ``I + G H`` stays
-    invertible (G, H PSD), so every step is defined; convergence is quadratic when a stabilizing
-    solution exists.  Used by the closest-poles search's inner loop: 1.8-3.9x less CPU than
-    ``scipy.linalg.solve_discrete_are(balanced=False)`` at n = 2-10, p = 1-2, the largest relative
-    DARE residual per size 4e-14 to 3e-8 where scipy's is 6e-11 to 2e-2
-    (``benchmarks/bench_dare_doubling.py``, ``benchmarks/results/dare_doubling.md``, AMD EPYC).
-    """
-    n = A.shape[0]
-    Ak, Gk, Hk = A.T, C.T @ np.linalg.solve(R, C), Q
-    eye = np.eye(n)
-    tol = 8.0 * n * np.finfo(float).eps
-    for _ in range(maxit):
-        try:
-            Winv = np.linalg.inv(eye + Gk @ Hk)
-        except np.linalg.LinAlgError:  # Q not PSD to working precision
-            return None
-        WA = Winv @ Ak
-        Hn = Hk + Ak.T @ Hk @ WA
-        Gk = Gk + Ak @ Winv @ Gk @ Ak.T
-        Ak = Ak @ WA
-        change, size = np.abs(Hn - Hk).sum(), np.abs(Hn).sum()
-        Hk = Hn
-        if not np.isfinite(size):
-            return None
-        if change <= tol * size:
-            return 0.5 * (Hk + Hk.T)
-    return None
