@@ -307,6 +307,95 @@ def test_bfgs_batch_keep_horizon_spares_a_start_still_descending():
         assert a.iterations == b.iterations and a.f == b.f
 
 
+def _charted(c, radius):
+    """A quadratic with its minimizer at ``c``, defined only within ``radius`` (inf norm) of each
+    start's anchor (``f = inf`` outside: the region mode's chart edge) and the anchors (s, m)."""
+    def make(anchors):
+        def fun(X, idx):
+            f = np.sum((X - c) ** 2 * np.arange(1.0, X.shape[1] + 1.0), axis=1)
+            f[np.max(np.abs(X - anchors[idx]), axis=1) > radius] = math.inf
+            return f, 2.0 * (X - c) * np.arange(1.0, X.shape[1] + 1.0)
+        return fun
+    return make
+
+
+def test_bfgs_batch_restart_goes_on_as_a_batch_called_again():
+    """restart= (issue 28, round 15): a start whose line search fails at its chart's edge is
+    re-anchored and goes on in the same batch.  Each start's path -- points, values, total
+    iterations and evaluations, final inverse Hessian -- is that of the scheme it replaces: the batch
+    called again with the restarted starts alone, each with its inverse Hessian (at most 3 times)."""
+    c, radius, ftol = np.array([3.0, -2.0, 1.5]), 0.4, 1e-9
+    X0 = np.array([[0.0, 0.0, 0.0], [0.5, 0.2, -0.3], [2.9, -1.9, 1.4], [-1.0, 1.0, 2.0]])
+    make = _charted(c, radius)
+
+    # the scheme replaced: calls again for the restarted starts
+    anchors = X0.copy()
+    X, H = X0.copy(), [None] * 4
+    its, evs, reasons, todo = np.zeros(4, int), np.zeros(4, int), [""] * 4, np.arange(4)
+    for call in range(4):
+        fun = make(anchors)
+        f_before = fun(X[todo], todo)[0]
+        res, Hs = bfgs_minimize_batch(lambda Z, i, t=todo, f=fun: f(Z, t[i]), X[todo], ftol=ftol,
+                                      pass_index=True, H0=[H[i] for i in todo])
+        again = []
+        for j, i in enumerate(todo):
+            X[i], H[i], reasons[i] = res[j].x, Hs[j], res[j].reason
+            its[i] += res[j].iterations
+            evs[i] += res[j].evaluations
+            if res[j].reason == "line search" and f_before[j] - res[j].f > ftol * max(1.0, abs(res[j].f)):
+                again.append(i)
+        if not again or call == 3:
+            break
+        todo = np.asarray(again)
+        anchors[todo] = X[todo]
+
+    anchors2, count = X0.copy(), np.zeros(4, int)
+
+    def restart(i, x, f_leg, f):
+        if count[i] >= 3 or not f_leg - f > ftol * max(1.0, abs(f)):
+            return False
+        count[i] += 1
+        anchors2[i] = x
+        return True
+
+    res, Hs = bfgs_minimize_batch(make(anchors2), X0, ftol=ftol, pass_index=True, restart=restart)
+    assert count.sum() >= 3 and count.max() == 3  # restarts happened, up to the limit
+    for i, r in enumerate(res):
+        np.testing.assert_array_equal(r.x, X[i])
+        assert (r.iterations, r.evaluations, r.reason) == (its[i], evs[i], reasons[i])
+        np.testing.assert_array_equal(np.triu(Hs[i]), np.triu(H[i]))
+    np.testing.assert_array_equal(anchors2, anchors)
+
+
+def test_bfgs_batch_first_legs_ends_the_batch_when_asked():
+    """first_legs= is called once, when every start has ended its first leg, with every start's
+    point; True ends the batch there (the running starts at their points, "line search")."""
+    c, radius = np.array([3.0, -2.0, 1.5]), 0.4
+    X0 = np.array([[0.0, 0.0, 0.0], [2.9, -1.9, 1.4]])
+    make, calls = _charted(c, radius), []
+
+    def run(first_legs):
+        anchors = X0.copy()
+
+        def restart(i, x, f_leg, f):
+            anchors[i] = x
+            return f_leg > f
+
+        return bfgs_minimize_batch(make(anchors), X0, pass_index=True, restart=restart,
+                                   first_legs=first_legs)[0]
+
+    def first_legs(X):
+        calls.append(X.copy())
+        return True
+
+    res = run(first_legs)
+    assert len(calls) == 1 and calls[0].shape == X0.shape
+    np.testing.assert_array_equal(calls[0][0], res[0].x)  # ended where it was when asked
+    assert res[0].reason == "line search" and res[1].reason == "converged"
+    free = run(None)
+    assert free[0].f < 1e-6 < res[0].f  # without it, the restarted start goes on to the minimizer
+
+
 def test_bfgs_deadline_and_bad_start():
     dl = Deadline(1e-6)
     while not dl.expired:

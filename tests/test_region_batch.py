@@ -202,6 +202,27 @@ def test_a_model_evaluates_with_its_current_anchors():
     assert np.isfinite(before) and np.isfinite(after[0])
 
 
+def test_re_anchoring_one_member_leaves_the_others():
+    """set_anchor(X, members=...) (the in-batch re-anchoring of issue 28, round 15): the chosen
+    members' anchors are those of re-anchoring every member at the same points, the others' are kept,
+    and the evaluation at the re-anchored point is the same design (the chart moves, not the point)."""
+    models, Xs = _models("compleib_ac6", members=3, seed=2)
+    g = next(i for i, m in enumerate(models) if m.nrf and m.npf)
+    model, X = models[g], Xs[g]
+    f0 = model.evaluate_batch(X, "kappa2", 64, 1e-3)[0]
+    before = model.anchor_r.copy(), model.anchor_p.copy()
+    model.set_anchor(X[1:2], members=np.array([1]))
+    one = model.anchor_r.copy(), model.anchor_p.copy()
+    model.set_anchor(X)  # every member at its point
+    every = model.anchor_r, model.anchor_p
+    for a, b, c in zip(one, every, before, strict=True):
+        np.testing.assert_allclose(a[1], b[1], rtol=0, atol=1e-13)  # one member or a stack: rounding
+        np.testing.assert_array_equal(a[[0, 2]], c[[0, 2]])
+        assert not np.allclose(a[1], c[1])  # the member was off its anchor: its chart moved
+    f1 = model.evaluate_batch(X, "kappa2", 64, 1e-3)[0]
+    np.testing.assert_allclose(f1, f0, rtol=1e-10)
+
+
 def test_models_of_different_layouts_are_refused():
     """Members of one batch must share the variable layout and the region (one engine, the same
     pinned poles and interior point): two plants' models are refused with a message saying so."""

@@ -268,9 +268,22 @@ class RegionModel:
         """The pinned poles (conjugate-closed)."""
         return np.concatenate([self.pin_real + 0j, self.pin_up, self.pin_up.conj()])
 
-    def set_anchor(self, X: NDArray) -> None:
+    def set_anchor(self, X: NDArray, members: NDArray | None = None) -> None:
         """Anchor the bases of the free poles at the members of ``X`` (s, size): their current
-        (aligned) bases, so that the coordinates keep their meaning; the raw bases the first time."""
+        (aligned) bases, so that the coordinates keep their meaning; the raw bases the first time.
+        ``members``: re-anchor only these members (indices into the anchors; ``X`` their rows)."""
+        if members is not None:
+            every = self.anchor_r, self.anchor_p
+            self.anchor_r, self.anchor_p = (a[members] for a in every)
+            try:
+                self.set_anchor(X)
+                part = self.anchor_r, self.anchor_p
+            finally:
+                self.anchor_r, self.anchor_p = every
+            for a, b in zip(every, part, strict=True):
+                a[members] = b
+            self.anchor_r, self.anchor_p = every  # the setters drop the cached batch
+            return
         if not self._anchored:
             _, lr, sg, om = self.split(X)
             self.anchor_r = self._raw_bases(lr).real if self.nrf else np.zeros((X.shape[0], 0, 1, 1))

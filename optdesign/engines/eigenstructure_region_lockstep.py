@@ -92,7 +92,10 @@ _KEEP: dict[str, int] = {"kappa2": 5, "eta": 4}
 #: n = 25 and 30 0.1-0.2 % lower, at 0.72-0.89x the engine's CPU (n = 30: 24 s, was 30 s); at n <= 10
 #: (49 plants) it lost 19 % on COMPleib HE5, 4.5 % on HE3, 1.7 % on TG1 (issue 28, round 12)
 _ETA_PRUNE_FIRST_N = 10
-#: re-anchorings per stage of a member whose line search stopped at the edge of its chart
+#: re-anchorings per stage of a member whose line search stopped at the edge of its chart.  Each goes
+#: on at once in the same BFGS batch (``bfgs_minimize_batch(restart=...)``, issue 28, round 15): the
+#: batch had been called again for the re-anchored members alone, up to 4 calls per stage, each as
+#: long as its slowest member, while the members that had stopped waited
 _MAX_REANCHOR = 3
 #: a cold start's fixed-pole stages before its poles are freed (:func:`_prepare`; a warm start's: the
 #: exact stage; any other objective's: the exact stage): kappa2's continuation; none for eta, freed from
@@ -369,7 +372,8 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
     engine's :func:`~optdesign.engines.eigenstructure_fixed.run_starts`).  A member whose line search
     fails at the edge of its chart (a trial step that would rotate a subspace past
     ``RegionModel.overlap_floor`` from its anchor) is re-anchored at its current point and continues
-    the stage (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not a minimizer.  A member
+    the stage in the same batch (at most :data:`_MAX_REANCHOR` times per stage): the chart edge is not
+    a minimizer.  A member
     without a finite value at a stage's start (two poles at one point: the separation barrier) stops
     there (``"infeasible start"``).  After a stage where a member's exact objective attains
     ``stop_at`` (its lower bound: a global optimum) the stages end there, with only those members.
@@ -419,35 +423,43 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         prune_inside = prune and objective == "kappa2"
         if prune_inside:
             ftol = REGION_PRUNE_FTOL
-        attained = False
-        for again_round in range(_MAX_REANCHOR + 1):
-            if not todo.size:
-                break
-            f_before = evaluate(X[todo], todo, k, mu)[0]
+        anchored = np.zeros(total, int)
 
-            def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
-                return evaluate(Z, _todo[idx], _k, _mu)
+        def restart(j, x, f_leg, f, _todo=todo, _ftol=ftol):
+            """Re-anchor member ``_todo[j]`` at ``x``, where its line search stopped at its chart's
+            edge, when the leg made progress (at most _MAX_REANCHOR times per stage)."""
+            i = _todo[j]
+            if anchored[i] >= _MAX_REANCHOR or not f_leg - f > _ftol * max(1.0, abs(f)) or dl.expired:
+                return False
+            anchored[i] += 1
+            X[i] = x
+            models[owner[i]].set_anchor(x[None, :], members=merged.local[i : i + 1])
+            merged.refresh_anchors()
+            return True
 
-            keep = _KEEP[objective] if prune_inside and not again_round else 0
-            res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
-                                          pass_index=True, H0=[H[i] for i in todo], keep=keep,
-                                          keep_margin=REGION_PRUNE_MARGIN, keep_horizon=REGION_PRUNE_HORIZON)
-            again = []
-            for j, i in enumerate(todo):
-                r = res[j]
-                X[i], H[i], reasons[i] = r.x, Hs[j], r.reason
-                alive[i] = r.reason != "pruned"
-                its[i] += r.iterations
-                evs[i] += r.evaluations
-                if r.reason == "line search" and f_before[j] - r.f > ftol * max(1.0, abs(r.f)):
-                    again.append(i)
-            # a global optimum: neither this stage's next rounds nor the later stages can improve it
-            attained = stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at)
-            if attained or not again or dl.expired:
-                break
-            todo = np.asarray(again)
-            anchor()
-        if attained:
+        def first_legs(Xs, _todo=todo):
+            """Whether a member attains ``stop_at`` once every member has ended its first leg (the
+            members are marked after the batch, by the same test at the same points)."""
+            Xt = X.copy()
+            Xt[_todo] = Xs
+            return _attained(models, owner, Xt, alive.copy(), list(reasons), objective, stop_at)
+
+        def fun(Z, idx, _k=k, _mu=mu, _todo=todo):
+            return evaluate(Z, _todo[idx], _k, _mu)
+
+        res, Hs = bfgs_minimize_batch(fun, X[todo], max_iter=its_cap, ftol=ftol, deadline=dl,
+                                      pass_index=True, H0=[H[i] for i in todo],
+                                      keep=_KEEP[objective] if prune_inside else 0,
+                                      keep_margin=REGION_PRUNE_MARGIN, keep_horizon=REGION_PRUNE_HORIZON,
+                                      restart=restart, first_legs=None if stop_at is None else first_legs)
+        for j, i in enumerate(todo):
+            r = res[j]
+            X[i], H[i], reasons[i] = r.x, Hs[j], r.reason
+            alive[i] = r.reason != "pruned"
+            its[i] += r.iterations
+            evs[i] += r.evaluations
+        # a global optimum: the later stages cannot improve it
+        if stop_at is not None and _attained(models, owner, X, alive, reasons, objective, stop_at):
             break
         _drop_duplicates(models, owner, X, alive, reasons, evaluate, k, mu)
         if prune:

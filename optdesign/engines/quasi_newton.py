@@ -95,7 +95,8 @@ class _Member:
     """The state of one start: its BFGS iterate and its current weak Wolfe line search."""
 
     __slots__ = ("x", "f", "g", "H", "scaled", "d", "gd", "dn", "t", "lo", "hi", "ls", "up",
-                 "at_lo", "it", "nev", "hist", "reason")
+                 "at_lo", "it", "nev", "hist", "reason", "leg_it", "leg_nev", "leg_f", "first_stop",
+                 "pending")
 
     def __init__(self, x: NDArray, f: float, g: NDArray, H0: NDArray | None) -> None:
         self.x, self.f, self.g = x, f, g
@@ -103,6 +104,12 @@ class _Member:
         self.H = np.eye(x.size, order="F") if H0 is None else np.array(H0, dtype=float, order="F")
         self.scaled = H0 is not None
         self.it, self.nev, self.hist, self.reason = 0, 1, [f], ""
+        # the current leg (since the start or the last restart): its iterations, evaluations and
+        # starting value; the value at the end of the first leg (None: not restarted); whether the
+        # point awaits its evaluation after a restart
+        self.leg_it, self.leg_nev, self.leg_f = 0, 1, f
+        self.first_stop: float | None = None
+        self.pending = False
         self.d = g
         self.gd = self.dn = 0.0
         self.t, self.lo, self.hi, self.ls, self.up = 1.0, 0.0, math.inf, 0, 0
@@ -167,7 +174,16 @@ class _Member:
             self.H = blas.dsyr2(-1.0, h, s, a=self.H, overwrite_a=1)
         self.x, self.f, self.g = xn, fn, gn
         self.it += 1
+        self.leg_it += 1
         self.hist.append(fn)
+
+    def restarted(self, f: float, g: NDArray) -> None:
+        """Begin a new leg at the same point with its value and gradient in the caller's new
+        coordinates: as a fresh call from here with the same inverse-Hessian approximation (the
+        decrease window starts again; the approximation counts as scaled)."""
+        self.f, self.g, self.pending, self.reason = f, g, False, ""
+        self.nev += 1
+        self.leg_it, self.leg_nev, self.leg_f, self.hist, self.scaled = 0, 1, f, [f], True
 
 
 def bfgs_minimize_batch(
@@ -188,6 +204,8 @@ def bfgs_minimize_batch(
     keep: int = 0,
     keep_margin: float = 0.0,
     keep_horizon: float = 0.0,
+    restart: Callable[[int, NDArray[np.float64], float, float], bool] | None = None,
+    first_legs: Callable[[NDArray[np.float64]], bool] | None = None,
 ) -> tuple[list[QNResult], list[NDArray[np.float64]]]:
     """Minimize ``fun`` from every row of ``X0`` by BFGS with a weak Wolfe line search, in lockstep.
 
@@ -227,6 +245,21 @@ def bfgs_minimize_batch(
         With ``keep``: a running start is pruned only when it would still be above that bar after
         ``keep_horizon`` more windows at its current rate (its decrease over the last ``window``
         iterations); 0: its value alone decides.  A start still descending fast goes on.
+    restart : callable, optional
+        ``restart(i, x, f_leg, f) -> bool``, called when start ``i``'s line search fails at ``x``
+        (value ``f``; ``f_leg`` the value its current leg began with).  True: the caller has changed
+        the coordinates of the objective for that start (the region mode's re-anchoring at a chart's
+        edge, which leaves ``x`` the same point); the start is evaluated there again and goes on in
+        the same batch as if called afresh with its inverse-Hessian approximation -- a new leg, with
+        ``max_iter`` and ``max_eval`` per leg -- instead of waiting for every other start to stop.
+        A restarted start is never pruned by ``keep``, and counts for ``keep`` with its value at the
+        end of its first leg (as in a batch called again for the restarted starts alone).
+    first_legs : callable, optional
+        With ``restart``: ``first_legs(X) -> bool``, called once, when every start has ended its
+        first leg (stopped or restarted), with every start's point ``X`` (s, m); True ends the batch
+        there (the running starts end at their points, ``"line search"``) -- where a batch called
+        again for the restarted starts alone would not be called (the region mode's global optimum
+        found).
 
     Returns
     -------
@@ -267,40 +300,62 @@ def bfgs_minimize_batch(
             for m in running:
                 m.reason = "time_limit"
             break
-        T = np.stack([m.trial() for m in running])
+        T = np.stack([m.x if m.pending else m.trial() for m in running])
         fT, GT = fun(T, np.array([index[id(m)] for m in running])) if pass_index else fun(T)
         still = []
         for i, m in enumerate(running):
+            if m.pending:  # a restarted start at its point, in the caller's new coordinates
+                m.restarted(float(fT[i]), GT[i].copy())
+                if not math.isfinite(m.f):
+                    m.reason = "line search"
+                elif (gtol > 0 and float(np.max(np.abs(m.g))) <= gtol) or not m.new_direction():
+                    m.reason = "converged"
+                else:
+                    still.append(m)
+                continue
             what = m.step(T[i].copy(), float(fT[i]), GT[i].copy(), c1, c2, xtol)
-            if what == "continue" and m.nev < max_eval:
+            m.leg_nev += 1
+            if what == "continue" and m.leg_nev < max_eval:
                 still.append(m)
                 continue
             if what != "accept":
-                m.reason = "max_eval" if m.nev >= max_eval else "line search"
+                m.reason = "max_eval" if m.leg_nev >= max_eval else "line search"
                 if m.at_lo is not None:  # an Armijo step was found on the way: keep it
                     m.accept()
+                if m.reason == "line search" and restart is not None \
+                        and restart(index[id(m)], m.x, m.leg_f, m.f):
+                    m.first_stop = m.f if m.first_stop is None else m.first_stop
+                    m.pending, m.reason = True, ""
+                    still.append(m)
                 continue
             m.accept()
             if len(m.hist) > window and m.hist[-1 - window] - m.f <= ftol * max(1.0, abs(m.f)):
                 m.reason = "converged"
             elif gtol > 0 and float(np.max(np.abs(m.g))) <= gtol:
                 m.reason = "converged"
-            elif m.it >= max_iter:
+            elif m.leg_it >= max_iter:
                 m.reason = "max_iter"
-            elif m.nev >= max_eval:
+            elif m.leg_nev >= max_eval:
                 m.reason = "max_eval"
             elif not m.new_direction():
                 m.reason = "converged"
             else:
                 still.append(m)
         if keep and still:
-            stopped = sorted(m.f for m in mem if m.reason)
+            stopped = sorted(m.f if m.first_stop is None else m.first_stop
+                             for m in mem if m.reason or m.first_stop is not None)
             if len(stopped) >= keep:
                 bar = stopped[keep - 1] + keep_margin * max(1.0, abs(stopped[keep - 1]))
                 for m in still:
-                    if m.f - keep_horizon * _decrease_abs(m.hist, m.f, window) > bar:
+                    if m.first_stop is None and m.f - keep_horizon * _decrease_abs(m.hist, m.f, window) > bar:
                         m.reason = "pruned"
                 still = [m for m in still if not m.reason]
+        if first_legs is not None and all(m.reason or m.first_stop is not None for m in mem):
+            if first_legs(np.stack([m.x for m in mem])):
+                for m in still:
+                    m.reason, m.pending = "line search", False
+                still = []
+            first_legs = None
         running = still
     return [QNResult(m.x, m.f, m.g, m.it, m.nev, m.reason, _decrease(m.hist, m.f, window)) for m in mem], \
         [m.H for m in mem]
