@@ -3,6 +3,7 @@ default route side by side (issue 28).
 
 Run:  python benchmarks/bench_region.py run {new,base,prev} --set {subset,full} --objective {kappa2,eta}
           --json F [--route auto|engine|fast|multistart|nlp|default]
+      python benchmarks/bench_region.py pair {base,prev} --set ... --objective ... --json OLD.json NEW.json
       python benchmarks/bench_region.py report --base B.json [...] --prev P.json --new N.json
           [--notes NOTES.md] --out benchmarks/results/region.md
 
@@ -21,6 +22,13 @@ four more; ``p = max(1, n // 3)``, A ~ N(0, 1/n)) and n = 20 (p = 5), n = 30 (p 
 the issue's random example, ``HalfPlane(0.5) & Sector.from_damping(0.5) & Disk(0, 5)``.  ``--set
 subset``: REA2, DIS1, HE5, AC6 and five random plants; ``--set large``: random plants n = 12-30 (``LARGE``).
 Numbers, not pass/fail.  Time every run under ``flock /tmp/bench.lock``.
+
+``pair`` (round 15) times an older code and this checkout in one run: two worker processes (``serve``),
+each with its code loaded and warmed up, design the same plant one after the other, the order
+alternating from plant to plant, and never at the same time.  The machine's speed drifts by 10-15 %
+within an hour (measured: the same code's harness total 153 s and 180 s an hour apart), more than the
+effects measured; paired designs minutes, not a run, apart share the drift.  Its two run files are
+``run``'s format, for ``report``.
 """
 
 from __future__ import annotations
@@ -38,11 +46,10 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the previous stop's final engine: kappa2's cold continuation
-#: pruned to 4 members after its second stage; eta above n = 10 the engine alone), made as the base:
-#: ``git archive fbd742b``
-PREV_COMMIT = "fbd742b"
-PREV_DIR = "/tmp/region-prev-fbd742b"
+#: the commit before this round's change (the previous stop's final engine: a member re-anchored at its
+#: chart's edge waits for the batch to be called again), made as the base: ``git archive 137cd8c``
+PREV_COMMIT = "137cd8c"
+PREV_DIR = "/tmp/region-prev-137cd8c"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0
@@ -94,40 +101,101 @@ def cases(which: str):
 
 
 def run(which: str, objective: str, out: str, only: str | None, route: str | None, code: str = "new") -> None:
-    from optdesign import metrics, well_conditioned_observer
-    from optdesign.design.well_conditioned import WellConditionedProblem
-
-    def design(plant, region):
-        if route is None:  # the verb's default
-            return well_conditioned_observer(plant, region=region, objective=objective, time_limit=TIME_LIMIT)
-        return WellConditionedProblem(plant, objective=objective, route=route).solve(region=region,
-                                                                                   time_limit=TIME_LIMIT)
-
-    # one untimed design first: the first design of a process imports what the package loads lazily
-    # (scipy.signal and its dependencies, about 0.5 s of CPU once), which is not the design's cost
-    warm_name, warm_plant, warm_region = next(iter(cases(which)))
-    c0 = time.process_time()
-    design(warm_plant, warm_region)
-    warmup = {"name": warm_name, "cpu": time.process_time() - c0}
+    design = _designer(objective, route)
+    warmup = _warm_up(which, design)
     rows = []
     for name, plant, region in cases(which):
         if only and name not in only.split(","):
             continue
-        c0 = time.process_time()
-        d = design(plant, region)
-        cpu = time.process_time() - c0
-        k2 = float(metrics.kappa2(plant.A - d.L @ plant.C)) if np.all(np.isfinite(d.L)) else float("nan")
-        trace = getattr(d, "route", None)
-        rows.append({"name": name, "n": plant.n, "p": plant.p, "status": d.status.value,
-                     "kappa2": float(d.kappa2), "eta": float(d.eta), "kappa2_recomputed": k2,
-                     "verified": bool(d.verification.passed),
-                     "cpu": cpu, "route": str(trace.answered.name) if trace and trace.answered else
-                     d.solver_stats.extra.get("route", "")})
-        print(f"{name} n={plant.n} p={plant.p} {objective} {d.status.value} {d.kappa2:.6g} eta {d.eta:.6g} "
-              f"cpu {cpu:.2f} s", flush=True)
-        label = DIRS[code][0] if code in DIRS else "this checkout"
-        Path(out).write_text(json.dumps({"objective": objective, "code": code, "commit": label,
-                                         "warmup": warmup, "rows": rows}, indent=1))
+        rows.append(_row(name, plant, region, design))
+        print(f"{name} n={plant.n} p={plant.p} {objective} {rows[-1]['status']} {rows[-1]['kappa2']:.6g} "
+              f"eta {rows[-1]['eta']:.6g} cpu {rows[-1]['cpu']:.2f} s", flush=True)
+        _write(out, objective, code, warmup, rows)
+
+
+def _designer(objective: str, route: str | None):
+    """``design(plant, region)``: the verb's default (``route`` None), else
+    ``WellConditionedProblem(route=route)``."""
+    from optdesign import well_conditioned_observer
+    from optdesign.design.well_conditioned import WellConditionedProblem
+
+    def design(plant, region):
+        if route is None:
+            return well_conditioned_observer(plant, region=region, objective=objective, time_limit=TIME_LIMIT)
+        return WellConditionedProblem(plant, objective=objective, route=route).solve(region=region,
+                                                                                   time_limit=TIME_LIMIT)
+    return design
+
+
+def _warm_up(which: str, design) -> dict:
+    """One untimed design first: the first design of a process imports what the package loads lazily
+    (scipy.signal and its dependencies, about 0.5 s of CPU once), which is not the design's cost."""
+    warm_name, warm_plant, warm_region = next(iter(cases(which)))
+    c0 = time.process_time()
+    design(warm_plant, warm_region)
+    return {"name": warm_name, "cpu": time.process_time() - c0}
+
+
+def _row(name: str, plant, region, design) -> dict:
+    """One timed design and what the report reads of it (kappa2 recomputed from the returned gain)."""
+    from optdesign import metrics
+
+    c0 = time.process_time()
+    d = design(plant, region)
+    cpu = time.process_time() - c0
+    k2 = float(metrics.kappa2(plant.A - d.L @ plant.C)) if np.all(np.isfinite(d.L)) else float("nan")
+    trace = getattr(d, "route", None)
+    return {"name": name, "n": plant.n, "p": plant.p, "status": d.status.value,
+            "kappa2": float(d.kappa2), "eta": float(d.eta), "kappa2_recomputed": k2,
+            "verified": bool(d.verification.passed),
+            "cpu": cpu, "route": str(trace.answered.name) if trace and trace.answered else
+            d.solver_stats.extra.get("route", "")}
+
+
+def _write(out: str, objective: str, code: str, warmup: dict, rows: list[dict]) -> None:
+    label = DIRS[code][0] if code in DIRS else "this checkout"
+    Path(out).write_text(json.dumps({"objective": objective, "code": code, "commit": label,
+                                     "warmup": warmup, "rows": rows}, indent=1))
+
+
+def serve(which: str, objective: str) -> None:
+    """A worker of :func:`pair`: warm up, print ``ready``, then per plant name read from stdin one
+    design's row (JSON, one line)."""
+    design = _designer(objective, None)
+    by_name = {name: (plant, region) for name, plant, region in cases(which)}
+    warmup = _warm_up(which, design)
+    print(json.dumps({"ready": True, "warmup": warmup}), flush=True)
+    for line in sys.stdin:
+        name = line.strip()
+        print(json.dumps(_row(name, *by_name[name], design)), flush=True)
+
+
+def pair(old: str, which: str, objective: str, outs: tuple[str, str], only: str | None) -> None:
+    """The ``old`` code (``base`` or ``prev``) and this checkout, plant by plant in alternating order
+    (module docstring); run files ``outs`` (old, new)."""
+    procs, warm = [], []
+    for code in (old, "new"):
+        env = {**os.environ, "PYTHONPATH": DIRS[code][1]} if code in DIRS else dict(os.environ)
+        args = [sys.executable, __file__, "serve", code, "--set", which, "--objective", objective]
+        pr = subprocess.Popen(args, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        assert pr.stdin is not None and pr.stdout is not None
+        warm.append(json.loads(pr.stdout.readline())["warmup"])
+        procs.append(pr)
+    rows: tuple[list[dict], list[dict]] = ([], [])
+    names = [name for name, _, _ in cases(which) if not only or name in only.split(",")]
+    for i, name in enumerate(names):
+        for j in ((0, 1) if i % 2 == 0 else (1, 0)):
+            procs[j].stdin.write(name + "\n")  # type: ignore[union-attr]
+            procs[j].stdin.flush()  # type: ignore[union-attr]
+            rows[j].append(json.loads(procs[j].stdout.readline()))  # type: ignore[union-attr]
+        a, b = rows[0][-1], rows[1][-1]
+        print(f"{name:22s} {objective} {a[objective]:.6g} {b[objective]:.6g}  cpu {a['cpu']:.2f} "
+              f"{b['cpu']:.2f} s  ratio {b['cpu'] / a['cpu']:.2f}", flush=True)
+        for j, code in enumerate((old, "new")):
+            _write(outs[j], objective, code, warm[j], rows[j])
+    for pr in procs:
+        pr.stdin.close()  # type: ignore[union-attr]
+        pr.wait()
 
 
 def _rows(files: list[str]) -> tuple[str, dict[str, dict]]:
@@ -153,10 +221,10 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
              f"Base: commit {BASE_COMMIT}, the verb's default before issue 28 (IPOPT from 8 starts, then "
              "one engine start; in this checkout `route='multistart'`).  Prev: commit "
              f"{PREV_COMMIT} (the previous stop: the lockstep region engine, 8 starts up to n = 12, 4 up "
-             "to 24, then 2, pruned to 4 members after the second stage; for eta 16 engine starts and "
-             "IPOPT from one up to n = 10).  New: this checkout's default (kappa2: the same engine, "
-             "starts and path, 5 members kept after the second stage, IPOPT only as the fallback; eta: "
-             "unchanged).  "
+             "to 24, then 2, 5 members kept after the second stage; for eta 16 engine starts and "
+             "IPOPT from one up to n = 10).  New: this checkout's default (the same starts and path; "
+             "a member re-anchored at its chart's edge goes on in the same BFGS batch, round 15).  "
+             "Prev and new were timed in one run (`pair`: alternating, plant by plant).  "
              "CPU seconds per design (`time.process_time`, single-threaded BLAS; from round 10 after "
              "one untimed design of the first case per process, the one-time imports), time limit "
              f"{TIME_LIMIT:g} s (wall) per design.  Produced by `benchmarks/bench_region.py report`.", ""]
@@ -217,6 +285,15 @@ def report(base: list[str], prev: list[str], new: list[str], out: str, notes: st
     Path(out).write_text("\n".join(lines) + "\n")
 
 
+def _check_import(code: str) -> None:
+    """The process imports the code it is to measure (a checkout under ``DIRS[code]``, or this one)."""
+    import optdesign
+
+    expected = DIRS[code][1] if code in DIRS else str(Path(__file__).resolve().parents[1])
+    if not str(Path(optdesign.__file__).resolve()).startswith(expected):
+        raise SystemExit(f"imported {optdesign.__file__}, expected a checkout under {expected}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -229,6 +306,16 @@ def main() -> None:
     r.add_argument("--route", default=None, help="WellConditionedProblem(route=...) (new code only; "
                    "default: the verb's default)")
     r.add_argument("--inner", action="store_true", help=argparse.SUPPRESS)
+    q = sub.add_parser("pair")
+    q.add_argument("code", choices=tuple(DIRS))
+    q.add_argument("--set", default="subset", choices=("subset", "full", "large"))
+    q.add_argument("--objective", default="kappa2", choices=("kappa2", "eta"))
+    q.add_argument("--only", default=None)
+    q.add_argument("--json", nargs=2, required=True, metavar=("OLD", "NEW"))
+    w = sub.add_parser("serve", help=argparse.SUPPRESS)
+    w.add_argument("code", choices=("new", *DIRS))
+    w.add_argument("--set", default="subset", choices=("subset", "full", "large"))
+    w.add_argument("--objective", default="kappa2", choices=("kappa2", "eta"))
     p = sub.add_parser("report")
     p.add_argument("--base", nargs="+", required=True, help="run files of the base code (later ones win)")
     p.add_argument("--prev", nargs="+", required=True)
@@ -239,6 +326,13 @@ def main() -> None:
     if a.cmd == "report":
         report(a.base, a.prev, a.new, a.out, a.notes)
         return
+    if a.cmd == "pair":
+        pair(a.code, a.set, a.objective, tuple(a.json), a.only)
+        return
+    if a.cmd == "serve":
+        _check_import(a.code)
+        serve(a.set, a.objective)
+        return
     if a.code in DIRS and not a.inner:
         root = DIRS[a.code][1]
         env = {**os.environ, "PYTHONPATH": root}
@@ -246,11 +340,7 @@ def main() -> None:
                 "--json", a.json, "--inner"] + (["--only", a.only] if a.only else [])
         subprocess.run(args, env=env, check=True)
         return
-    import optdesign
-
-    expected = DIRS[a.code][1] if a.code in DIRS else str(Path(__file__).resolve().parents[1])
-    if not str(Path(optdesign.__file__).resolve()).startswith(expected):
-        raise SystemExit(f"imported {optdesign.__file__}, expected a checkout under {expected}")
+    _check_import(a.code)
     route = None if a.code in DIRS else a.route
     run(a.set, a.objective, a.json, a.only, None if route == "default" else route, a.code)
 

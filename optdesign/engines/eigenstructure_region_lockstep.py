@@ -425,13 +425,13 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             ftol = REGION_PRUNE_FTOL
         anchored = np.zeros(total, int)
 
-        def restart(j, x, f_leg, f, _todo=todo, _ftol=ftol):
+        def restart(j, x, f_leg, f, _todo=todo, _ftol=ftol, _anchored=anchored):
             """Re-anchor member ``_todo[j]`` at ``x``, where its line search stopped at its chart's
             edge, when the leg made progress (at most _MAX_REANCHOR times per stage)."""
             i = _todo[j]
-            if anchored[i] >= _MAX_REANCHOR or not f_leg - f > _ftol * max(1.0, abs(f)) or dl.expired:
+            if _anchored[i] >= _MAX_REANCHOR or not f_leg - f > _ftol * max(1.0, abs(f)) or dl.expired:
                 return False
-            anchored[i] += 1
+            _anchored[i] += 1
             X[i] = x
             models[owner[i]].set_anchor(x[None, :], members=merged.local[i : i + 1])
             merged.refresh_anchors()
