@@ -413,6 +413,8 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
         for i in todo[bad]:
             reasons[i], alive[i] = "infeasible start", False
         todo = todo[~bad]
+        if not todo.size:  # no member left
+            continue
         ftol = REGION_FTOL.get(k, REGION_FTOL[None])
         # a cold start's first stage (k = 4): capped (the full kappa2 continuation has more than 2 stages)
         its_cap = _FIRST_STAGE_MAX_ITER if si == 0 and objective == "kappa2" and len(stages) > 2 \
