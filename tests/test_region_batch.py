@@ -253,3 +253,27 @@ def test_kappa2_charts_are_wider_than_eta_s():
     assert not np.any(eta & ~k2)  # eta's chart inside kappa2's
     assert np.any(k2 & ~eta)  # where only kappa2's reaches
     assert not np.all(k2)  # and kappa2's has an edge too
+
+
+def test_stages_with_every_member_infeasible_end_without_a_batch():
+    """Every member starts with two poles at one point (the separation barrier is infinite): each is
+    an "infeasible start", kept where it started with no iteration or evaluation counted, and the
+    stages end without error (the global-optimum test, stop_at, has no member to test)."""
+    from optdesign.engines.eigenstructure_region_lockstep import REGION_STAGES, _region_stages
+
+    models, Xs = _models("compleib_ac6", members=2)
+    batch = []
+    for m, X in zip(models, Xs, strict=True):
+        X = X.copy()
+        if m.nrf >= 2:  # two real poles at one point
+            X[:, m.ncoord + 1] = X[:, m.ncoord]
+        else:  # a pair pressed onto the real axis
+            X[:, m.size - 2 * m.npf] = np.abs(X[:, m.size - 2 * m.npf])
+            X[:, m.size - m.npf] = 0.0
+        batch.append((m, X))
+    out = _region_stages(batch, "kappa2", REGION_STAGES[:-1], Deadline(None), stop_at=1.0)
+    assert len(out) == len(models)
+    for (Xo, reasons, its, evs, timed_out), (_, X) in zip(out, batch, strict=True):
+        assert reasons == ["infeasible start"] * X.shape[0] and not its.any() and not evs.any()
+        np.testing.assert_array_equal(Xo, X)
+        assert not timed_out
