@@ -25,9 +25,9 @@ Numbers, not pass/fail.  Time every run under ``flock /tmp/bench.lock``.
 
 ``pair`` (round 15) times an older code and this checkout in one run: two worker processes (``serve``),
 each with its code loaded and warmed up, design the same plant one after the other, the order
-alternating from plant to plant, and never at the same time.  The machine's speed drifts by 10-15 %
-within an hour (measured: the same code's harness total 153 s and 180 s an hour apart), more than the
-effects measured; paired designs minutes, not a run, apart share the drift.  Its two run files are
+alternating from plant to plant, and never at the same time.  The machine's speed drifts (measured
+in round 15: the same code's 50-plant eta harness took 153 s, and 180 s 38 minutes later), more than
+the effects measured; paired designs minutes, not a run, apart share the drift.  Its two run files are
 ``run``'s format, for ``report``.
 """
 
@@ -173,29 +173,40 @@ def serve(which: str, objective: str) -> None:
 def pair(old: str, which: str, objective: str, outs: tuple[str, str], only: str | None) -> None:
     """The ``old`` code (``base`` or ``prev``) and this checkout, plant by plant in alternating order
     (module docstring); run files ``outs`` (old, new)."""
+    codes = (old, "new")
     procs, warm = [], []
-    for code in (old, "new"):
+    for code in codes:
         env = {**os.environ, "PYTHONPATH": DIRS[code][1]} if code in DIRS else dict(os.environ)
         args = [sys.executable, __file__, "serve", code, "--set", which, "--objective", objective]
         pr = subprocess.Popen(args, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        assert pr.stdin is not None and pr.stdout is not None
-        warm.append(json.loads(pr.stdout.readline())["warmup"])
         procs.append(pr)
+        warm.append(_reply(procs[-1], code)["warmup"])
     rows: tuple[list[dict], list[dict]] = ([], [])
     names = [name for name, _, _ in cases(which) if not only or name in only.split(",")]
     for i, name in enumerate(names):
         for j in ((0, 1) if i % 2 == 0 else (1, 0)):
-            procs[j].stdin.write(name + "\n")  # type: ignore[union-attr]
-            procs[j].stdin.flush()  # type: ignore[union-attr]
-            rows[j].append(json.loads(procs[j].stdout.readline()))  # type: ignore[union-attr]
+            rows[j].append(_reply(procs[j], codes[j], name))
         a, b = rows[0][-1], rows[1][-1]
         print(f"{name:22s} {objective} {a[objective]:.6g} {b[objective]:.6g}  cpu {a['cpu']:.2f} "
               f"{b['cpu']:.2f} s  ratio {b['cpu'] / a['cpu']:.2f}", flush=True)
-        for j, code in enumerate((old, "new")):
+        for j, code in enumerate(codes):
             _write(outs[j], objective, code, warm[j], rows[j])
     for pr in procs:
-        pr.stdin.close()  # type: ignore[union-attr]
-        pr.wait()
+        pr.communicate()
+
+
+def _reply(pr: subprocess.Popen, code: str, name: str | None = None) -> dict:
+    """The worker's next line (after sending it ``name``, a plant to design), as JSON; a worker that
+    stopped is said so by name (its traceback is on stderr above)."""
+    assert pr.stdin is not None and pr.stdout is not None
+    if name is not None:
+        pr.stdin.write(name + "\n")
+        pr.stdin.flush()
+    line = pr.stdout.readline()
+    if not line:
+        raise SystemExit(f"bench_region pair: the {code!r} worker stopped (exit code {pr.wait()}) "
+                         f"before answering{' for ' + name if name else ''}; its error is above")
+    return json.loads(line)
 
 
 def _rows(files: list[str]) -> tuple[str, dict[str, dict]]:

@@ -419,7 +419,8 @@ def filter_dare_doubling(A: NDArray, C: NDArray, Q: NDArray, R: NDArray, maxit: 
     Without detectability of (A, Q) it can converge to a PSD solution that is not the stabilizing
     one: the caller checks the filter's poles and falls back then too.
 
-    A (n x n), C (p x n), Q (n x n) PSD, R (p x p) positive definite.  ``I + G H`` stays
+    A (n x n), C (p x n), Q (n x n) PSD, R (p x p) positive definite, float arrays taken as validated
+    (an inner-loop solver, as :func:`filter_gain`).  ``I + G H`` stays
     invertible (G, H PSD), so every step is defined; convergence is quadratic when a stabilizing
     solution exists.  The first solver of the closest-poles search's inner loop
     (``fast_pole_error`` of ``optdesign.design.inverse_kalman``): 2.0-5.1x less CPU than

@@ -277,12 +277,10 @@ class RegionModel:
             self.anchor_r, self.anchor_p = (a[members] for a in every)
             try:
                 self.set_anchor(X)
-                part = self.anchor_r, self.anchor_p
+                for a, b in zip(every, (self.anchor_r, self.anchor_p), strict=True):
+                    a[members] = b
             finally:
-                self.anchor_r, self.anchor_p = every
-            for a, b in zip(every, part, strict=True):
-                a[members] = b
-            self.anchor_r, self.anchor_p = every  # the setters drop the cached batch
+                self.anchor_r, self.anchor_p = every  # the setters drop the cached batch
             return
         if not self._anchored:
             _, lr, sg, om = self.split(X)

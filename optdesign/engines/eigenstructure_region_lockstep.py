@@ -434,7 +434,6 @@ def _region_stages(batch: list[tuple[RegionModel, NDArray]], objective: str,
             if _anchored[i] >= _MAX_REANCHOR or not f_leg - f > _ftol * max(1.0, abs(f)) or dl.expired:
                 return False
             _anchored[i] += 1
-            X[i] = x
             models[owner[i]].set_anchor(x[None, :], members=merged.local[i : i + 1])
             merged.refresh_anchors()
             return True

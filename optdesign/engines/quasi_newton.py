@@ -138,6 +138,7 @@ class _Member:
         """Advance the line search with the value at the trial point: ``"accept"``, ``"continue"``
         or ``"fail"``."""
         self.nev += 1
+        self.leg_nev += 1
         self.ls += 1
         if not math.isfinite(ft) or ft > self.f + c1 * self.t * self.gd:
             self.hi = self.t
@@ -314,7 +315,6 @@ def bfgs_minimize_batch(
                     still.append(m)
                 continue
             what = m.step(T[i].copy(), float(fT[i]), GT[i].copy(), c1, c2, xtol)
-            m.leg_nev += 1
             if what == "continue" and m.leg_nev < max_eval:
                 still.append(m)
                 continue
