@@ -205,6 +205,39 @@ def test_route_eta_in_a_region_engine_and_ipopt():
     assert d.route[0].detail == "asked (route='nlp')"
 
 
+def test_route_eta_caps_the_ipopt_start_beside_the_engine(monkeypatch):
+    """eta's IPOPT start beside the engine runs its free-pole NLP at most ``ETA_NLP_MAX_ITER``
+    iterations per stage (round 16: on 20 of 50 benchmark plants it ran to the 300 limit and returned
+    nothing better than its start); IPOPT alone (``route="nlp"``) keeps the full budget.  The cap is
+    set to 3 here so that it bites on a small plant."""
+    import optdesign.design.well_conditioned.problem as pm
+
+    runs: list[tuple[int, list[Candidate]]] = []
+    real = pm.nlp_region_runner
+
+    def spy(*args, **kwargs):
+        runner = real(*args, **kwargs)
+
+        def run(*a, **k):
+            hist = runner(*a, **k)
+            runs.append((kwargs["region_max_iter"], hist))
+            return hist
+        return run
+
+    monkeypatch.setattr(pm, "nlp_region_runner", spy)
+    monkeypatch.setattr(pm, "ETA_NLP_MAX_ITER", 3)
+    plant = _random_plant(3, 3, 2)
+    d = WellConditionedProblem(plant, objective="eta", starts=4).solve(region=_REGION)
+    assert d.success and d.route[1].detail == "1 start, beside the engine's"
+    assert [cap for cap, _ in runs] == [3]
+    free = [c.iterations for c in runs[0][1] if c.stage == "RegionNLP"]
+    assert free and max(free) <= 3
+    runs.clear()
+    d = WellConditionedProblem(plant, objective="eta", starts=1, route="nlp").solve(region=_REGION)
+    assert d.success and [cap for cap, _ in runs] == [300]
+    assert max(c.iterations for c in runs[0][1] if c.stage == "RegionNLP") > 3
+
+
 def test_route_eta_above_n10_is_the_engine_alone():
     """Above n = 10 (``ETA_NLP_MAX_N``) eta's default route runs no IPOPT start beside the engine (round
     12: at n = 12-30, 6 plants, IPOPT's start never beat the engine and took 4-150 s); at n = 10 it

@@ -275,7 +275,7 @@ def nlp_fixed_runner(get_nlp: Callable[[Any], Any], target: NDArray, objective: 
 def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dict[str, Any],
                       get_fixed: Callable[[Any], Any], get_region: Callable[[Any], Any],
                       evaluate: Evaluate, deadline: Deadline, *, mask: NDArray | None,
-                      lower_bound: float | None = None, polish: str = "full"):
+                      lower_bound: float | None = None, polish: str = "full", region_max_iter: int = 300):
     """``runner(L0, structure, first, warm)`` of poles free in ``region``.
 
     Each start contributes (0) its own gain, unoptimized, (A) the fixed-pole NLP at the start's
@@ -283,6 +283,8 @@ def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dic
     at B's poles, from B's gain and from scipy's YT gain there -- each verified; the best is kept,
     so a design is never worse than its start (e.g. scipy YT at the naive poles).  ``polish="last"``
     (:data:`REGION_POLISHES`): no A, and the two C solves run the last stage of the continuation only.
+    ``region_max_iter``: IPOPT's iterations per continuation stage of B (at most 300; the caller's
+    ``ipopt.max_iter`` when lower).
 
     A warm start (a converged design of a nearby problem, e.g. the previous point of a sweep) runs
     only what it needs: no A (its gain is already the fixed-pole optimum at its own poles: the
@@ -297,7 +299,7 @@ def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dic
     observable = plant.is_observable()
     rank_c = int(np.linalg.matrix_rank(plant.C))
     region_opts = dict(options)
-    region_opts["ipopt.max_iter"] = min(int(options.get("ipopt.max_iter", 300)), 300)
+    region_opts["ipopt.max_iter"] = min(int(options.get("ipopt.max_iter", 300)), 300, int(region_max_iter))
     light = polish == "last"
 
     def verified(c: Candidate) -> bool:

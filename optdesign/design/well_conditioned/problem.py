@@ -67,6 +67,11 @@ AUTO_NLP_STARTS = 2
 #: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md),
 #: up to this order (round 12: at n = 12-30, 6 plants, IPOPT's start never beat the engine, 4-150 s)
 ETA_NLP_STARTS, ETA_NLP_MAX_N = 1, 10
+#: ... IPOPT's iterations per continuation stage of that start's free-pole NLP (was 300; round 16, 50
+#: plants n <= 10: the start beat the engine on 2, in 56 iterations on COMPleib AC17 and in 121-130 of
+#: the first stage on random n = 5 s0; on 20 it ran to the limit and returned nothing better than its
+#: start gain, 0.2-4.9 s each.  150: 0.88x the CPU, no eta changed; region_eta.md)
+ETA_NLP_MAX_ITER = 150
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)
 ROUTES = ("auto", "engine", "fast", "multistart", "nlp")
@@ -257,7 +262,8 @@ class WellConditionedProblem:
         (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
         all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
         every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from one
-        (``ETA_NLP_STARTS``; none above n = 10 or when the engine attains eta's lower bound 0;
+        (``ETA_NLP_STARTS``, at most ``ETA_NLP_MAX_ITER`` = 150 iterations per stage of its free-pole
+        NLP, as on ``"fast"``; none above n = 10 or when the engine attains eta's lower bound 0;
         ``benchmarks/results/region_eta.md``: without it, DIS2 0.0606 vs 0.0338).
         Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
         more than 1e-3 better on 15, worse on 1 (random n = 6 +0.9 %); median 0.41 s (Intel) vs 13.2 s.
@@ -651,6 +657,8 @@ class WellConditionedProblem:
                 n_nlp = max(n_nlp, len(spec_list))
             run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
                 attains(bound, e[0], e[3], e[4]) for e in evaluated)))
+            # IPOPT beside the engine's eta (not its fallback): a second opinion, with a budget
+            beside_eta = use_eng and not fallback and objective == "eta"
             if run_nlp or fallback:
                 route = "nlp" if not use_eng else "engine+nlp"
                 planned += n_nlp + len(warm_specs)
@@ -660,7 +668,8 @@ class WellConditionedProblem:
                 runner = nlp_region_runner(plant, region, objective, self.options,
                                            self._fixed_nlp_getter(bounds, sc),
                                            self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
-                                           mask=self.mask, lower_bound=bound, polish=polish)
+                                           mask=self.mask, lower_bound=bound, polish=polish,
+                                           region_max_iter=ETA_NLP_MAX_ITER if beside_eta else 300)
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
                 kind = "fallback" if fallback else "backend"

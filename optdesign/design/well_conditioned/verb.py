@@ -170,9 +170,9 @@ def well_conditioned_observer(
     and which stage answered.  IPOPT (:mod:`optdesign.formulate.well_conditioned`) takes the
     constraints the engine does not handle -- ``max_gain``, ``kappa2_max`` / ``eta_max``, structural
     zeros in a region -- and is the fallback when no engine design verifies; for eta in a region the
-    engine runs from 16 starts and IPOPT from the first (the engine alone from 8 was worse on
-    some plants; none above n = 10, where it never beat the engine, or when the engine attains eta's
-    lower bound 0).  A kappa2 bound
+    engine runs from 16 starts and IPOPT from the first, at most 150 iterations per stage (the engine
+    alone from 8 was worse on some plants; none above n = 10, where it never beat the engine, or when
+    the engine attains eta's lower bound 0).  A kappa2 bound
     with another objective goes through its own continuation (the orders 64, 512, 4096 of the
     surrogate, :data:`~optdesign.formulate.well_conditioned.KAPPA2_BOUND_STAGES`):
     every order guarantees ``kappa2 <= kappa2_max``.  The reported metrics are recomputed with numpy.
