@@ -64,14 +64,10 @@ DEFAULT_STARTS = 8
 #: many IPOPT runs from too (issue 28: on COMPleib DIS1, IPOPT from the Kalman start reaches kappa2 1.13392
 #: where the engine stops at 1.13878; on REA2 the engine reaches 1.46204, IPOPT's first two 1.481)
 AUTO_NLP_STARTS = 2
-#: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md),
-#: up to this order (round 12: at n = 12-30, 6 plants, IPOPT's start never beat the engine, 4-150 s)
-ETA_NLP_STARTS, ETA_NLP_MAX_N = 1, 10
-#: ... IPOPT's iterations per continuation stage of that start's free-pole NLP (was 300; round 16, 50
-#: plants n <= 10: the start beat the engine on 2, in 56 iterations on COMPleib AC17 and in 121-130 of
-#: the first stage on random n = 5 s0; on 20 it ran to the limit and returned nothing better than its
-#: start gain, 0.2-4.9 s each.  150: 0.88x the CPU, no eta changed; region_eta.md)
-ETA_NLP_MAX_ITER = 150
+#: ... for eta on route "auto" (round 11, 49 plants n <= 10: a second changed no eta; region_eta.md), up to
+#: this order (round 12: n = 12-30, 6 plants, IPOPT's start never beat the engine, 4-150 s), 150 iterations
+#: per stage (round 16, 50 plants n <= 10: it won on 2, in 56 and 121-130; on 20 it ran to 300 for nothing)
+ETA_NLP_STARTS, ETA_NLP_MAX_N, ETA_NLP_MAX_ITER = 1, 10, 150
 
 #: the routes of region mode (``WellConditionedProblem._region_plan``)
 ROUTES = ("auto", "engine", "fast", "multistart", "nlp")
@@ -258,21 +254,18 @@ class WellConditionedProblem:
         they are.
     route : {"auto", "engine", "fast", "multistart", "nlp"}, default "auto"
         Region mode (``_region_plan``; what ran is ``result.route``).  ``"auto"`` (= ``"engine"``): for
-        kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start
-        (default 8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above),
-        all starts in lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from
-        every start for bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from one
-        (``ETA_NLP_STARTS``, at most ``ETA_NLP_MAX_ITER`` = 150 iterations per stage of its free-pole
-        NLP, as on ``"fast"``; none above n = 10 or when the engine attains eta's lower bound 0;
-        ``benchmarks/results/region_eta.md``: without it, DIS2 0.0606 vs 0.0338).
-        Against the previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10):
-        more than 1e-3 better on 15, worse on 1 (random n = 6 +0.9 %); median 0.41 s (Intel) vs 13.2 s.
-        ``"multistart"``: IPOPT (the NLPs' continuation) from every start, then one placement-engine
-        start from IPOPT's best design (the default before issue 28).  ``"fast"``: the engine from
-        every start, IPOPT from the first ``AUTO_NLP_STARTS`` (2) of them with the light polish
-        (``region_polish="last"``), then the engine from IPOPT's best when it beats the engine's.
-        ``"nlp"``: IPOPT only (the algorithm of the sweep designer, which warm-starts IPOPT along a
-        sweep).  Fixed poles always use the engine (IPOPT for bounds and structural zeros).
+        kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start (default
+        8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above), all starts in
+        lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from every start for
+        bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from one (``ETA_NLP_STARTS``,
+        ``ETA_NLP_MAX_ITER`` iterations per stage; none above n = 10 or when the engine attains eta's lower
+        bound 0; ``benchmarks/results/region_eta.md``: without it, DIS2 0.0606 vs 0.0338).  Against the
+        previous default (``"multistart"``; ``benchmarks/results/region.md``, 50 plants n <= 10): more than
+        1e-3 better on 15, worse on 1 (random n = 6 +0.9 %); median 0.41 s (Intel) vs 13.2 s.
+        ``"multistart"``: IPOPT from every start, then one placement-engine start from IPOPT's best design
+        (the default before issue 28).  ``"fast"``: the engine from every start, IPOPT from the first
+        ``AUTO_NLP_STARTS`` (2) with the light polish (``region_polish="last"``), then the engine from IPOPT's
+        best when it beats the engine's.  ``"nlp"``: IPOPT only.  Fixed poles: the engine (IPOPT for bounds).
     kalman_start : bool, default True
         Region mode: start 1 is the Kalman gain for ``Q = I, R = I``; False: every start after the
         first samples poles in the region (complex-pair patterns first).
@@ -521,8 +514,8 @@ class WellConditionedProblem:
         k = int(np.argmax(counts))
         if counts[k] > rank == 1 and objective != "eta":  # one output: the poles fix L (issue 27)
             from ..feedback_controller import ackermann_observer
-            return ackermann_observer(plant, target, objective, stable=not self.allow_unstable, mask=self.mask,
-                                      max_gain=self.bounds.get("max_gain"))
+            return ackermann_observer(plant, target, objective, stable=not self.allow_unstable,
+                                      mask=self.mask, max_gain=self.bounds.get("max_gain"))
         if counts[k] > rank:
             reason = (
                 f"pole {vals[k]} is requested {counts[k]} times but rank(C) = {rank}: the eigenspace of "
@@ -657,19 +650,17 @@ class WellConditionedProblem:
                 n_nlp = max(n_nlp, len(spec_list))
             run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
                 attains(bound, e[0], e[3], e[4]) for e in evaluated)))
-            # IPOPT beside the engine's eta (not its fallback): a second opinion, with a budget
-            beside_eta = use_eng and not fallback and objective == "eta"
+            cap = ETA_NLP_MAX_ITER if use_eng and not fallback and objective == "eta" else 300  # beside it
             if run_nlp or fallback:
                 route = "nlp" if not use_eng else "engine+nlp"
                 planned += n_nlp + len(warm_specs)
                 sc = self._scaling(0.0 if self.pole_scale is not None else _interior_scale(region))
                 todo = specs[:n_nlp] if isinstance(specs, list) else specs
                 nlp_specs = itertools.chain(warm_specs, (s + (False,) for s in todo))
-                runner = nlp_region_runner(plant, region, objective, self.options,
-                                           self._fixed_nlp_getter(bounds, sc),
-                                           self._region_nlp_getter(region, bounds, sc), evaluate, deadline,
-                                           mask=self.mask, lower_bound=bound, polish=polish,
-                                           region_max_iter=ETA_NLP_MAX_ITER if beside_eta else 300)
+                runner = nlp_region_runner(
+                    plant, region, objective, self.options, self._fixed_nlp_getter(bounds, sc),
+                    self._region_nlp_getter(region, bounds, sc), evaluate, deadline, mask=self.mask,
+                    lower_bound=bound, polish=polish, region_max_iter=cap)
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
                 kind = "fallback" if fallback else "backend"
