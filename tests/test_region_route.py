@@ -238,6 +238,24 @@ def test_route_eta_caps_the_ipopt_start_beside_the_engine(monkeypatch):
     assert max(c.iterations for c in runs[0][1] if c.stage == "RegionNLP") > 3
 
 
+def test_route_eta_runs_scipys_yt_at_the_naive_poles_once(monkeypatch):
+    """eta's default route: IPOPT's start 0 takes scipy's YT at the naive poles from the engine's start 0
+    (the same gain) instead of running it again."""
+    import optdesign.design.well_conditioned.starts as starts_mod
+
+    scipy_runs: list[int] = []
+    real = starts_mod.placement_start
+
+    def counting(*args, **kwargs):
+        scipy_runs.append(kwargs.get("rtol") == 1e-3)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(starts_mod, "placement_start", counting)
+    d = WellConditionedProblem(_random_plant(3, 3, 2), objective="eta", starts=4).solve(region=_REGION)
+    assert d.success and d.route.names[:2] == ("eigenstructure_engine/region", "ipopt")
+    assert sum(scipy_runs) == 1
+
+
 def test_route_eta_above_n10_is_the_engine_alone():
     """Above n = 10 (``ETA_NLP_MAX_N``) eta's default route runs no IPOPT start beside the engine (round
     12: at n = 12-30, 6 plants, IPOPT's start never beat the engine and took 4-150 s); at n = 10 it

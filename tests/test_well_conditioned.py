@@ -336,6 +336,30 @@ def test_region_start_zero_is_scipys_yt_and_for_ipopt_the_better_of_two():
     np.testing.assert_array_equal(ipopt[1], (scipy_yt, ours)[int(np.argmin(k))])
 
 
+def test_ipopt_start_zero_takes_scipys_yt_from_the_caller(monkeypatch):
+    """``scipy_yt`` (the engine's start 0, eta's IPOPT start beside the engine): IPOPT's start 0 is the
+    same gain as when it computes scipy's YT itself, and scipy's YT (rtol 1e-3) is not run again."""
+    import optdesign.design.well_conditioned.starts as starts_mod
+
+    plant = problems.load("compleib_ac2").plant
+    region = suggested_region(plant)
+    engine = next(starts_mod.iter_region_starts(plant, region, 1, np.random.default_rng(0), None, sweeps=1))
+    alone = next(starts_mod.iter_region_starts(plant, region, 1, np.random.default_rng(0), None))
+    calls: list[float | None] = []
+    real = starts_mod.placement_start
+
+    def counting(*args, **kwargs):
+        calls.append(kwargs.get("rtol"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(starts_mod, "placement_start", counting)
+    given = next(starts_mod.iter_region_starts(plant, region, 1, np.random.default_rng(0), None,
+                                               scipy_yt=engine[1]))
+    np.testing.assert_array_equal(given[1], alone[1])
+    np.testing.assert_array_equal(given[3], alone[3])
+    assert calls == [None]  # place_observer's own run only
+
+
 def test_repeated_pole_with_one_output_is_placed_by_ackermann():
     """Issue 27: with rank(C) = 1 the poles fix L (Ackermann on the dual), as python-control's acker;
     A - LC is defective (kappa2 = inf, said so).  It was an infeasible result with an all-NaN gain."""

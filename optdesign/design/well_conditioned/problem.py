@@ -579,12 +579,11 @@ class WellConditionedProblem:
                            deadline=deadline, planned=planned, route=route, phases=phases)
 
     def _region_starts(self, region: Region, n_starts: int, rng: np.random.Generator,
-                       sweeps: int | None = None) -> Iterator:
-        """The starts of region mode, lazily (:func:`~.starts.iter_region_starts`: a start's placement is
-        computed when it runs; without the Kalman start 1 when ``kalman_start`` is False: sampled poles
-        instead; ``sweeps``: scipy YT's sweeps at sampled poles)."""
+                       sweeps: int | None = None, scipy_yt: NDArray | None = None) -> Iterator:
+        """The starts of region mode, lazily (:func:`~.starts.iter_region_starts`; without the Kalman start 1
+        when ``kalman_start`` is False; ``sweeps``, ``scipy_yt``: as there)."""
         return iter_region_starts(self.plant, region, n_starts, rng, self.mask, kalman=self.kalman_start,
-                                  sweeps=sweeps)
+                                  sweeps=sweeps, scipy_yt=scipy_yt)
 
     def _unobservable_outside(self, region: Region) -> ObserverDesign | None:
         unobs = self.plant.unobservable_modes()
@@ -631,8 +630,9 @@ class WellConditionedProblem:
         if use_eng:  # the engine's starts are computed now, the NLP re-uses the first of them
             specs = spec_list = list(itertools.islice(specs, max(n_eng, n_nlp)))
         if use_eng and use_nlp and objective == "eta":  # IPOPT from its own starts (those of route "nlp")
-            specs = list(itertools.islice(self._region_starts(region, n_starts, np.random.default_rng(seed)),
-                                          n_nlp))
+            yt = spec_list[0][1] if spec_list[0][0] == "naive poles + YT" and self.mask is None else None
+            specs = list(itertools.islice(self._region_starts(region, n_starts, np.random.default_rng(seed),
+                                                              scipy_yt=yt), n_nlp))  # scipy's YT once
         with Progress(n_eng + n_nlp + len(warm_specs), "well-conditioned observer", enabled=progress,
                       unit="start") as bar:
             if use_eng:

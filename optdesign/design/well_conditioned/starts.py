@@ -40,14 +40,16 @@ __all__ = [
 RegionStartSpec = tuple[str, NDArray, PoleStructure, NDArray]
 
 
-def better_yt(plant: Plant, poles: NDArray, L0: NDArray | None, region: Region) -> NDArray | None:
+def better_yt(plant: Plant, poles: NDArray, L0: NDArray | None, region: Region,
+              scipy_yt: NDArray | None = None) -> NDArray | None:
     """The better-conditioned of ``L0`` and scipy's YT with scipy's defaults (rtol 1e-3, 30 sweeps).
 
     YT's iterations do not decrease kappa2 monotonically: on COMPleib TG1 at the naive poles scipy's
     defaults (rtol 1e-3, 30 sweeps) give kappa2 9.8e5, ``rtol=1e-6, maxiter=100`` 5.2e6.  ``L0``
-    None: scipy's YT alone (None when it fails too).
+    None: scipy's YT alone (None when it fails too).  ``scipy_yt``: that YT gain when the caller has
+    computed it (not computed again).
     """
-    L1 = placement_start(plant, poles, "YT", rtol=1e-3, maxiter=30)
+    L1 = scipy_yt if scipy_yt is not None else placement_start(plant, poles, "YT", rtol=1e-3, maxiter=30)
     if L1 is None or L0 is None:
         return L0 if L1 is None else L1
 
@@ -338,8 +340,8 @@ def region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Gene
 
 
 def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random.Generator,
-                       mask: NDArray | None, *, kalman: bool = True,
-                       sweeps: int | None = None) -> Iterator[RegionStartSpec]:
+                       mask: NDArray | None, *, kalman: bool = True, sweeps: int | None = None,
+                       scipy_yt: NDArray | None = None) -> Iterator[RegionStartSpec]:
     """The starts of :func:`region_starts`, one at a time: each start's placement is computed only
     when the caller asks for it (a design that stops early computes no placement it does not run).
 
@@ -351,7 +353,8 @@ def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random
     "never worse than scipy YT at the naive poles"); without ``sweeps`` (IPOPT's starts) the better
     of it and place_observer's (rtol 1e-6, 100 sweeps), :func:`better_yt`.  The engine's starts give
     ``sweeps``: place_observer's run was 5-10 % of a small plant's region design (issue 28, COMPleib
-    AC2: 56 ms of 0.6 s).
+    AC2: 56 ms of 0.6 s).  ``scipy_yt``: scipy's YT at the naive poles when the caller has it (the
+    engine's start 0 beside IPOPT's starts; :func:`better_yt`).
     """
     n = plant.n
     observable = plant.is_observable()
@@ -376,7 +379,7 @@ def iter_region_starts(plant: Plant, region: Region, starts: int, rng: np.random
             st = PoleStructure.of(P0)
             if k == 0:  # scipy's YT; for IPOPT's starts (no sweeps) the better of it and place_observer's
                 ours = placement_start(plant, P0, "YT") if sweeps is None and observable else None
-                L0 = better_yt(plant, P0, ours, region) if observable else None
+                L0 = better_yt(plant, P0, ours, region, scipy_yt) if observable else None
             else:
                 L0 = placement_start(plant, P0, "YT", sweeps) if observable else None
             if L0 is None and observable:
