@@ -277,3 +277,28 @@ def test_stages_with_every_member_infeasible_end_without_a_batch():
         assert reasons == ["infeasible start"] * X.shape[0] and not its.any() and not evs.any()
         np.testing.assert_array_equal(Xo, X)
         assert not timed_out
+
+
+def test_eta_keeps_eight_members_after_its_first_stage_and_four_after_its_second(monkeypatch):
+    """eta's cold continuation at n <= 10: after the first stage (k = 4) only the 8 members of lowest
+    value go on, after the second (k = 64) 4 (issue 28, round 16); each prune keeps the lowest values."""
+    import optdesign.engines.eigenstructure_region_lockstep as lk
+
+    models, Xs = _models("compleib_he2", members=6)
+    batch = list(zip(models, [X.copy() for X in Xs], strict=True))
+    assert sum(X.shape[0] for X in Xs) > 8
+    seen: list[tuple[int, int, int, bool]] = []
+    real = lk._prune
+
+    def spy(X, alive, reasons, evaluate, k, mu, keep):
+        idx = np.flatnonzero(alive)
+        f = evaluate(X[idx], idx, k, mu)[0]
+        real(X, alive, reasons, evaluate, k, mu, keep)
+        kept = np.flatnonzero(alive[idx])
+        lowest = set(np.argsort(f)[:keep]) == set(kept) if idx.size > keep else kept.size == idx.size
+        seen.append((k, keep, int(alive.sum()), lowest))
+
+    monkeypatch.setattr(lk, "_prune", spy)
+    lk._region_stages(batch, "eta", lk.ETA_STAGES[:3], Deadline(None))
+    assert [(k, keep) for k, keep, _, _ in seen] == [(4, 8), (64, 4)]
+    assert all(n_alive <= keep and lowest for _, keep, n_alive, lowest in seen)
