@@ -211,6 +211,7 @@ def test_route_eta_caps_the_ipopt_start_beside_the_engine(monkeypatch):
     nothing better than its start); IPOPT alone (``route="nlp"``) keeps the full budget.  The cap is
     set to 3 here so that it bites on a small plant."""
     import optdesign.design.well_conditioned.problem as pm
+    from optdesign.design.well_conditioned.nlp_route import REGION_MAX_ITER
 
     runs: list[tuple[int, list[Candidate]]] = []
     real = pm.nlp_region_runner
@@ -220,7 +221,7 @@ def test_route_eta_caps_the_ipopt_start_beside_the_engine(monkeypatch):
 
         def run(*a, **k):
             hist = runner(*a, **k)
-            runs.append((kwargs["region_max_iter"], hist))
+            runs.append((kwargs["region_max_iter"] or REGION_MAX_ITER, hist))
             return hist
         return run
 
@@ -234,7 +235,7 @@ def test_route_eta_caps_the_ipopt_start_beside_the_engine(monkeypatch):
     assert free and max(free) <= 3
     runs.clear()
     d = WellConditionedProblem(plant, objective="eta", starts=1, route="nlp").solve(region=_REGION)
-    assert d.success and [cap for cap, _ in runs] == [300]
+    assert d.success and [cap for cap, _ in runs] == [REGION_MAX_ITER] == [300]
     assert max(c.iterations for c in runs[0][1] if c.stage == "RegionNLP") > 3
 
 

@@ -37,6 +37,7 @@ from .starts import placement_start
 __all__ = [
     "IPOPT_DEFAULTS",
     "REGION_STAGES",
+    "REGION_MAX_ITER",
     "REGION_POLISHES",
     "ipopt_options",
     "solve_nlp",
@@ -52,6 +53,10 @@ __all__ = [
 #: continuation stages of the free-pole NLP (the fixed-pole polish at its poles runs them all):
 #: on COMPleib AC6 stages 3 and 9 changed kappa2 by < 0.2 % at ~40 % of the time
 REGION_STAGES = (0, 6, 12)
+
+#: IPOPT's iterations per continuation stage of the free-pole NLP (the caller's ``ipopt.max_iter`` when
+#: lower; eta's start beside the engine: ``problem.ETA_NLP_MAX_ITER``)
+REGION_MAX_ITER = 300
 
 #: how a region start polishes (:func:`nlp_region_runner`): ``"full"``, the fixed-pole NLP at the
 #: start's poles and at the free-pole answer's poles, each through its whole continuation; ``"last"``,
@@ -275,7 +280,8 @@ def nlp_fixed_runner(get_nlp: Callable[[Any], Any], target: NDArray, objective: 
 def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dict[str, Any],
                       get_fixed: Callable[[Any], Any], get_region: Callable[[Any], Any],
                       evaluate: Evaluate, deadline: Deadline, *, mask: NDArray | None,
-                      lower_bound: float | None = None, polish: str = "full", region_max_iter: int = 300):
+                      lower_bound: float | None = None, polish: str = "full",
+                      region_max_iter: int | None = None):
     """``runner(L0, structure, first, warm)`` of poles free in ``region``.
 
     Each start contributes (0) its own gain, unoptimized, (A) the fixed-pole NLP at the start's
@@ -283,8 +289,8 @@ def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dic
     at B's poles, from B's gain and from scipy's YT gain there -- each verified; the best is kept,
     so a design is never worse than its start (e.g. scipy YT at the naive poles).  ``polish="last"``
     (:data:`REGION_POLISHES`): no A, and the two C solves run the last stage of the continuation only.
-    ``region_max_iter``: IPOPT's iterations per continuation stage of B (at most 300; the caller's
-    ``ipopt.max_iter`` when lower).
+    ``region_max_iter``: IPOPT's iterations per continuation stage of B (None: :data:`REGION_MAX_ITER`;
+    the caller's ``ipopt.max_iter`` when lower).
 
     A warm start (a converged design of a nearby problem, e.g. the previous point of a sweep) runs
     only what it needs: no A (its gain is already the fixed-pole optimum at its own poles: the
@@ -299,7 +305,8 @@ def nlp_region_runner(plant: Plant, region: Region, objective: str, options: dic
     observable = plant.is_observable()
     rank_c = int(np.linalg.matrix_rank(plant.C))
     region_opts = dict(options)
-    region_opts["ipopt.max_iter"] = min(int(options.get("ipopt.max_iter", 300)), 300, int(region_max_iter))
+    cap = REGION_MAX_ITER if region_max_iter is None else int(region_max_iter)
+    region_opts["ipopt.max_iter"] = min(int(options.get("ipopt.max_iter", cap)), cap)
     light = polish == "last"
 
     def verified(c: Candidate) -> bool:

@@ -650,7 +650,7 @@ class WellConditionedProblem:
                 n_nlp = max(n_nlp, len(spec_list))
             run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
                 attains(bound, e[0], e[3], e[4]) for e in evaluated)))
-            cap = ETA_NLP_MAX_ITER if use_eng and not fallback and objective == "eta" else 300  # not fallback
+            cap = ETA_NLP_MAX_ITER if use_eng and not fallback and objective == "eta" else None
             if run_nlp or fallback:
                 route = "nlp" if not use_eng else "engine+nlp"
                 planned += n_nlp + len(warm_specs)
