@@ -46,10 +46,10 @@ import numpy as np
 
 BASE_COMMIT = "d9d35ed"
 BASE_DIR = "/tmp/region-base-d9d35ed"
-#: the commit before this round's change (the previous stop's final commit: eta's IPOPT start beside the
-#: engine runs up to 300 iterations per stage), made as the base: ``git archive c8323f3``
-PREV_COMMIT = "c8323f3"
-PREV_DIR = "/tmp/region-prev-c8323f3"
+#: the commit before this round's change (the previous stop's final commit: a one-output region no pole
+#: set reaches still runs IPOPT's fallback from every start), made as the base: ``git archive d607c1f``
+PREV_COMMIT = "d607c1f"
+PREV_DIR = "/tmp/region-prev-d607c1f"
 DIRS = {"base": (BASE_COMMIT, BASE_DIR), "prev": (PREV_COMMIT, PREV_DIR)}
 #: seconds of wall time per design (both codes): today's default ran past 120 s on some n = 9-10 plants
 TIME_LIMIT = 150.0

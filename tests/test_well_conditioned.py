@@ -1171,9 +1171,9 @@ COMPLEIB_MEASURED_RTOL = 1e-2
 COMPLEIB_ALL = [n for n in problems.names() if n.startswith("compleib")]
 #: REA4 (n = 8, p = 1, eight unstable modes clustered near 0.6, weakly observable together): no gain
 #: placing the poles in this region is computable in double precision -- scipy YT at the naive poles
-#: and at sampled pole sets lands outside it (||L|| ~ 1e6..1e8), IPOPT stops at the iteration limit
-#: with unverifiable iterates -- and the design must say so (status not_found: local evidence, no
-#: certificate; failed checks named)
+#: and at sampled pole sets lands outside it (||L|| ~ 1e6..1e8), IPOPT stopped at the iteration limit
+#: with unverifiable iterates (it is no longer run there: tests/test_one_output_region.py) -- and the
+#: design must say so (status not_found: local evidence, no certificate; failed checks named)
 COMPLEIB_UNREACHABLE = {"compleib_rea4"}
 
 

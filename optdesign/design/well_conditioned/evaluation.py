@@ -367,15 +367,17 @@ def start_record(idx: int, origin: str, cand: Candidate, m: dict, v: Verificatio
 
 
 def rank_key(obj: float, v: Verification, c: Candidate, idx: int = 0) -> tuple[int, float, int]:
-    """Verified and solved first, then verified (e.g. an iteration limit), then the rest; by objective."""
+    """Verified and solved first, then verified (e.g. an iteration limit), then the rest with a finite
+    gain, then those without; by objective."""
     solved = Status(c.status).is_solved
-    rank = 0 if (v.passed and solved) else 1 if v.passed else 2
+    rank = 0 if (v.passed and solved) else 1 if v.passed else 2 if np.all(np.isfinite(c.L)) else 3
     return (rank, obj if math.isfinite(obj) else float("inf"), idx)
 
 
 def pick_best(evaluated: list[Evaluated]) -> Evaluated:
     """The best of ``(objective, index, metrics, verification, candidate)`` entries: solved and
-    verified first, then verified (e.g. an iteration limit), then the rest; by objective, then index."""
+    verified first, then verified (e.g. an iteration limit), then the rest (a finite gain first); by
+    objective, then index."""
     return min(evaluated, key=lambda e: rank_key(e[0], e[3], e[4], e[1]))
 
 

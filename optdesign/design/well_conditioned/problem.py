@@ -46,8 +46,18 @@ from .evaluation import (
     objective_lower_bound,
 )
 from .nlp_route import REGION_POLISHES, ipopt_options, nlp_fixed_runner, nlp_region_runner, solve_starts
+from .one_output import unplaced_one_output
 from .results import ObserverDesign, StartRecord, n_converged, no_design
-from .route import ENGINE_FIXED, ENGINE_REGION, IPOPT, Phase, proof_route, route_of
+from .route import (
+    ENGINE_FIXED,
+    ENGINE_REGION,
+    IPOPT,
+    Phase,
+    needs_fallback,
+    nlp_detail,
+    proof_route,
+    route_of,
+)
 from .starts import default_region_starts, fixed_starts, iter_region_starts
 
 __all__ = ["WellConditionedProblem", "LocalOptimum", "local_optima", "warm_start_origin", "Objective",
@@ -256,7 +266,8 @@ class WellConditionedProblem:
         Region mode (``_region_plan``; what ran is ``result.route``).  ``"auto"`` (= ``"engine"``): for
         kappa2 / kappa_fro without bounds or structural zeros the placement engine from every start (default
         8 up to n = 12: the naive poles with YT, the Kalman gain, region samples; fewer above), all starts in
-        lockstep, IPOPT only as the fallback when no engine design verifies; IPOPT from every start for
+        lockstep, IPOPT only as the fallback when no engine design verifies (not for one output when no
+        pole set tried lands in the region: :mod:`.one_output`); IPOPT from every start for
         bounds and gain masks; for eta as ``"fast"`` from 16 starts, IPOPT from one (``ETA_NLP_STARTS``,
         ``ETA_NLP_MAX_ITER`` iterations per stage; none above n = 10 or when the engine attains eta's lower
         bound 0; ``benchmarks/results/region_eta.md``: without it, DIS2 0.0606 vs 0.0338).  Against the
@@ -558,7 +569,7 @@ class WellConditionedProblem:
                 bar.update(len(records), note=_note(objective, evaluated))
                 planned = max(n_starts + (warm is not None), len(records))
                 phases.append(Phase(ENGINE_FIXED, "engine", 0, len(records)))
-            if use_nlp or _needs_fallback(evaluated, deadline):
+            if use_nlp or needs_fallback(evaluated, deadline):
                 route = "nlp" if use_nlp else "engine+nlp"
                 sc = self._scaling(float(np.max(np.abs(target))))
                 st = PoleStructure.of(target)
@@ -573,7 +584,7 @@ class WellConditionedProblem:
                                               objective_lower_bound(objective, plant.n), bar, len(records))
                 phases.append(Phase(IPOPT, "backend" if use_nlp else "fallback", len(records),
                                     len(records) + max(len(more_r), 1),
-                                    _nlp_detail(use_nlp, self.mask, bounds)))
+                                    nlp_detail(use_nlp, self.mask, bounds)))
                 records, evaluated = records + more_r, evaluated + more_e
         return result_from(plant, records, evaluated, objective=objective, target=target, region=None,
                            deadline=deadline, planned=planned, route=route, phases=phases)
@@ -645,8 +656,13 @@ class WellConditionedProblem:
                                                    deadline=deadline, evaluate=evaluate, lower_bound=bound,
                                                    progress=bar)
                 phases.append(Phase(ENGINE_REGION, "engine", 0, len(records)))
-            fallback = use_eng and _needs_fallback(evaluated, deadline)
-            if fallback:  # no engine design verified: IPOPT from every start the engine ran
+            fallback = use_eng and needs_fallback(evaluated, deadline)
+            unplaced = unplaced_one_output(plant, region, objective, spec_list, rng, evaluate, len(records)) \
+                if fallback else None
+            if unplaced:  # one output, no pole set tried placeable: neither IPOPT's fallback nor its start
+                fallback, use_nlp, (more_r, more_e, more_p) = False, False, unplaced
+                records, evaluated, phases = records + more_r, evaluated + more_e, phases + more_p
+            if fallback:  # no engine design verified: IPOPT from every start the engine ran (eta: its own)
                 n_nlp = max(n_nlp, len(spec_list))
             run_nlp = use_nlp and not (use_eng and (deadline.expired or any(
                 attains(bound, e[0], e[3], e[4]) for e in evaluated)))
@@ -664,7 +680,7 @@ class WellConditionedProblem:
                 more_r, more_e = solve_starts(nlp_specs, runner, objective, evaluate, deadline, bound, bar,
                                               len(records))
                 kind = "fallback" if fallback else "backend"
-                detail = _nlp_detail(not fallback, self.mask, bounds)
+                detail = nlp_detail(not fallback, self.mask, bounds)
                 if use_eng and not fallback:
                     detail = f"{len(more_r)} start{'s' if len(more_r) != 1 else ''}, beside the engine's"
                 elif not use_eng and engine_ok:
@@ -751,22 +767,6 @@ def _as_seed(seed: Any) -> int | list[int]:
 def _int_seed(seed: int | list[int]) -> int:
     """One integer seed (for the placement engine) from a seed or a SeedSequence entropy."""
     return seed if isinstance(seed, int) else int(np.random.SeedSequence(seed).generate_state(1)[0])
-
-
-def _needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
-    """The NLP route after the engine: when no engine start verified -- with time left, or without a
-    single finite gain to answer with (the NLP route's first start always runs, as the verb promises)."""
-    if any(e[3].passed for e in evaluated):
-        return False
-    return not deadline.expired or not any(np.all(np.isfinite(e[4].L)) for e in evaluated)
-
-
-def _nlp_detail(asked: bool, mask: NDArray | None, bounds: dict[str, float | None]) -> str:
-    """Why the NLP ran: the constraints the engine does not take, or a fallback."""
-    if not asked:
-        return "fallback: no engine design verified"
-    why = [k for k, v in bounds.items() if v is not None] + (["gain_mask"] if mask is not None else [])
-    return ("for " + ", ".join(why)) if why else "asked (route='nlp')"
 
 
 def _note(objective: str, evaluated: list[Evaluated]) -> str:

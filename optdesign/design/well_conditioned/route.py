@@ -14,11 +14,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ..._deadline import Deadline
 from ...results import Route, Stage, Status
 from .evaluation import Evaluated
 
-__all__ = ["Phase", "route_of", "ENGINE_FIXED", "ENGINE_REGION", "IPOPT", "proof_route"]
+__all__ = ["Phase", "route_of", "ENGINE_FIXED", "ENGINE_REGION", "IPOPT", "proof_route", "needs_fallback",
+           "nlp_detail"]
 
 #: stage names of the phases
 ENGINE_FIXED = "eigenstructure_engine/fixed_poles"
@@ -82,3 +85,19 @@ def route_of(phases: list[Phase], evaluated: list[Evaluated], best_index: int | 
 def proof_route(name: str) -> Route:
     """The route of an answer from a proof (``infeasible`` before any solver ran)."""
     return Route([Stage(name, "certificate", "infeasible")])
+
+
+def needs_fallback(evaluated: list[Evaluated], deadline: Deadline) -> bool:
+    """The NLP route after the engine: when no engine start verified -- with time left, or without a
+    single finite gain to answer with (the NLP route's first start always runs, as the verb promises)."""
+    if any(e[3].passed for e in evaluated):
+        return False
+    return not deadline.expired or not any(np.all(np.isfinite(e[4].L)) for e in evaluated)
+
+
+def nlp_detail(asked: bool, mask: NDArray | None, bounds: dict[str, float | None]) -> str:
+    """Why the NLP ran: the constraints the engine does not take, or a fallback."""
+    if not asked:
+        return "fallback: no engine design verified"
+    why = [k for k, v in bounds.items() if v is not None] + (["gain_mask"] if mask is not None else [])
+    return ("for " + ", ".join(why)) if why else "asked (route='nlp')"
