@@ -6,7 +6,8 @@ A design runs its starts in phases; each phase covers a contiguous range of star
 (:class:`Phase`).  :func:`route_of` turns the phases and the evaluated starts into the result's route:
 the phase holding the returned start is ``answered``; the others say how they ended (their best
 verified start's status, ``unchanged`` for a polish that did not improve, ``rejected`` when none of
-their designs passed the independent checks, ``skipped`` when they ran no start).
+their designs passed the independent checks, ``skipped`` when they ran no start).  Also when IPOPT runs
+after the engine (:func:`needs_fallback`) and what its stage says why (:func:`nlp_detail`).
 """
 
 from __future__ import annotations
