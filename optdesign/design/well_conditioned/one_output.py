@@ -74,7 +74,7 @@ def unplaced_one_output(plant: Plant, region: Region, objective: str, specs: Seq
     if plant.p != 1:
         return None
     t0 = time.perf_counter()
-    tried = [(o, L0) for o, L0, _, P0 in specs if L0 is not None and P0 is not None and region.contains(P0)]
+    tried = [(o, L0) for o, L0, _, P0 in specs if region.contains(P0)]
     for k in range(samples):
         P = region.sample_poles(plant.n, rng, n_real=start_real_count(plant.n, k))
         L = placement_start(plant, P, "YT")
@@ -87,7 +87,7 @@ def unplaced_one_output(plant: Plant, region: Region, objective: str, specs: Seq
         cand = Candidate(np.asarray(L, dtype=float), None, None, Status.SOLVED, "direct", "", 0, 0.0,
                          stage="start gain", backend="start")
         m, v = evaluate(cand)
-        if "region_margin" not in v or v["region_margin"].passed:
+        if v["region_margin"].passed:
             return None
         checked.append((origin, cand, m, v))
     checked.sort(key=lambda c: float(c[3]["region_margin"].value))  # the closest to the region first
@@ -97,8 +97,9 @@ def unplaced_one_output(plant: Plant, region: Region, objective: str, specs: Seq
               "IPOPT's fallback was not run (route='nlp' runs it)")
     records: list[StartRecord] = []
     evaluated: list[Evaluated] = []
+    each = (time.perf_counter() - t0) / len(checked)
     for i, (origin, cand, m, v) in enumerate(checked):
-        cand.message, cand.time = f"scipy YT's gain: {reason}", (time.perf_counter() - t0) / len(checked)
+        cand.message, cand.time = f"the placed gain: {reason}", each
         obj = metric_of(objective, m)
         records.append(start_record(first + i, origin, cand, m, v, obj, cand.message))
         evaluated.append((obj, first + i, m, v, cand))
