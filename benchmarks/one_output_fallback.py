@@ -9,7 +9,8 @@ Plant ``t``: n = 4..9, ``A`` with eigenvalues uniform in [-0.5, 0.7] (a random s
 ``suggested_region``; the default verb, ``time_limit=150``.  For every design whose route skipped IPOPT's
 fallback (the one-output check), ``route="nlp"`` (IPOPT from every start) is run as well: does it verify?
 Round 17 (the previous code, seed 7, 80 plants, and seed 11, 29): 10 of 109 designs reached the fallback, none
-verified (46-129 s each); the check skips it on 1 (124 s -> 1.7 s).  Hours of CPU at the default count.
+verified (46-129 s each); the check skips it on 1 (112.9 s -> 1.7 s, back to back).  Hours of CPU
+at the default count.
 """
 
 from __future__ import annotations
